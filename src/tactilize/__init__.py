@@ -1,0 +1,52 @@
+"""tactilize: turn pictures of surfaces into touch.
+
+The public API, re-exported lazily so that ``import tactilize`` stays light
+(numpy, scipy and Pillow load on first use of a name that needs them)::
+
+    import tactilize as tz
+    img = tz.load_image("cloth.jpg", dpi=300)
+    feat = tz.extract_features(img)
+    drv = tz.Profile.preset("paper").drive(feat, speed_m_s=0.06)
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+__version__ = "0.1.0"
+
+# public name -> module that defines it
+_EXPORTS = {
+    "TactilizeError": "errors",
+    "ImageError": "errors",
+    "ProfileError": "errors",
+    "DriveError": "errors",
+    "TextureImage": "image",
+    "load_image": "image",
+    "TextureFeatures": "features",
+    "extract_features": "features",
+    "radial_profile": "features",
+    "TextureMap": "texturemap",
+    "texture_map": "texturemap",
+    "Drive": "mapping",
+    "ActuatorLimits": "mapping",
+    "Profile": "mapping",
+    "preset_names": "mapping",
+    "pulse_train": "synthesis",
+}
+
+__all__ = sorted(_EXPORTS) + ["__version__"]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'tactilize' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return __all__

@@ -1,0 +1,1 @@
+"""Actuator outputs and models: every output implements :class:`tactilize.actuators.base.Output`."""

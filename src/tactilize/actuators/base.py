@@ -1,0 +1,66 @@
+"""The one protocol every output implements (simulated wire, serial controller, audio).
+
+An output receives one :class:`~tactilize.mapping.Drive` per channel (the pen has
+two actuators) with :meth:`Output.apply`, and :meth:`Output.stop` turns every
+channel off.  Outputs are context managers: leaving the ``with`` block stops and
+closes them, so an exception never leaves an actuator heating.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol, Sequence, runtime_checkable
+
+from ..mapping import Drive
+
+
+@runtime_checkable
+class Output(Protocol):
+    """Something that turns drives into actuator motion (or sound, or a file)."""
+
+    #: number of channels this output drives
+    channels: int
+
+    def apply(self, channels: Sequence[Drive]) -> list[Drive]:
+        """Set every channel's drive at once.
+
+        Returns the drives actually applied, after the actuator's safety envelope
+        (their ``clamped`` names what it changed).
+        """
+        ...
+
+    def stop(self) -> None:
+        """Turn every channel off at once."""
+        ...
+
+    def close(self) -> None:
+        """Stop and release the device."""
+        ...
+
+    def __enter__(self) -> "Output": ...
+
+    def __exit__(self, *exc: object) -> None: ...
+
+
+class OutputBase:
+    """Shared plumbing: context manager and a check on the number of channels."""
+
+    channels: int = 2
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self.stop()
+
+    def _check(self, channels: Sequence[Drive]) -> list[Drive]:
+        drives = list(channels)
+        if len(drives) > self.channels:
+            raise ValueError(f"{type(self).__name__} has {self.channels} channels, got {len(drives)} drives")
+        for d in drives:
+            if not isinstance(d, Drive):
+                raise TypeError(f"expected Drive, got {type(d).__name__}")
+        # Channels not mentioned are off: a shorter list must never leave one running.
+        return drives + [Drive.off()] * (self.channels - len(drives))

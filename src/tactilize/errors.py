@@ -1,0 +1,38 @@
+"""The exceptions tactilize raises for bad input.
+
+Every fault a user can cause has one exception type, all derived from
+:class:`TactilizeError`.  Each message names the input (a file path, ``<bytes>``,
+``<array>``, a profile name...) and what is wrong with it, so that the CLI can
+print it as one line and exit with status 2.
+"""
+
+from __future__ import annotations
+
+
+class TactilizeError(Exception):
+    """Base class of every error caused by bad input.
+
+    Parameters
+    ----------
+    source : str
+        What the faulty input is (a path, ``<bytes>``, ``<array>``, a name).
+    fault : str
+        What is wrong with it, in a few words.
+    """
+
+    def __init__(self, source: str, fault: str):
+        self.source = str(source)
+        self.fault = str(fault)
+        super().__init__(f"{self.source}: {self.fault}")
+
+
+class ImageError(TactilizeError):
+    """An image cannot be read or analysed (unreadable, truncated, empty, too large, non-finite...)."""
+
+
+class ProfileError(TactilizeError):
+    """A profile (preset name or TOML file) is unknown, unreadable or invalid."""
+
+
+class DriveError(TactilizeError):
+    """A drive or drive request is invalid (negative speed, NaN, out-of-range value...)."""
