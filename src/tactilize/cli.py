@@ -1,0 +1,167 @@
+"""The command line: parse, call the library, print.  Nothing else lives here.
+
+Every command that reports takes ``--json`` and then prints exactly one JSON
+document on stdout.  Bad input (any :class:`~tactilize.errors.TactilizeError`)
+prints one line on stderr naming the input and the fault and exits with status 2.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+from typing import Any
+
+import click
+
+from .errors import TactilizeError
+
+BAD_INPUT = 2
+
+
+class _Group(click.Group):
+    """Turns library errors into one line and exit status 2, never a traceback."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except TactilizeError as exc:
+            click.echo(f"tactilize: {exc.source}: {exc.fault}", err=True)
+            ctx.exit(BAD_INPUT)
+        except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
+            raise
+        except KeyboardInterrupt:
+            click.echo("tactilize: interrupted", err=True)
+            ctx.exit(130)
+        except Exception as exc:  # a bug, not bad input: still one line, unless asked
+            if os.environ.get("TACTILIZE_DEBUG"):
+                raise
+            click.echo(
+                f"tactilize: internal error: {exc.__class__.__name__}: {exc} (set TACTILIZE_DEBUG=1 for a traceback)",
+                err=True,
+            )
+            ctx.exit(1)
+
+
+def emit_json(doc: Any) -> None:
+    """Print one JSON document (NaN and infinities become null, as JSON has none)."""
+    click.echo(json.dumps(_jsonable(doc), indent=2, sort_keys=False))
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if hasattr(x, "item") and callable(x.item):  # numpy scalars
+        return _jsonable(x.item())
+    return x
+
+
+def _positive(name: str):
+    def check(ctx, param, value):
+        if value is not None and (not math.isfinite(value) or value <= 0):
+            raise TactilizeError(f"--{name}", f"must be a positive number, got {value}")
+        return value
+
+    return check
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="tactilize")
+def main() -> None:
+    """tactilize: turn pictures of surfaces into touch."""
+
+
+# ----------------------------------------------------------------- analyze / drive
+
+
+@main.command()
+@click.argument("images", nargs=-1, required=True)
+@click.option("--dpi", type=float, callback=_positive("dpi"), help="Pixels per inch of the displayed image.")
+@click.option("--width-mm", type=float, callback=_positive("width-mm"), help="Displayed width of the image [mm].")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
+def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, as_json: bool) -> None:
+    """Measure the texture features of IMAGE(s)."""
+    from .features import extract_features
+    from .image import load_image
+
+    if dpi is not None and width_mm is not None:
+        raise TactilizeError("--dpi/--width-mm", "give one of them, not both")
+    rows = []
+    for path in images:
+        img = load_image(path, dpi=dpi, width_mm=width_mm)
+        feat = extract_features(img)
+        rows.append({"image": path, **img.describe(), **feat.to_dict()})
+    if as_json:
+        emit_json(rows[0] if len(rows) == 1 else rows)
+        return
+    for row in rows:
+        click.echo(
+            f"{row['image']}\n"
+            f"  size                {row['width_px']} x {row['height_px']} px, {row['width_mm']:.1f} x {row['height_mm']:.1f} mm\n"
+            f"  spatial frequency   {row['spatial_frequency_per_m']:.1f} cycles/m (wavelength {row['wavelength_mm']:.3f} mm)\n"
+            f"  spectral intensity  {row['spectral_intensity']:.3f}\n"
+            f"  modulation depth    {row['modulation_depth']:.3f}   periodicity {row['periodicity']:.3f}\n"
+            f"  orientation         {row['orientation_deg']:.1f} deg   anisotropy {row['anisotropy']:.3f}\n"
+            f"  contrast            {row['contrast']:.3f}   roughness {row['roughness_per_mm']:.3f} /mm"
+        )
+
+
+@main.command()
+@click.argument("image")
+@click.option("--speed", "speed_mm_s", type=float, required=True, help="Stroking speed [mm/s].")
+@click.option("--direction-deg", type=float, default=None, help="Stroke direction [deg], counter-clockwise from +x.")
+@click.option("--profile", "profile_name", default="paper", show_default=True, help="Preset name or TOML file.")
+@click.option("--dpi", type=float, callback=_positive("dpi"), help="Pixels per inch of the displayed image.")
+@click.option("--width-mm", type=float, callback=_positive("width-mm"), help="Displayed width of the image [mm].")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
+def drive(
+    image: str,
+    speed_mm_s: float,
+    direction_deg: float | None,
+    profile_name: str,
+    dpi: float | None,
+    width_mm: float | None,
+    as_json: bool,
+) -> None:
+    """The pulse drive for IMAGE stroked at a speed."""
+    from .features import extract_features
+    from .image import load_image
+    from .mapping import Profile
+
+    if not math.isfinite(speed_mm_s) or speed_mm_s < 0:
+        raise TactilizeError("--speed", f"must be a number >= 0 mm/s, got {speed_mm_s}")
+    profile = Profile.resolve(profile_name)
+    img = load_image(image, dpi=dpi, width_mm=width_mm)
+    feat = extract_features(img)
+    direction = math.radians(direction_deg) if direction_deg is not None else None
+    drv = profile.drive(feat, speed_m_s=speed_mm_s / 1e3, direction_rad=direction)
+    doc = {
+        "image": image,
+        "profile": profile.name,
+        "speed_mm_s": speed_mm_s,
+        "spatial_frequency_per_m": feat.spatial_frequency_per_m,
+        "spectral_intensity": feat.spectral_intensity,
+        "orientation_deg": feat.orientation_deg,
+        **drv.to_dict(),
+    }
+    if as_json:
+        emit_json(doc)
+        return
+    clamp = ", ".join(drv.clamped) if drv.clamped else "none"
+    click.echo(
+        f"{image} at {speed_mm_s:g} mm/s, profile {profile.name}\n"
+        f"  pulse frequency  {drv.pulse_frequency_hz:.1f} Hz\n"
+        f"  pulse width      {drv.pulse_width_s * 1e3:.3f} ms\n"
+        f"  duty ratio       {drv.duty_ratio * 100:.2f} %\n"
+        f"  amplitude        {drv.amplitude:.2f}\n"
+        f"  clamped by       {clamp}"
+    )
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
