@@ -1,0 +1,527 @@
+"""Texture features from the 2-D Fourier transform of an image.
+
+The paper extracts two numbers from an image's Fourier transform: the spatial
+frequency of its dominant periodic component, ``f_s`` [cycles/m], and that
+component's *spectral intensity* ``i_s`` in [0, 1] (FACTS.md section 1).  This
+module measures them, plus what the paper names as future work: descriptors
+of textures that are not periodic (contrast, roughness, orientation and
+anisotropy, Tamura coarseness and directionality).
+
+Everything is measured in cycles per pixel and converted to cycles per metre
+with the image's pixel pitch, so :meth:`TextureFeatures.at_pitch` gives the
+same texture shown at another size without a new FFT.
+
+Conventions
+-----------
+Angles are counter-clockwise from the image's +x axis (rightwards) with y
+pointing *up* the picture, in degrees for ``orientation_deg``.  The wave vector
+is perpendicular to the ridges of a grating: vertical stripes have orientation 0.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+import scipy.fft
+
+from .image import TextureImage
+
+__all__ = ["TextureFeatures", "extract_features", "analyse_stack", "radial_profile", "NO_PEAK"]
+
+#: Images smaller than this on a side carry no measurable periodic structure.
+MIN_SIDE_PX = 4
+
+#: below this fraction of the 8-bit quantisation noise power the image counts as constant
+_FLAT_VARIANCE = (1.0 / 255.0) ** 2 / 12.0 * 1e-3
+
+# 2-D periodic Hann window: coherent gain 1/2 per axis, power gain 3/8 per axis.
+_HANN_CG2 = 0.25
+_HANN_PG2 = (3.0 / 8.0) ** 2
+
+
+@dataclass(frozen=True)
+class TextureFeatures:
+    """What the Fourier transform says about a texture.
+
+    Stored in per-pixel units with the pitch they were measured at; every
+    physical value is a property, so :meth:`at_pitch` rescales for free.
+
+    Attributes
+    ----------
+    wave_vector_per_px : (float, float)
+        Dominant wave vector (kx, ky) [cycles/pixel], y up, refined below one
+        bin.  (0, 0) when the image has no periodic content.
+    pitch_m : (float, float)
+        (x, y) pixel pitch [m] of the displayed image.
+    shape : (int, int)
+        (height, width) [pixels] of the analysed image.
+    spectral_intensity : float
+        The paper's i_s in [0, 1]: ln(1 + |F(k*)|) / ln(1 + |F(0)|) for the
+        unnormalised DFT of the image as 8-bit grey (FACTS.md section 1).  It
+        grows with image size; use ``modulation_depth`` to compare sizes.
+    peak_amplitude : float
+        Amplitude of the dominant sinusoid in grey levels (0..0.5 for [0, 1]).
+    mean_level : float
+        Mean grey level in [0, 1].
+    periodicity : float
+        Share of the (windowed) AC power in the dominant peak, in [0, 1]:
+        ~1 for a pure grating, ~0 for white noise.  Size-independent.
+    contrast : float
+        RMS contrast: standard deviation of grey levels (windowed estimate).
+    spectral_moments_per_px2 : (float, float, float)
+        <kx^2>, <ky^2>, <kx ky> of the AC power spectrum [cycles^2/pixel^2].
+    radial : tuple of ndarray or None
+        (radius [cycles/pixel], mean power) when asked for.
+    tamura : dict or None
+        ``coarseness_px`` and ``directionality`` when asked for.
+    """
+
+    wave_vector_per_px: tuple[float, float]
+    pitch_m: tuple[float, float]
+    shape: tuple[int, int]
+    spectral_intensity: float
+    peak_amplitude: float
+    mean_level: float
+    periodicity: float
+    contrast: float
+    spectral_moments_per_px2: tuple[float, float, float]
+    radial: tuple[np.ndarray, np.ndarray] | None = field(default=None, compare=False, repr=False)
+    tamura: dict[str, float] | None = field(default=None, compare=False)
+
+    # -------------------------------------------------------------- physical values
+
+    @property
+    def has_peak(self) -> bool:
+        """False for images with no AC content at all (constant, or too small)."""
+        return self.wave_vector_per_px != (0.0, 0.0)
+
+    @property
+    def wave_vector_per_m(self) -> tuple[float, float]:
+        """Dominant wave vector [cycles/m], y up."""
+        return (self.wave_vector_per_px[0] / self.pitch_m[0], self.wave_vector_per_px[1] / self.pitch_m[1])
+
+    @property
+    def spatial_frequency_per_m(self) -> float:
+        """Dominant spatial frequency f_s [cycles/m] of the displayed image; 0 when none."""
+        kx, ky = self.wave_vector_per_m
+        return math.hypot(kx, ky)
+
+    @property
+    def wavelength_m(self) -> float:
+        """Period of the dominant component [m]; ``inf`` when there is none."""
+        f = self.spatial_frequency_per_m
+        return 1.0 / f if f > 0 else math.inf
+
+    @property
+    def orientation_deg(self) -> float:
+        """Direction of the dominant wave vector [deg] in [0, 180); 0 when none."""
+        if not self.has_peak:
+            return 0.0
+        kx, ky = self.wave_vector_per_m
+        return math.degrees(math.atan2(ky, kx)) % 180.0
+
+    @property
+    def modulation_depth(self) -> float:
+        """Michelson-like depth of the dominant component, amplitude / mean, in [0, 1].
+
+        Independent of image size, unlike ``spectral_intensity``: a full-contrast
+        grating 0.5 + 0.5 cos gives 1.
+        """
+        if self.mean_level <= 0:
+            return 0.0
+        return float(min(1.0, self.peak_amplitude / self.mean_level))
+
+    def _physical_moments(self) -> tuple[float, float, float]:
+        mxx, myy, mxy = self.spectral_moments_per_px2
+        px, py = self.pitch_m
+        return mxx / px**2, myy / py**2, mxy / (px * py)
+
+    @property
+    def anisotropy(self) -> float:
+        """How much the spectrum is concentrated along one direction, in [0, 1].
+
+        (l1 - l2) / (l1 + l2) of the spectral second-moment tensor in physical
+        units: 1 for a grating, ~0 for isotropic noise, 0 for a constant image.
+        """
+        sxx, syy, sxy = self._physical_moments()
+        tr = sxx + syy
+        if tr <= 0:
+            return 0.0
+        return float(min(1.0, math.sqrt((sxx - syy) ** 2 + 4 * sxy**2) / tr))
+
+    @property
+    def rms_frequency_per_m(self) -> float:
+        """Power-weighted RMS spatial frequency [cycles/m]: where the energy sits."""
+        sxx, syy, _ = self._physical_moments()
+        return math.sqrt(max(0.0, sxx + syy))
+
+    @property
+    def roughness_per_m(self) -> float:
+        """RMS gradient of the grey level [1/m] (grey units per metre), by Parseval:
+        2 pi * contrast * RMS frequency.  A non-periodic roughness measure."""
+        return 2 * math.pi * self.contrast * self.rms_frequency_per_m
+
+    @property
+    def roughness_per_mm(self) -> float:
+        """RMS grey-level gradient [1/mm]."""
+        return self.roughness_per_m * 1e-3
+
+    @property
+    def coarseness_m(self) -> float | None:
+        """Tamura coarseness [m] (typical size of texture elements), if computed."""
+        if self.tamura is None:
+            return None
+        return self.tamura["coarseness_px"] * math.sqrt(self.pitch_m[0] * self.pitch_m[1])
+
+    @property
+    def directionality(self) -> float | None:
+        """Tamura directionality in [0, 1] (1: one sharp edge direction), if computed."""
+        return None if self.tamura is None else self.tamura["directionality"]
+
+    # -------------------------------------------------------------- rescaling, export
+
+    def at_pitch(self, pitch_m: float | tuple[float, float]) -> "TextureFeatures":
+        """The same texture displayed at another pixel pitch [m]; no new FFT."""
+        px, py = (pitch_m, pitch_m) if np.isscalar(pitch_m) else pitch_m  # type: ignore[misc]
+        if not (px > 0 and py > 0 and math.isfinite(px) and math.isfinite(py)):
+            raise ValueError(f"pitch must be positive and finite, got {pitch_m!r}")
+        return dataclasses.replace(self, pitch_m=(float(px), float(py)))
+
+    def at_dpi(self, dpi: float) -> "TextureFeatures":
+        """The same texture displayed at ``dpi`` pixels per inch."""
+        return self.at_pitch(0.0254 / dpi)
+
+    def radial_profile_per_m(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(spatial frequency [cycles/m], mean power) if the profile was computed."""
+        if self.radial is None:
+            return None
+        r, p = self.radial
+        return r / math.sqrt(self.pitch_m[0] * self.pitch_m[1]), p
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-ready mapping, SI units plus a few mm values for display."""
+        d: dict[str, Any] = {
+            "spatial_frequency_per_m": self.spatial_frequency_per_m,
+            "wavelength_mm": self.wavelength_m * 1e3,
+            "spectral_intensity": self.spectral_intensity,
+            "modulation_depth": self.modulation_depth,
+            "periodicity": self.periodicity,
+            "orientation_deg": self.orientation_deg,
+            "anisotropy": self.anisotropy,
+            "contrast": self.contrast,
+            "mean_level": self.mean_level,
+            "roughness_per_mm": self.roughness_per_mm,
+            "rms_frequency_per_m": self.rms_frequency_per_m,
+            "has_peak": self.has_peak,
+            "pitch_m": list(self.pitch_m),
+        }
+        if self.tamura is not None:
+            d["coarseness_mm"] = (self.coarseness_m or 0.0) * 1e3
+            d["directionality"] = self.directionality
+        if self.radial is not None:
+            f, p = self.radial_profile_per_m()  # type: ignore[misc]
+            d["radial_profile"] = {"spatial_frequency_per_m": f.tolist(), "power": p.tolist()}
+        return d
+
+
+def _no_peak(shape: tuple[int, int], pitch: tuple[float, float], mean: float) -> TextureFeatures:
+    return TextureFeatures((0.0, 0.0), pitch, shape, 0.0, 0.0, float(mean), 0.0, 0.0, (0.0, 0.0, 0.0))
+
+
+#: The documented values of an image with no AC content (constant): every
+#: spectral value 0, orientation 0, ``has_peak`` False.  Never NaN.
+NO_PEAK = _no_peak((0, 0), (1.0, 1.0), 0.0)
+
+
+# ------------------------------------------------------------------ the analysis
+
+
+@lru_cache(maxsize=32)
+def _window(h: int, w: int) -> np.ndarray:
+    """Separable periodic Hann window, float32 (H, W).  Periodic, not symmetric, so
+    its DFT is exactly three taps per axis and the peak interpolation is exact."""
+    wy = (0.5 - 0.5 * np.cos(2 * np.pi * np.arange(h) / h)).astype(np.float32)
+    wx = (0.5 - 0.5 * np.cos(2 * np.pi * np.arange(w) / w)).astype(np.float32)
+    out = np.outer(wy, wx)
+    out.setflags(write=False)
+    return out
+
+
+@lru_cache(maxsize=32)
+def _moment_basis(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
+    """Columns [weight, weight*kx, weight*kx^2] over the rfft columns, and signed ky per row.
+
+    The weight counts each stored rfft column for itself and its mirror, so sums
+    over the half spectrum equal sums over the full one.
+    """
+    ncol = w // 2 + 1
+    kx = np.arange(ncol, dtype=np.float64) / w
+    weight = np.full(ncol, 2.0)
+    weight[0] = 1.0
+    if w % 2 == 0:
+        weight[-1] = 1.0
+    basis = np.stack([weight, weight * kx, weight * kx**2], axis=1).astype(np.float32)
+    ky_down = scipy.fft.fftfreq(h)  # rows run down the picture
+    return basis, ky_down
+
+
+def _hann_response(d: np.ndarray) -> np.ndarray:
+    """|DFT| of a periodic Hann window at offset d bins, normalised to 1 at d = 0."""
+    d = np.asarray(d, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.sinc(d) / (1.0 - d * d)
+    return np.where(np.abs(np.abs(d) - 1.0) < 1e-9, 0.5, r)
+
+
+def _hann_offset(a_minus: np.ndarray, a0: np.ndarray, a_plus: np.ndarray) -> np.ndarray:
+    """Sub-bin offset of a tone from three Hann-windowed DFT magnitudes.
+
+    For a periodic Hann window and a single tone, the ratio of the larger
+    neighbour to the peak, a, gives the offset exactly: d = (2a - 1) / (a + 1).
+    """
+    right = a_plus >= a_minus
+    nb = np.where(right, a_plus, a_minus)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a = np.where(a0 > 0, nb / a0, 0.0)
+    d = np.clip((2 * a - 1) / (a + 1), 0.0, 0.5)
+    return np.where(right, d, -d)
+
+
+def analyse_stack(
+    stack: np.ndarray,
+    pitch_m: tuple[float, float],
+    *,
+    radial: bool = False,
+    workers: int = 1,
+) -> list[TextureFeatures]:
+    """Features of every image in a stack of equal-sized grey images.
+
+    Parameters
+    ----------
+    stack : ndarray, shape (B, H, W)
+        Grey levels in [0, 1]; float32 is used as is.
+    pitch_m : (float, float)
+        Pixel pitch [m] shared by all images.
+    radial : bool
+        Also compute each image's radial power profile.
+    workers : int
+        Threads for the FFT (scipy.fft's ``workers``).
+
+    Returns
+    -------
+    list of TextureFeatures
+        One per image, in order.  Used by :func:`extract_features` (B = 1) and by
+        the texture map (one image per tile, one batched FFT).
+    """
+    stack = np.asarray(stack, dtype=np.float32)
+    b, h, w = stack.shape
+    if h < MIN_SIDE_PX or w < MIN_SIDE_PX:
+        means = stack.reshape(b, -1).mean(axis=1) if h * w else np.zeros(b)
+        return [_no_peak((h, w), pitch_m, float(m)) for m in means]
+
+    n = h * w
+    # Mean removal then window: the mean would otherwise leak into the bins next to DC.
+    # float32 pairwise summation: accurate to ~1e-7 relative, and one cheap pass.
+    means = stack.mean(axis=(1, 2), dtype=np.float32).astype(np.float64)
+    spec = scipy.fft.rfft2(stack * _window(h, w), workers=workers, overwrite_x=True)
+    # Remove the mean after the FFT instead of before it (one pass fewer): the
+    # periodic Hann window's DFT is exactly (N/2, -N/4, -N/4) on bins (0, +1, -1),
+    # so the windowed mean lives only in the 3 x 2 stored bins around DC.
+    taps_y = {0: h / 2.0, 1: -h / 4.0, -1: -h / 4.0}
+    taps_x = {0: w / 2.0, 1: -w / 4.0}
+    for ky, ty in taps_y.items():
+        for kx, tx in taps_x.items():
+            spec[:, ky, kx] -= (means * (ty * tx)).astype(spec.dtype)
+    power = np.square(spec.real)
+    power += np.square(spec.imag)
+    power[:, 0, 0] = 0.0  # no DC: the mean is not texture
+
+    # Second moments of the full AC spectrum through one matrix product (BLAS) per image.
+    basis, ky_down = _moment_basis(h, w)
+    marg = power @ basis  # (B, H, 3): per row, sum P, sum P kx, sum P kx^2
+    s0 = marg[:, :, 0].astype(np.float64).sum(axis=1)
+    sxx = marg[:, :, 2].astype(np.float64).sum(axis=1)
+    syy = (marg[:, :, 0].astype(np.float64) * ky_down**2).sum(axis=1)
+    sxy_down = (marg[:, :, 1].astype(np.float64) * ky_down).sum(axis=1)
+
+    flat_idx = power.reshape(b, -1).argmax(axis=1)
+    iy, ix = np.divmod(flat_idx, power.shape[2])
+
+    def mag(ky: np.ndarray, kx: np.ndarray) -> np.ndarray:
+        # |F| at signed bins (ky, kx), using Hermitian symmetry for kx < 0.
+        neg = kx < 0
+        kyy = np.where(neg, -ky, ky) % h
+        kxx = np.abs(kx)
+        ok = kxx < power.shape[2]
+        kxx = np.minimum(kxx, power.shape[2] - 1)
+        vals = power[np.arange(b), kyy, kxx]
+        return np.sqrt(np.where(ok, vals, 0.0).astype(np.float64))
+
+    ky_signed = np.where(iy > h // 2, iy - h, iy)
+    if h % 2 == 0:
+        ky_signed = np.where(iy == h // 2, iy, ky_signed)
+    kx0 = ix
+    a0 = mag(ky_signed, kx0)
+    dx = _hann_offset(mag(ky_signed, kx0 - 1), a0, mag(ky_signed, kx0 + 1))
+    dy = _hann_offset(mag(ky_signed - 1, kx0), a0, mag(ky_signed + 1, kx0))
+    kx_px = (kx0 + dx) / w
+    ky_px_down = (ky_signed + dy) / h
+
+    # Amplitude of the sinusoid: undo the window's coherent gain and scalloping loss.
+    amp = 2.0 * a0 / (n * _HANN_CG2 * _hann_response(dx) * _hann_response(dy))
+
+    # Power in the peak's 3 x 3 neighbourhood, for it and its mirror image.
+    peak_power = np.zeros(b)
+    for oy in (-1, 0, 1):
+        for ox in (-1, 0, 1):
+            peak_power += mag(ky_signed + oy, kx0 + ox) ** 2
+    full_ac = s0
+
+    variance = s0 / (n * n * _HANN_PG2)
+    out: list[TextureFeatures] = []
+    radial_profiles = _radial_from_power(power, h, w) if radial else [None] * b
+    for i in range(b):
+        mean = float(means[i])
+        if variance[i] <= _FLAT_VARIANCE or s0[i] <= 0:
+            out.append(dataclasses.replace(_no_peak((h, w), pitch_m, mean), radial=radial_profiles[i]))
+            continue
+        a = float(amp[i])
+        f0 = 255.0 * mean * n
+        fk = 255.0 * 0.5 * a * n
+        i_s = math.log1p(fk) / math.log1p(f0) if f0 > 0 else 0.0
+        out.append(
+            TextureFeatures(
+                wave_vector_per_px=(float(kx_px[i]), float(-ky_px_down[i])),
+                pitch_m=(float(pitch_m[0]), float(pitch_m[1])),
+                shape=(h, w),
+                spectral_intensity=float(min(1.0, max(0.0, i_s))),
+                peak_amplitude=a,
+                mean_level=mean,
+                periodicity=float(min(1.0, 2.0 * peak_power[i] / full_ac[i])),
+                contrast=float(math.sqrt(variance[i])),
+                spectral_moments_per_px2=(
+                    float(sxx[i] / s0[i]),
+                    float(syy[i] / s0[i]),
+                    float(-sxy_down[i] / s0[i]),  # y up
+                ),
+                radial=radial_profiles[i],
+            )
+        )
+    return out
+
+
+def _radial_from_power(power: np.ndarray, h: int, w: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Mean power in rings one bin wide, radius in cycles/pixel (square pixels assumed)."""
+    ky = scipy.fft.fftfreq(h)[:, None]
+    kx = (np.arange(w // 2 + 1) / w)[None, :]
+    r = np.hypot(kx, ky)
+    step = 1.0 / max(h, w)
+    ring = np.minimum((r / step).astype(np.int64), int(0.5 / step)).ravel()
+    counts = np.bincount(ring)
+    centres = np.arange(len(counts)) * step
+    keep = counts > 0
+    out = []
+    for p in power:
+        sums = np.bincount(ring, weights=p.ravel().astype(np.float64), minlength=len(counts))
+        out.append((centres[keep], sums[keep] / counts[keep]))
+    return out
+
+
+def extract_features(
+    img: TextureImage,
+    *,
+    radial_profile: bool = False,
+    tamura: bool = False,
+    workers: int = 1,
+) -> TextureFeatures:
+    """Measure the texture features of an image.
+
+    Parameters
+    ----------
+    img : TextureImage
+        From :func:`tactilize.load_image` (grey float32 in [0, 1] with pitch).
+    radial_profile : bool
+        Also keep the radial power spectrum (for plots).
+    tamura : bool
+        Also compute Tamura coarseness and directionality (on a copy reduced to
+        at most 256 pixels a side, since they describe element size, not detail).
+    workers : int
+        FFT threads.
+
+    Returns
+    -------
+    TextureFeatures
+        ``spatial_frequency_per_m`` [cycles/m], ``spectral_intensity`` in [0, 1],
+        ``orientation_deg``, ``anisotropy``, ``modulation_depth`` and more.  A
+        constant image gives :data:`NO_PEAK`'s values (all 0, never NaN); white
+        noise gives its strongest bin with ``periodicity`` near 0.
+    """
+    feat = analyse_stack(img.pixels[None], img.pitch_m, radial=radial_profile, workers=workers)[0]
+    if tamura:
+        feat = dataclasses.replace(feat, tamura=tamura_features(img.pixels))
+    return feat
+
+
+def radial_profile(img: TextureImage) -> tuple[np.ndarray, np.ndarray]:
+    """Radial power spectrum: (spatial frequency [cycles/m], mean power per ring)."""
+    return extract_features(img, radial_profile=True).radial_profile_per_m()  # type: ignore[return-value]
+
+
+# ------------------------------------------------------------------ Tamura
+
+
+def tamura_features(pixels: np.ndarray, max_side: int = 256) -> dict[str, float]:
+    """Tamura coarseness [pixels of the input] and directionality in [0, 1].
+
+    Coarseness: for window sizes 2^k (k = 1..5), the largest difference between
+    averages on opposite sides picks each pixel's best size; its mean is the
+    coarseness (Tamura, Mori and Yamawaki 1978).  Directionality: 1 minus the
+    spread of gradient directions around their main peak, normalised so that a
+    uniform histogram gives 0 and a single direction 1.
+    """
+    from scipy import ndimage
+
+    a = np.asarray(pixels, dtype=np.float32)
+    factor = max(1, int(math.ceil(max(a.shape) / max_side)))
+    if factor > 1:
+        hh, ww = (a.shape[0] // factor) * factor, (a.shape[1] // factor) * factor
+        a = a[:hh, :ww].reshape(hh // factor, factor, ww // factor, factor).mean(axis=(1, 3))
+    if min(a.shape) < 8 or float(a.std()) < 1e-6:
+        return {"coarseness_px": 0.0, "directionality": 0.0}
+
+    best_e = np.zeros(a.shape, np.float32)
+    best_k = np.ones(a.shape, np.float32)
+    for k in range(1, 6):
+        size = 2**k
+        if size * 2 > min(a.shape):
+            break
+        avg = ndimage.uniform_filter(a, size=size, mode="reflect")
+        half = size // 2
+        eh = np.abs(np.roll(avg, -half, axis=1) - np.roll(avg, half, axis=1))
+        ev = np.abs(np.roll(avg, -half, axis=0) - np.roll(avg, half, axis=0))
+        e = np.maximum(eh, ev)
+        better = e > best_e
+        best_e = np.where(better, e, best_e)
+        best_k = np.where(better, float(size), best_k)
+    coarseness = float(best_k.mean()) * factor
+
+    gy, gx = np.gradient(a)
+    g = np.hypot(gx, gy)
+    strong = g > max(1e-6, 0.1 * float(g.max()))
+    if not strong.any():
+        return {"coarseness_px": coarseness, "directionality": 0.0}
+    theta = np.mod(np.arctan2(gy[strong], gx[strong]), np.pi)
+    hist, edges = np.histogram(theta, bins=16, range=(0, np.pi), weights=g[strong])
+    hist = hist / hist.sum()
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    peak = centres[int(np.argmax(hist))]
+    dist = np.abs((centres - peak + np.pi / 2) % np.pi - np.pi / 2)
+    spread = float((hist * dist**2).sum())
+    uniform = float((dist**2).mean())
+    directionality = float(min(1.0, max(0.0, 1.0 - spread / uniform)))
+    return {"coarseness_px": coarseness, "directionality": directionality}

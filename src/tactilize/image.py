@@ -1,0 +1,326 @@
+"""Loading texture images: files, bytes, file objects or arrays -> :class:`TextureImage`.
+
+A texture image is a grey float32 array in [0, 1] plus the physical size of a
+pixel on the display [m].  The pitch comes, in order, from an explicit ``dpi``,
+an explicit ``width_mm``, the file's own DPI metadata, and otherwise 96 DPI
+(a CSS pixel, 1/96 inch).
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import struct
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, BinaryIO
+
+import numpy as np
+
+from .errors import ImageError
+
+__all__ = ["TextureImage", "load_image", "DEFAULT_DPI", "DEFAULT_MAX_PIXELS", "METRES_PER_INCH"]
+
+METRES_PER_INCH = 0.0254
+#: a CSS pixel is 1/96 inch by definition (FACTS.md section 5)
+DEFAULT_DPI = 96.0
+#: 64 Mpx: a 8192 x 8192 texture still loads; a decompression bomb does not.
+#: As float32 that is 256 MB, the most one image may cost.
+DEFAULT_MAX_PIXELS = 64 * 1024 * 1024
+
+# ITU-R BT.601 luma, what Pillow's "L" conversion uses; kept here for float modes.
+_LUMA = np.array([0.299, 0.587, 0.114], dtype=np.float32)
+
+
+@dataclass(frozen=True, eq=False)
+class TextureImage:
+    """A grey texture image with its physical pixel pitch.
+
+    Attributes
+    ----------
+    pixels : ndarray of float32, shape (height, width)
+        Grey levels in [0, 1], 0 black.  Row 0 is the top of the picture.
+    pitch_m : tuple of float
+        (x, y) size of one pixel on the display [m].
+    source : str
+        Where it came from (a path, ``<bytes>``, ``<array>``...), for messages.
+    """
+
+    pixels: np.ndarray
+    pitch_m: tuple[float, float]
+    source: str = "<array>"
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(height, width) in pixels."""
+        return self.pixels.shape  # type: ignore[return-value]
+
+    @property
+    def width_m(self) -> float:
+        """Displayed width [m]."""
+        return self.pixels.shape[1] * self.pitch_m[0]
+
+    @property
+    def height_m(self) -> float:
+        """Displayed height [m]."""
+        return self.pixels.shape[0] * self.pitch_m[1]
+
+    @property
+    def dpi(self) -> tuple[float, float]:
+        """(x, y) pixels per inch."""
+        return (METRES_PER_INCH / self.pitch_m[0], METRES_PER_INCH / self.pitch_m[1])
+
+    def with_pitch(self, pitch_m: float | tuple[float, float]) -> "TextureImage":
+        """The same pixels shown at another pixel pitch [m]."""
+        px, py = _pitch_pair(pitch_m, self.source)
+        return TextureImage(self.pixels, (px, py), self.source)
+
+    def describe(self) -> dict[str, Any]:
+        """Plain summary for reports: pixel size, physical size in mm, dpi."""
+        return {
+            "width_px": int(self.pixels.shape[1]),
+            "height_px": int(self.pixels.shape[0]),
+            "width_mm": self.width_m * 1e3,
+            "height_mm": self.height_m * 1e3,
+            "dpi": self.dpi[0],
+        }
+
+
+def _pitch_pair(pitch_m: float | tuple[float, float], source: str) -> tuple[float, float]:
+    px, py = (pitch_m, pitch_m) if np.isscalar(pitch_m) else tuple(pitch_m)  # type: ignore[misc]
+    for p in (px, py):
+        if not np.isfinite(p) or p <= 0:
+            raise ImageError(source, f"pixel pitch must be a positive number of metres, got {p!r}")
+    return float(px), float(py)
+
+
+def load_image(
+    source: str | os.PathLike | bytes | bytearray | BinaryIO | np.ndarray | TextureImage,
+    *,
+    dpi: float | None = None,
+    width_mm: float | None = None,
+    max_pixels: int = DEFAULT_MAX_PIXELS,
+) -> TextureImage:
+    """Load a texture image as grey float32 in [0, 1] with its pixel pitch.
+
+    Parameters
+    ----------
+    source : path, bytes, binary file object, ndarray or TextureImage
+        Any image Pillow reads (modes 1, L, LA, P, RGB, RGBA, CMYK, I;16, I, F...),
+        or an array of shape (H, W), (H, W, 3) or (H, W, 4).  Integer arrays are
+        scaled by their dtype's maximum; float arrays must already be in [0, 1].
+    dpi : float, optional
+        Displayed pixels per inch; overrides everything else.
+    width_mm : float, optional
+        Displayed width of the whole image [mm] (square pixels).
+    max_pixels : int
+        Refuse images with more pixels than this (decompression bombs).
+
+    Returns
+    -------
+    TextureImage
+
+    Raises
+    ------
+    ImageError
+        Unreadable or not an image, truncated, empty, too large, non-finite
+        values, or a non-positive ``dpi`` / ``width_mm``.
+
+    Notes
+    -----
+    EXIF orientation is applied, transparency is composited over white and only
+    the first frame of an animation is used.
+    """
+    name = _source_name(source)
+    if dpi is not None and (not _finite(dpi) or dpi <= 0):
+        raise ImageError(name, f"dpi must be a positive number, got {dpi!r}")
+    if width_mm is not None and (not _finite(width_mm) or width_mm <= 0):
+        raise ImageError(name, f"width_mm must be a positive number, got {width_mm!r}")
+
+    if isinstance(source, TextureImage):
+        pixels, file_dpi = source.pixels, source.dpi[0]
+    elif isinstance(source, np.ndarray):
+        pixels, file_dpi = _from_array(source, name, max_pixels), None
+    else:
+        pixels, file_dpi = _from_pillow(source, name, max_pixels)
+
+    h, w = pixels.shape
+    if dpi is not None:
+        pitch = METRES_PER_INCH / dpi
+    elif width_mm is not None:
+        pitch = width_mm * 1e-3 / w
+    elif file_dpi is not None:
+        pitch = METRES_PER_INCH / file_dpi
+    else:
+        pitch = METRES_PER_INCH / DEFAULT_DPI
+    return TextureImage(pixels, (pitch, pitch), name)
+
+
+def _finite(x: Any) -> bool:
+    try:
+        return bool(np.isfinite(float(x)))
+    except (TypeError, ValueError):
+        return False
+
+
+def _source_name(source: Any) -> str:
+    if isinstance(source, (str, os.PathLike)):
+        return os.fspath(source)
+    if isinstance(source, (bytes, bytearray)):
+        return "<bytes>"
+    if isinstance(source, np.ndarray):
+        return "<array>"
+    if isinstance(source, TextureImage):
+        return source.source
+    return str(getattr(source, "name", "<file>"))
+
+
+def _check_size(h: int, w: int, name: str, max_pixels: int) -> None:
+    if h == 0 or w == 0:
+        raise ImageError(name, f"image is empty ({w} x {h} pixels)")
+    if h * w > max_pixels:
+        raise ImageError(name, f"image too large ({w} x {h} = {w * h} pixels, limit {max_pixels})")
+
+
+def _from_array(arr: np.ndarray, name: str, max_pixels: int) -> np.ndarray:
+    if arr.ndim == 3 and arr.shape[2] in (1, 3, 4):
+        pass
+    elif arr.ndim != 2:
+        raise ImageError(name, f"array must have shape (H, W), (H, W, 3) or (H, W, 4), got {arr.shape}")
+    _check_size(arr.shape[0], arr.shape[1], name, max_pixels)
+    if arr.dtype == bool:
+        a = arr.astype(np.float32)
+    elif np.issubdtype(arr.dtype, np.integer):
+        info = np.iinfo(arr.dtype)
+        if info.min < 0 and arr.min() < 0:
+            raise ImageError(name, "integer array has negative values")
+        a = arr.astype(np.float32) / np.float32(info.max)
+    elif np.issubdtype(arr.dtype, np.floating):
+        a = arr.astype(np.float32, copy=False)
+        if not np.isfinite(a).all():
+            raise ImageError(name, "array has non-finite values (NaN or infinity)")
+        lo, hi = float(a.min()), float(a.max())
+        if lo < 0 or hi > 1:
+            raise ImageError(name, f"float array must lie in [0, 1], found [{lo:g}, {hi:g}]")
+    else:
+        raise ImageError(name, f"unsupported array dtype {arr.dtype}")
+    if a.ndim == 3:
+        if a.shape[2] == 1:
+            a = a[:, :, 0]
+        elif a.shape[2] == 3:
+            a = a @ _LUMA
+        else:
+            alpha = a[:, :, 3]
+            a = (a[:, :, :3] @ _LUMA) * alpha + (1.0 - alpha)  # over white
+    return np.ascontiguousarray(a, dtype=np.float32)
+
+
+def _from_pillow(source: Any, name: str, max_pixels: int) -> tuple[np.ndarray, float | None]:
+    from PIL import Image, ImageOps, UnidentifiedImageError
+
+    if isinstance(source, (bytes, bytearray)):
+        if len(source) == 0:
+            raise ImageError(name, "empty input (0 bytes)")
+        fp: Any = io.BytesIO(source)
+    elif isinstance(source, (str, os.PathLike)):
+        path = Path(source)
+        if not path.exists():
+            raise ImageError(name, "file not found")
+        if path.is_dir():
+            raise ImageError(name, "is a directory, not an image")
+        if path.stat().st_size == 0:
+            raise ImageError(name, "empty file (0 bytes)")
+        fp = path
+    else:
+        fp = source
+    # Pillow's own bomb guard warns at half its limit and raises at the limit; ours is
+    # explicit and configurable, so switch Pillow's off for this call and check size
+    # from the header before any pixel is decoded.
+    saved = Image.MAX_IMAGE_PIXELS
+    try:
+        Image.MAX_IMAGE_PIXELS = None
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            im = Image.open(fp)
+            w, h = im.size
+            _check_size(h, w, name, max_pixels)
+            file_dpi = _file_dpi(im)
+            im.seek(0)  # first frame of an animation
+            im.load()
+            im = ImageOps.exif_transpose(im)
+            grey = _to_grey(im, name)
+    except ImageError:
+        raise
+    except UnidentifiedImageError:
+        raise ImageError(name, "not an image Pillow can read") from None
+    except FileNotFoundError:
+        raise ImageError(name, "file not found") from None
+    except PermissionError:
+        raise ImageError(name, "permission denied") from None
+    except OSError as exc:
+        msg = str(exc)
+        fault = "truncated or corrupt image" if ("truncated" in msg or "broken" in msg or "image file" in msg) else f"cannot read ({msg})"
+        raise ImageError(name, fault) from None
+    except (ValueError, SyntaxError, EOFError, IndexError, TypeError, struct.error) as exc:
+        raise ImageError(name, f"corrupt image ({exc.__class__.__name__}: {exc})") from None
+    except MemoryError:
+        raise ImageError(name, "not enough memory to decode") from None
+    finally:
+        Image.MAX_IMAGE_PIXELS = saved
+    return grey, file_dpi
+
+
+def _file_dpi(im: Any) -> float | None:
+    info = im.info.get("dpi")
+    try:
+        if info is not None:
+            x = float(info[0])
+            # Many writers store 1 or 72 as "unknown"; 1 dpi is certainly not a display.
+            if np.isfinite(x) and x > 1:
+                return x
+    except (TypeError, ValueError, IndexError):
+        pass
+    return None
+
+
+def _to_grey(im: Any, name: str) -> np.ndarray:
+    """Pillow image of any mode -> float32 grey in [0, 1], alpha over white."""
+    from PIL import Image
+
+    mode = im.mode
+    if mode == "P":
+        im = im.convert("RGBA") if "transparency" in im.info else im.convert("RGB")
+        mode = im.mode
+    if mode in ("RGBA", "LA", "PA", "RGBa", "La"):
+        rgba = im.convert("RGBA")
+        white = Image.new("RGBA", rgba.size, (255, 255, 255, 255))
+        im = Image.alpha_composite(white, rgba).convert("L")
+        mode = "L"
+    if mode == "F":
+        a = np.asarray(im, dtype=np.float32)
+        if not np.isfinite(a).all():
+            raise ImageError(name, "float image has non-finite values (NaN or infinity)")
+        return _rescale(a)
+    if mode in ("I", "I;16", "I;16B", "I;16L", "I;16N"):
+        a = np.asarray(im)
+        if mode.startswith("I;16"):
+            return (a.astype(np.float32) / 65535.0).astype(np.float32)
+        return _rescale(a.astype(np.float64)).astype(np.float32)
+    if mode == "1":
+        return np.asarray(im, dtype=np.float32)
+    if mode != "L":
+        im = im.convert("L")  # RGB, CMYK, YCbCr, LAB, HSV: Pillow's luma conversion
+    return np.asarray(im, dtype=np.float32) / np.float32(255.0)
+
+
+def _rescale(a: np.ndarray) -> np.ndarray:
+    """32-bit images have no fixed white: use [0, 1] if they fit, else their own range."""
+    lo, hi = float(a.min()), float(a.max())
+    if lo >= 0 and hi <= 1:
+        return a.astype(np.float32)
+    if hi <= 65535 and lo >= 0:
+        return (a / 65535.0).astype(np.float32) if hi > 255 else (a / 255.0).astype(np.float32)
+    if hi == lo:
+        return np.zeros(a.shape, np.float32)
+    return ((a - lo) / (hi - lo)).astype(np.float32)

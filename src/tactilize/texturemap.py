@@ -1,0 +1,153 @@
+"""Local texture features on a grid of tiles, for pictures whose texture changes.
+
+The pen renders the texture *under the pen*: a photograph of a sofa with a
+cushion, or a collage of fabrics, has different features in different places.
+:func:`texture_map` cuts the image into tiles, analyses every tile with one
+batched FFT, and :meth:`TextureMap.lookup` returns the tile under a physical
+position in constant time (one division and an array index).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .features import TextureFeatures, analyse_stack, extract_features
+from .image import TextureImage
+
+__all__ = ["TextureMap", "texture_map"]
+
+
+@dataclass(frozen=True, eq=False)
+class TextureMap:
+    """Features per tile of an image, addressed by position on the display.
+
+    Attributes
+    ----------
+    tiles : tuple of tuple of TextureFeatures
+        ``tiles[row][col]``; row 0 is the top of the picture.
+    tile_px : int
+        Tile side [pixels].
+    pitch_m : (float, float)
+        Pixel pitch [m] of the displayed image.
+    shape : (int, int)
+        (height, width) of the image [pixels].
+    whole : TextureFeatures
+        Features of the whole image (what the paper uses).
+    """
+
+    tiles: tuple[tuple[TextureFeatures, ...], ...]
+    tile_px: int
+    pitch_m: tuple[float, float]
+    shape: tuple[int, int]
+    whole: TextureFeatures
+
+    @property
+    def grid(self) -> tuple[int, int]:
+        """(rows, cols) of tiles."""
+        return len(self.tiles), len(self.tiles[0]) if self.tiles else 0
+
+    @property
+    def width_m(self) -> float:
+        return self.shape[1] * self.pitch_m[0]
+
+    @property
+    def height_m(self) -> float:
+        return self.shape[0] * self.pitch_m[1]
+
+    def lookup(self, x_m: float, y_m: float) -> TextureFeatures | None:
+        """Features under a point of the displayed picture, in O(1).
+
+        Parameters
+        ----------
+        x_m, y_m : float
+            Position from the picture's top-left corner [m], y pointing *down*
+            (screen coordinates: that is how pointers report it).
+
+        Returns
+        -------
+        TextureFeatures or None
+            None outside the picture.
+        """
+        if not (0.0 <= x_m < self.width_m and 0.0 <= y_m < self.height_m):
+            return None
+        rows, cols = self.grid
+        # Tiles cover the image edge to edge; the last row/column absorbs any remainder.
+        col = min(cols - 1, int(x_m / (self.tile_px * self.pitch_m[0])))
+        row = min(rows - 1, int(y_m / (self.tile_px * self.pitch_m[1])))
+        return self.tiles[row][col]
+
+    def at_pitch(self, pitch_m: float | tuple[float, float]) -> "TextureMap":
+        """The same map for the picture shown at another pixel pitch [m]; no new FFT."""
+        pair = (pitch_m, pitch_m) if np.isscalar(pitch_m) else tuple(pitch_m)  # type: ignore[misc]
+        return TextureMap(
+            tuple(tuple(t.at_pitch(pair) for t in row) for row in self.tiles),
+            self.tile_px,
+            (float(pair[0]), float(pair[1])),
+            self.shape,
+            self.whole.at_pitch(pair),
+        )
+
+    def field(self, name: str) -> np.ndarray:
+        """One feature over the grid as an array (rows, cols), e.g. ``"spatial_frequency_per_m"``."""
+        return np.array([[float(getattr(t, name)) for t in row] for row in self.tiles])
+
+    def summary(self) -> dict[str, Any]:
+        """How much the texture varies across the picture (for catalogs and reports)."""
+        f = self.field("spatial_frequency_per_m")
+        i = self.field("spectral_intensity")
+        return {
+            "grid_rows": self.grid[0],
+            "grid_cols": self.grid[1],
+            "tile_mm": self.tile_px * self.pitch_m[0] * 1e3,
+            "spatial_frequency_per_m_median": float(np.median(f)),
+            "spatial_frequency_per_m_min": float(f.min()),
+            "spatial_frequency_per_m_max": float(f.max()),
+            "spectral_intensity_median": float(np.median(i)),
+            "spectral_intensity_min": float(i.min()),
+            "spectral_intensity_max": float(i.max()),
+        }
+
+
+def _default_tile(h: int, w: int) -> int:
+    """A power of two giving about 4 to 8 tiles along the shorter side, 32..256 px."""
+    side = min(h, w)
+    tile = 2 ** int(math.floor(math.log2(max(side / 4, 1))))
+    return int(min(256, max(32, tile)))
+
+
+def texture_map(img: TextureImage, tile_px: int | None = None, *, workers: int = 1) -> TextureMap:
+    """Analyse an image tile by tile.
+
+    Parameters
+    ----------
+    img : TextureImage
+    tile_px : int, optional
+        Tile side [pixels]; by default a power of two giving 4 to 8 tiles across
+        the shorter side (32 to 256 pixels, so each tile holds several periods of
+        the textures the paper uses).
+    workers : int
+        FFT threads.
+
+    Returns
+    -------
+    TextureMap
+        An image smaller than one tile is a single tile.
+    """
+    h, w = img.shape
+    tile = int(tile_px) if tile_px else _default_tile(h, w)
+    if tile < 4:
+        raise ValueError(f"tile_px must be at least 4, got {tile}")
+    whole = extract_features(img, workers=workers)
+    if h < tile or w < tile:
+        return TextureMap(((whole,),), max(h, w), img.pitch_m, (h, w), whole)
+    rows, cols = h // tile, w // tile
+    # Tiles of the regular grid; the remainder strip at the right and bottom is
+    # looked up in the last tile rather than analysed as a ragged one.
+    blocks = img.pixels[: rows * tile, : cols * tile].reshape(rows, tile, cols, tile).swapaxes(1, 2)
+    feats = analyse_stack(blocks.reshape(rows * cols, tile, tile), img.pitch_m, workers=workers)
+    grid = tuple(tuple(feats[r * cols : (r + 1) * cols]) for r in range(rows))
+    return TextureMap(grid, tile, img.pitch_m, (h, w), whole)
