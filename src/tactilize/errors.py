@@ -36,3 +36,8 @@ class ProfileError(TactilizeError):
 
 class DriveError(TactilizeError):
     """A drive or drive request is invalid (negative speed, NaN, out-of-range value...)."""
+
+
+class OutputError(TactilizeError):
+    """An output device cannot be used: a serial port that cannot be opened, a
+    controller that does not answer or refuses a drive, a missing audio backend."""

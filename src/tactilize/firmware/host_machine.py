@@ -1,0 +1,280 @@
+"""A small stand-in for MicroPython's ``machine`` module, so the controller
+firmware runs unchanged on the host.
+
+The emulator puts this module into ``sys.modules["machine"]`` before it imports
+``controller.py``.  It implements just what the firmware uses (``Pin``, ``PWM``,
+``Timer``, ``WDT``, ``freq``) with the RP2040's semantics, and it records every
+change a real board would show on its pins, so tests and the emulator can see
+what the outputs do rather than what the firmware claims:
+
+- :func:`pin_state` gives a pin's present state (GPIO level, or PWM frequency
+  and high time);
+- :data:`events` keeps a log of ``(time_s, kind, pin_id, detail)``;
+- :func:`add_listener` calls a function on every change.
+
+A periodic :class:`Timer` really runs its callback on a thread, like the soft
+IRQ of a board, so pulse trains made by toggling a pin are observable too (the
+pin records the length of its last high pulse).
+
+All state is module-global, like the one board it stands for; call
+:func:`reset` between independent uses.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from typing import Any, Callable
+
+__all__ = ["Pin", "PWM", "Timer", "WDT", "freq", "reset", "pin_state", "events", "add_listener", "remove_listener"]
+
+#: RP2040 default system clock [Hz]
+_SYSTEM_CLOCK_HZ = 125_000_000
+# The RP2040 PWM counter is 16 bits with an 8.4 fixed-point divider of at most
+# 255 + 15/16: below this frequency a slice cannot produce the period.
+_PWM_MIN_FREQUENCY_HZ = _SYSTEM_CLOCK_HZ / (65536 * (255 + 15 / 16))
+
+_lock = threading.RLock()
+_pins: dict[Any, dict[str, Any]] = {}
+_listeners: list[Callable[[float, str, Any, dict[str, Any]], None]] = []
+#: change log: (time [s, perf_counter], kind, pin id, detail)
+events: deque = deque(maxlen=10_000)
+
+
+def _record(kind: str, pin_id: Any, **detail: Any) -> None:
+    t = time.perf_counter()
+    with _lock:
+        state = _pins.setdefault(pin_id, {"mode": "gpio", "value": 0})
+        state.update(detail)
+        events.append((t, kind, pin_id, dict(detail)))
+        listeners = list(_listeners)
+    for fn in listeners:
+        fn(t, kind, pin_id, dict(detail))
+
+
+def reset() -> None:
+    """Forget every pin, event and listener (a fresh board)."""
+    with _lock:
+        _pins.clear()
+        events.clear()
+        _listeners.clear()
+        _live_pwms.clear()
+        Pin.inputs.clear()
+
+
+def pin_state(pin_id: Any) -> dict[str, Any]:
+    """A copy of a pin's present state.
+
+    Returns
+    -------
+    dict
+        ``mode`` ("gpio" or "pwm"), ``value`` (GPIO level), and for PWM
+        ``frequency_hz`` and ``duty_ns`` (high time per period [ns]);
+        ``last_pulse_s`` is the length of the last high pulse made by toggling
+        the pin [s], when there was one.
+    """
+    with _lock:
+        return dict(_pins.get(pin_id, {"mode": "gpio", "value": 0}))
+
+
+def add_listener(fn: Callable[[float, str, Any, dict[str, Any]], None]) -> None:
+    """Call ``fn(time_s, kind, pin_id, detail)`` on every pin change."""
+    with _lock:
+        _listeners.append(fn)
+
+
+def remove_listener(fn: Callable) -> None:
+    with _lock:
+        if fn in _listeners:
+            _listeners.remove(fn)
+
+
+def freq(hz: int | None = None) -> int:
+    """The system clock [Hz] (read only here)."""
+    return _SYSTEM_CLOCK_HZ
+
+
+def reset_cause() -> int:
+    return 1
+
+
+class Pin:
+    """A GPIO pin (``machine.Pin``); ids are ints or names such as ``"LED"``."""
+
+    IN = 0
+    OUT = 1
+    OPEN_DRAIN = 2
+    PULL_UP = 1
+    PULL_DOWN = 2
+
+    #: levels of pins configured as inputs, settable by tests (``Pin.inputs[15] = 0``)
+    inputs: dict[Any, int] = {}
+
+    def __init__(self, id: Any, mode: int = -1, pull: int = -1, *, value: int | None = None) -> None:
+        self.id = id
+        self._t_high: float | None = None
+        self.init(mode, pull, value=value)
+
+    def init(self, mode: int = -1, pull: int = -1, *, value: int | None = None) -> None:
+        self._mode = mode
+        self._pull = pull
+        if mode == Pin.OUT:
+            # Re-initialising a pin as an output takes it back from a PWM slice.
+            _record("gpio", self.id, mode="gpio", value=int(bool(value)) if value is not None else 0)
+
+    def value(self, v: int | None = None) -> int | None:
+        if v is None:
+            if self._mode == Pin.IN:
+                default = 1 if self._pull == Pin.PULL_UP else 0
+                return Pin.inputs.get(self.id, default)
+            return pin_state(self.id).get("value", 0)
+        level = int(bool(v))
+        now = time.perf_counter()
+        detail: dict[str, Any] = {"mode": "gpio", "value": level}
+        if level and self._t_high is None:
+            self._t_high = now
+        elif not level and self._t_high is not None:
+            detail["last_pulse_s"] = now - self._t_high
+            self._t_high = None
+        _record("gpio", self.id, **detail)
+        return None
+
+    def on(self) -> None:
+        self.value(1)
+
+    def off(self) -> None:
+        self.value(0)
+
+    def __call__(self, v: int | None = None) -> int | None:
+        return self.value(v)
+
+
+def _slice_of(pin_id: Any) -> Any:
+    """The RP2040 PWM slice of a GPIO: its two outputs (A and B) share one counter,
+    so one frequency."""
+    return (pin_id >> 1) & 7 if isinstance(pin_id, int) else pin_id
+
+
+_live_pwms: list["PWM"] = []
+
+
+class PWM:
+    """A PWM slice output on a pin (``machine.PWM``), RP2040 limits enforced,
+    including the frequency shared by the two pins of a slice."""
+
+    def __init__(self, pin: Pin, *, freq: int | None = None, duty_ns: int | None = None) -> None:
+        self._pin = pin
+        self._freq = 1000
+        self._duty_ns = 0
+        self._alive = True
+        with _lock:
+            for other in _live_pwms:
+                if _slice_of(other._pin.id) == _slice_of(pin.id):
+                    self._freq = other._freq
+            _live_pwms.append(self)
+        _record("pwm", pin.id, mode="pwm", frequency_hz=float(self._freq), duty_ns=0)
+        if freq is not None:
+            self.freq(freq)
+        if duty_ns is not None:
+            self.duty_ns(duty_ns)
+
+    def freq(self, value: int | None = None) -> int | None:
+        if value is None:
+            return self._freq
+        if not isinstance(value, int):
+            # MicroPython's rp2 port takes an integer frequency.
+            raise TypeError("can't convert float to int")
+        if not _PWM_MIN_FREQUENCY_HZ <= value <= _SYSTEM_CLOCK_HZ / 2:
+            raise ValueError("freq out of range")
+        with _lock:
+            sharing = [p for p in _live_pwms if _slice_of(p._pin.id) == _slice_of(self._pin.id)]
+        for pwm in sharing:
+            pwm._freq = value
+            _record("pwm", pwm._pin.id, mode="pwm", frequency_hz=float(value), duty_ns=pwm._duty_ns)
+        return None
+
+    def duty_ns(self, value: int | None = None) -> int | None:
+        if value is None:
+            return self._duty_ns
+        period_ns = 1_000_000_000 // self._freq
+        self._duty_ns = max(0, min(int(value), period_ns))
+        _record("pwm", self._pin.id, mode="pwm", frequency_hz=float(self._freq), duty_ns=self._duty_ns)
+        return None
+
+    def duty_u16(self, value: int | None = None) -> int | None:
+        period_ns = 1_000_000_000 / self._freq
+        if value is None:
+            return int(round(self._duty_ns / period_ns * 65535))
+        return self.duty_ns(int(value / 65535 * period_ns))
+
+    def deinit(self) -> None:
+        if self._alive:
+            self._alive = False
+            with _lock:
+                if self in _live_pwms:
+                    _live_pwms.remove(self)
+            # A stopped slice holds its output low.
+            _record("pwm", self._pin.id, mode="gpio", value=0, duty_ns=0)
+
+
+class Timer:
+    """A soft timer (``machine.Timer``) whose callback runs on a host thread."""
+
+    ONE_SHOT = 0
+    PERIODIC = 1
+
+    def __init__(self, id: int = -1, **kwargs: Any) -> None:
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.period_ms: float | None = None
+        if kwargs:
+            self.init(**kwargs)
+
+    def init(
+        self,
+        *,
+        mode: int = PERIODIC,
+        period: int | None = None,
+        freq: float | None = None,
+        callback: Callable[["Timer"], None] | None = None,
+    ) -> None:
+        self.deinit()
+        if freq is not None:
+            self.period_ms = 1e3 / freq
+        elif period is not None:
+            self.period_ms = float(period)
+        else:
+            raise ValueError("period or freq required")
+        self._stop = threading.Event()
+        self._thread = threading.Thread(
+            target=self._run, args=(mode, self.period_ms / 1e3, callback, self._stop), daemon=True
+        )
+        self._thread.start()
+
+    def _run(self, mode: int, period_s: float, callback: Callable | None, stop: threading.Event) -> None:
+        next_t = time.perf_counter() + period_s
+        while not stop.wait(max(0.0, next_t - time.perf_counter())):
+            if callback is not None:
+                callback(self)
+            if mode == Timer.ONE_SHOT:
+                return
+            next_t += period_s
+
+    def deinit(self) -> None:
+        self._stop.set()
+        t = self._thread
+        self._thread = None
+        if t is not None and t is not threading.current_thread():
+            t.join(timeout=1.0)
+
+
+class WDT:
+    """The hardware watchdog (``machine.WDT``): records feeds; never resets the host."""
+
+    def __init__(self, id: int = 0, timeout: int = 5000) -> None:
+        self.timeout_ms = timeout
+        self.last_feed_s = time.perf_counter()
+
+    def feed(self) -> None:
+        self.last_feed_s = time.perf_counter()
