@@ -1,0 +1,220 @@
+"""image.py: every Pillow mode, orientation, alpha, frames, pitch, and every bad input."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+from PIL import Image
+
+import tactilize as tz
+from tactilize.image import DEFAULT_DPI, METRES_PER_INCH
+
+
+def _png_bytes(im: Image.Image, fmt: str = "PNG", **kw) -> bytes:
+    buf = io.BytesIO()
+    im.save(buf, format=fmt, **kw)
+    return buf.getvalue()
+
+
+RAMP = np.tile(np.arange(0, 256, 4, dtype=np.uint8), (16, 1))  # 16 x 64, known grey levels
+
+
+@pytest.mark.parametrize(
+    "mode, expected",
+    [
+        ("L", RAMP / 255.0),
+        ("RGB", RAMP / 255.0),  # grey RGB: luma equals the grey level
+        ("P", RAMP / 255.0),
+        ("I;16", RAMP / 255.0),
+        ("CMYK", RAMP / 255.0),
+    ],
+)
+def test_modes_give_the_same_grey_levels(mode, expected, tmp_path):
+    base = Image.fromarray(RAMP, "L")
+    if mode == "I;16":
+        im = Image.fromarray(RAMP.astype(np.uint16) * 257)
+        assert im.mode.startswith("I;16")
+        fmt = "PNG"
+    elif mode == "CMYK":
+        im = base.convert("RGB").convert("CMYK")
+        fmt = "TIFF"
+    else:
+        im = base.convert(mode)
+        fmt = "PNG"
+    path = tmp_path / f"ramp.{fmt.lower()}"
+    im.save(path, format=fmt)
+    img = tz.load_image(path)
+    assert img.pixels.dtype == np.float32
+    assert img.shape == RAMP.shape
+    np.testing.assert_allclose(img.pixels, expected, atol=1.5 / 255)
+
+
+def test_mode_1_is_black_and_white(tmp_path):
+    arr = np.zeros((8, 8), bool)
+    arr[:, 4:] = True
+    Image.fromarray(arr).convert("1").save(tmp_path / "bw.png")
+    img = tz.load_image(tmp_path / "bw.png")
+    assert set(np.unique(img.pixels)) == {0.0, 1.0}
+    assert img.pixels[:, 4:].min() == 1.0 and img.pixels[:, :4].max() == 0.0
+
+
+def test_modes_I_and_F_are_read(tmp_path):
+    im_i = Image.fromarray(RAMP.astype(np.int32) * 257)
+    assert im_i.mode == "I"
+    im_i.save(tmp_path / "i.tif")
+    img = tz.load_image(tmp_path / "i.tif")
+    np.testing.assert_allclose(img.pixels, RAMP / 255.0, atol=2 / 255)
+    im_f = Image.fromarray((RAMP / 255.0).astype(np.float32))
+    im_f.save(tmp_path / "f.tif")
+    np.testing.assert_allclose(tz.load_image(tmp_path / "f.tif").pixels, RAMP / 255.0, atol=1e-6)
+
+
+@pytest.mark.parametrize("mode", ["RGBA", "LA"])
+def test_transparent_pixels_are_white(mode):
+    arr = np.zeros((4, 4, 4), np.uint8)  # black, fully transparent on the left
+    arr[:, 2:, 3] = 255  # opaque black on the right
+    im = Image.fromarray(arr, "RGBA")
+    if mode == "LA":
+        im = im.convert("LA")
+    img = tz.load_image(_png_bytes(im))
+    assert np.allclose(img.pixels[:, :2], 1.0)
+    assert np.allclose(img.pixels[:, 2:], 0.0)
+
+
+def test_exif_orientation_is_applied():
+    arr = np.zeros((10, 20), np.uint8)
+    arr[:, :5] = 255  # white band on the left of a landscape image
+    im = Image.fromarray(arr, "L")
+    exif = Image.Exif()
+    exif[0x0112] = 6  # "rotate 90 CW to display"
+    img = tz.load_image(_png_bytes(im, "JPEG", exif=exif.tobytes(), quality=95))
+    assert img.shape == (20, 10)  # now portrait
+    # rotating 90 degrees clockwise puts the left band at the top
+    assert img.pixels[:4].mean() > 0.9 and img.pixels[-4:].mean() < 0.1
+
+
+def test_first_frame_of_an_animation():
+    frames = [Image.new("L", (8, 8), v) for v in (200, 20, 120)]
+    buf = io.BytesIO()
+    frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], duration=50)
+    img = tz.load_image(buf.getvalue())
+    assert abs(float(img.pixels.mean()) - 200 / 255) < 2 / 255
+
+
+def test_sources_path_bytes_fileobj_array_agree(tmp_path):
+    im = Image.fromarray(RAMP, "L")
+    path = tmp_path / "r.png"
+    im.save(path)
+    a = tz.load_image(path).pixels
+    b = tz.load_image(path.read_bytes()).pixels
+    with open(path, "rb") as fh:
+        c = tz.load_image(fh).pixels
+    d = tz.load_image(RAMP).pixels
+    for other in (b, c, d):
+        np.testing.assert_array_equal(a, other)
+
+
+def test_rgb_array_uses_luma():
+    arr = np.zeros((2, 2, 3), np.uint8)
+    arr[..., 1] = 255  # pure green
+    assert np.allclose(tz.load_image(arr).pixels, 0.587, atol=1e-6)
+
+
+def test_pitch_precedence(tmp_path):
+    im = Image.fromarray(RAMP, "L")
+    path = tmp_path / "dpi.png"
+    im.save(path, dpi=(300, 300))
+    assert tz.load_image(path).pitch_m[0] == pytest.approx(METRES_PER_INCH / 300, rel=1e-3)
+    assert tz.load_image(path, dpi=150).pitch_m[0] == pytest.approx(METRES_PER_INCH / 150)
+    # width_mm: the 64-pixel-wide ramp shown 32 mm wide -> 0.5 mm pixels
+    assert tz.load_image(path, width_mm=32).pitch_m == pytest.approx((5e-4, 5e-4))
+    # dpi wins over width_mm
+    assert tz.load_image(path, dpi=150, width_mm=32).pitch_m[0] == pytest.approx(METRES_PER_INCH / 150)
+    # nothing known: a CSS pixel
+    plain = tmp_path / "plain.png"
+    im.save(plain)
+    assert tz.load_image(plain).pitch_m[0] == pytest.approx(METRES_PER_INCH / DEFAULT_DPI)
+
+
+# ---------------------------------------------------------------- bad input
+
+
+def _write(path, data: bytes):
+    path.write_bytes(data)
+    return path
+
+
+def _jpeg(tmp_path):
+    im = Image.fromarray(np.random.default_rng(0).integers(0, 255, (64, 64), dtype=np.uint8), "L")
+    p = tmp_path / "ok.jpg"
+    im.save(p, quality=90)
+    return p
+
+
+@pytest.mark.parametrize(
+    "make, fault",
+    [
+        (lambda tmp: tmp / "missing.png", "file not found"),
+        (lambda tmp: _write(tmp / "empty.png", b""), "empty"),
+        (lambda tmp: _write(tmp / "text.png", b"hello, not an image"), "not an image"),
+        (lambda tmp: tmp, "directory"),
+    ],
+)
+def test_bad_files_raise_image_error_naming_the_input(make, fault, tmp_path):
+    path = make(tmp_path)
+    with pytest.raises(tz.ImageError) as info:
+        tz.load_image(path)
+    assert fault in str(info.value)
+    assert str(path) in str(info.value)
+
+
+def test_truncated_file(tmp_path):
+    good = _jpeg(tmp_path).read_bytes()
+    bad = tmp_path / "cut.jpg"
+    bad.write_bytes(good[: len(good) // 2])
+    with pytest.raises(tz.ImageError, match="cut.jpg: .*(truncated|corrupt)"):
+        tz.load_image(bad)
+
+
+def test_truncated_png_bytes():
+    data = _png_bytes(Image.fromarray(RAMP, "L"))
+    with pytest.raises(tz.ImageError, match="<bytes>: .*(truncated|corrupt)"):
+        tz.load_image(data[: len(data) - 30])
+
+
+def test_pixel_limit_refuses_bombs_before_decoding():
+    data = _png_bytes(Image.new("L", (2000, 2000)))
+    with pytest.raises(tz.ImageError, match="too large"):
+        tz.load_image(data, max_pixels=1_000_000)
+    assert tz.load_image(data, max_pixels=4_000_000).shape == (2000, 2000)
+
+
+def test_empty_bytes_and_zero_sized_arrays():
+    with pytest.raises(tz.ImageError, match="empty"):
+        tz.load_image(b"")
+    with pytest.raises(tz.ImageError, match="empty"):
+        tz.load_image(np.zeros((0, 5), np.float32))
+
+
+def test_non_finite_float_images(tmp_path):
+    arr = np.full((8, 8), 0.5, np.float32)
+    arr[3, 3] = np.nan
+    with pytest.raises(tz.ImageError, match="non-finite"):
+        tz.load_image(arr)
+    arr[3, 3] = np.inf
+    Image.fromarray(arr).save(tmp_path / "inf.tif")
+    with pytest.raises(tz.ImageError, match="inf.tif: .*non-finite"):
+        tz.load_image(tmp_path / "inf.tif")
+
+
+@pytest.mark.parametrize("kw", [{"dpi": 0}, {"dpi": -3}, {"dpi": float("nan")}, {"width_mm": 0}, {"width_mm": -1}])
+def test_non_positive_dpi_or_width(kw):
+    with pytest.raises(tz.ImageError, match="must be a positive number"):
+        tz.load_image(RAMP, **kw)
+
+
+def test_float_array_out_of_range():
+    with pytest.raises(tz.ImageError, match=r"\[0, 1\]"):
+        tz.load_image(np.full((4, 4), 2.0))
