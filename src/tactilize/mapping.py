@@ -549,6 +549,8 @@ class Profile:
                 kwargs["limits"] = ActuatorLimits(**act)
             except TypeError as exc:
                 raise ProfileError(source, f"[actuator] {exc}") from None
+            except ProfileError as exc:
+                raise ProfileError(source, f"[actuator] {exc.fault}") from None
         return cls(**kwargs)
 
     def to_dict(self) -> dict[str, Any]:
