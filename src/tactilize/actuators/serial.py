@@ -1,0 +1,493 @@
+"""The serial output: drives sent as frames to the tactile controller.
+
+:class:`SerialOutput` opens a serial port (a Pico's ``/dev/ttyACM0``, or the
+pseudo-terminal of ``tactilize controller-emulator``), checks that a controller
+answers, and then keeps it alive:
+
+- :meth:`~SerialOutput.apply` passes each drive through the actuator's safety
+  envelope and the controller's own hard limits (learnt from its STATUS reply),
+  sends one SET frame per channel and waits for each ACK, resending on a timeout
+  or a checksum NAK;
+- a keeper thread sends a HEARTBEAT every ``heartbeat_interval_s`` (50 ms) so the
+  controller's 200 ms watchdog never fires while the host is alive;
+- when the port vanishes (USB unplugged, emulator gone) the controller's
+  watchdog has turned the outputs off; the host notes it (:attr:`events`),
+  polls the path until it can be reopened, and re-applies the current drives.
+  It does the same when a heartbeat ACK says the watchdog fired anyway (a host
+  stalled for more than 200 ms).
+
+Threads: a reader (decodes replies, matches them to requests by sequence
+number) and a keeper (heartbeats, reconnection).  Callers' threads only write
+frames and wait for replies.
+"""
+
+from __future__ import annotations
+
+import collections
+import itertools
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+from ..errors import OutputError
+from ..mapping import ActuatorLimits, Drive
+from . import protocol as P
+from .base import OutputBase
+
+__all__ = ["SerialOutput", "default_envelope"]
+
+
+def default_envelope() -> Any:
+    """The safety envelope every drive passes through before it leaves the host.
+
+    The SMA wire model's envelope (``tactilize.actuators.sma``) when available,
+    else the pen's :class:`~tactilize.mapping.ActuatorLimits` (1..300 Hz,
+    20 us..2 ms, duty 10 %), which bound the same risk more coarsely.
+    """
+    try:
+        from . import sma
+    except ImportError:
+        return ActuatorLimits()
+    for name in ("default_envelope", "SafetyEnvelope"):
+        obj = getattr(sma, name, None)
+        if obj is None:
+            continue
+        try:
+            env = obj() if callable(obj) else obj
+        except TypeError:
+            continue
+        if hasattr(env, "apply"):
+            return env
+    return ActuatorLimits()
+
+
+class _PortLost(Exception):
+    """The port failed under us (internal; callers see OutputError)."""
+
+
+@dataclass
+class _Waiter:
+    event: threading.Event = field(default_factory=threading.Event)
+    reply: P.Frame | None = None
+    lost: bool = False
+
+
+class SerialOutput(OutputBase):
+    """Drives on a tactile controller over a serial port.
+
+    Parameters
+    ----------
+    port : str
+        Serial device path (``/dev/ttyACM0``, ``COM3``, a pty path).
+    envelope : object with ``apply(Drive) -> Drive``, optional
+        Safety envelope applied to every drive before it is sent; default
+        :func:`default_envelope`.
+    baudrate : int
+        Ignored by USB CDC and ptys; matters for a UART bridge.
+    ack_timeout_s : float
+        How long to wait for each ACK before resending [s].
+    retries : int
+        Resends after the first attempt.
+    heartbeat_interval_s : float
+        Heartbeat period [s]; must stay well under the controller's 200 ms watchdog.
+    reconnect_interval_s : float
+        How often a vanished port is tried again [s].
+    connect_timeout_s : float
+        How long the first connection may take to get a STATUS reply [s].
+    unresponsive_s : float
+        A connected controller silent for this long is treated as lost [s].
+    on_event : callable, optional
+        ``on_event(kind, detail)`` for ``connected``, ``lost``, ``reconnected``,
+        ``watchdog`` and ``reapply-failed`` events (called from a worker thread).
+
+    Raises
+    ------
+    OutputError
+        The port cannot be opened, or no controller answers on it.
+    """
+
+    channels = 2
+
+    def __init__(
+        self,
+        port: str,
+        *,
+        envelope: Any = None,
+        baudrate: int = 115200,
+        ack_timeout_s: float = 0.1,
+        retries: int = 3,
+        heartbeat_interval_s: float = 0.05,
+        reconnect_interval_s: float = 0.1,
+        connect_timeout_s: float = 2.0,
+        unresponsive_s: float = 0.5,
+        on_event: Callable[[str, str], None] | None = None,
+    ) -> None:
+        self.port = str(port)
+        self.envelope = envelope if envelope is not None else default_envelope()
+        self.baudrate = baudrate
+        self.ack_timeout_s = ack_timeout_s
+        self.retries = retries
+        self.heartbeat_interval_s = heartbeat_interval_s
+        self.reconnect_interval_s = reconnect_interval_s
+        self.unresponsive_s = unresponsive_s
+        self._on_event = on_event
+        #: recent ``(monotonic time [s], kind, detail)`` events
+        self.events: collections.deque = collections.deque(maxlen=256)
+        #: times the connection was re-established after a loss
+        self.reconnects = 0
+        #: the controller's last STATUS reply (limits, firmware version)
+        self.controller_status: P.ControllerStatus | None = None
+
+        self._seq = itertools.count(1)
+        self._write_lock = threading.RLock()
+        self._pending: dict[int, _Waiter] = {}
+        self._pending_lock = threading.Lock()
+        self._apply_lock = threading.RLock()
+        self._serial: Any = None
+        self._connected = threading.Event()
+        self._closing = threading.Event()
+        self._reapply = threading.Event()
+        self._desired: list[Drive] = [Drive.off()] * self.channels
+        self._controller_limits: ActuatorLimits | None = None
+        self._last_rx_s = time.monotonic()
+        self._decoder = P.FrameDecoder()
+
+        self._serial = self._open()  # raises OutputError with the reason
+        self._reader = threading.Thread(target=self._read_loop, name=f"serial-reader {self.port}", daemon=True)
+        self._reader.start()
+        try:
+            self._handshake(deadline_s=time.monotonic() + connect_timeout_s)
+        except OutputError:
+            self._shutdown()
+            raise
+        self._connected.set()
+        self._event("connected", self.port)
+        self._keeper = threading.Thread(target=self._keep_loop, name=f"serial-keeper {self.port}", daemon=True)
+        self._keeper.start()
+
+    # ------------------------------------------------------------ public
+
+    @property
+    def connected(self) -> bool:
+        """True while the controller answers on the port."""
+        return self._connected.is_set()
+
+    def wait_connected(self, timeout_s: float) -> bool:
+        """Block until connected (or the timeout [s] passes); True when connected."""
+        return self._connected.wait(timeout_s)
+
+    @property
+    def drives(self) -> list[Drive]:
+        """The drives the controller should be running (re-applied after a reconnect)."""
+        return list(self._desired)
+
+    def apply(self, channels: Sequence[Drive]) -> list[Drive]:
+        """Send one drive per channel; return the drives as sent (after the envelope).
+
+        Raises
+        ------
+        OutputError
+            The controller refused a drive, did not acknowledge it, or is
+            disconnected (the drives are kept and sent when it returns).
+        """
+        drives = [self._make_safe(d) for d in self._check(channels)]
+        with self._apply_lock:
+            self._desired = drives
+            self._send_drives(drives)
+        return drives
+
+    def stop(self) -> None:
+        """Turn every channel off.
+
+        When the controller is disconnected its watchdog has already turned
+        everything off, so this only forgets the drives.
+
+        Raises
+        ------
+        OutputError
+            The controller is connected but did not acknowledge the stop.
+        """
+        with self._apply_lock:
+            self._desired = [Drive.off()] * self.channels
+            if not self.connected:
+                return
+            try:
+                self._request(P.Command.STOP)
+            except _PortLost:
+                return
+
+    def status(self) -> P.ControllerStatus:
+        """Ask the controller what it is doing (channels, hard limits, counters)."""
+        try:
+            reply = self._request(P.Command.STATUS)
+        except _PortLost:
+            raise OutputError(self.port, "controller disconnected") from None
+        status = P.decode_status(reply.payload)
+        self.controller_status = status
+        return status
+
+    def close(self) -> None:
+        """Stop the outputs, end the threads and close the port."""
+        if self._closing.is_set():
+            return
+        try:
+            self.stop()
+        except OutputError:
+            pass  # closing anyway: the controller's watchdog turns it off
+        finally:
+            self._shutdown()
+
+    # ------------------------------------------------------------ drives
+
+    def _make_safe(self, drive: Drive) -> Drive:
+        if drive.is_off:
+            return Drive.off(drive.clamped)
+        safe = self.envelope.apply(drive)
+        limits = self._controller_limits
+        if limits is not None and not safe.is_off:
+            before = len(safe.clamped)
+            clamped = limits.apply(safe)
+            # Name the controller's limits apart from the envelope's.
+            names = safe.clamped + tuple(f"controller:{n}" for n in clamped.clamped[before:])
+            safe = clamped.replace(clamped=names)
+        return safe
+
+    def _send_drives(self, drives: Sequence[Drive]) -> None:
+        try:
+            for index, d in enumerate(drives):
+                if d.is_off:
+                    payload = P.encode_set_channel(index, 0.0, 0.0, 0.0)
+                else:
+                    payload = P.encode_set_channel(index, d.pulse_frequency_hz, d.pulse_width_s, d.amplitude)
+                self._request(P.Command.SET, payload)
+        except _PortLost:
+            raise OutputError(
+                self.port, "controller disconnected; outputs are off and the drives will be re-applied when it returns"
+            ) from None
+
+    # ------------------------------------------------------------ requests
+
+    def _request(self, command: int, payload: bytes = b"", *, attempts: int | None = None) -> P.Frame:
+        """Send a frame and wait for its ACK/STATUS_REPLY, resending on timeout or
+        checksum NAK.  Raises OutputError on a refusal or no answer, _PortLost when
+        the port is gone."""
+        attempts = self.retries + 1 if attempts is None else attempts
+        name = P.Command(command).name if command in P.Command._value2member_map_ else f"0x{command:02x}"
+        for _ in range(attempts):
+            seq = next(self._seq) & 0xFF
+            waiter = _Waiter()
+            with self._pending_lock:
+                self._pending[seq] = waiter
+            try:
+                self._write(P.encode_frame(seq, command, payload))
+                answered = waiter.event.wait(self.ack_timeout_s)
+            finally:
+                with self._pending_lock:
+                    self._pending.pop(seq, None)
+            if waiter.lost:
+                raise _PortLost()
+            if not answered or waiter.reply is None:
+                continue
+            reply = waiter.reply
+            if reply.command == P.Command.NAK:
+                reason, detail = P.decode_nak(reply.payload)
+                if reason == P.NakReason.BAD_CHECKSUM:
+                    continue  # corrupted on the wire: send again
+                what = getattr(reason, "name", str(reason)).lower().replace("_", " ")
+                extra = f" ({detail.name.lower().replace('_', ' ')})" if getattr(detail, "value", 0) else ""
+                raise OutputError(self.port, f"controller refused {name}: {what}{extra}")
+            return reply
+        raise OutputError(self.port, f"controller did not acknowledge {name} after {attempts} attempts")
+
+    def _write(self, frame: bytes) -> None:
+        with self._write_lock:
+            ser = self._serial
+            if ser is None:
+                raise _PortLost()
+            try:
+                ser.write(frame)
+            except Exception as exc:  # pyserial raises SerialException, OSError or TypeError on a dead fd
+                self._lost(ser, f"write failed ({exc})")
+                raise _PortLost() from None
+
+    # ------------------------------------------------------------ port
+
+    def _open(self) -> Any:
+        import serial  # pyserial; imported here so the protocol stays importable without it
+
+        try:
+            ser = serial.Serial(self.port, self.baudrate, timeout=0.02, write_timeout=0.5, exclusive=True)
+        except (serial.SerialException, OSError, ValueError) as exc:
+            reason = getattr(exc, "strerror", None) or str(exc)
+            raise OutputError(self.port, f"cannot open serial port ({reason})") from None
+        try:
+            ser.reset_input_buffer()
+        except Exception:
+            pass
+        return ser
+
+    def _handshake(self, deadline_s: float) -> None:
+        """Ask for STATUS until it answers (a board may still be booting)."""
+        last: OutputError | None = None
+        while True:
+            try:
+                status = P.decode_status(self._request(P.Command.STATUS, attempts=1).payload)
+                break
+            except _PortLost:
+                raise OutputError(self.port, "serial port closed during the handshake") from None
+            except OutputError as exc:
+                last = exc
+            if time.monotonic() >= deadline_s:
+                raise OutputError(
+                    self.port, "no tactile controller answers (is the controller firmware running on it?)"
+                ) from last
+        self.controller_status = status
+        # Just inside the controller's limits, so integer rounding on the wire
+        # can never make a clamped drive cross them.
+        self._controller_limits = ActuatorLimits(
+            name="controller",
+            min_frequency_hz=status.min_frequency_hz * 1.001,
+            max_frequency_hz=status.max_frequency_hz * 0.999,
+            min_pulse_width_s=status.min_pulse_width_s * 1.001,
+            max_pulse_width_s=status.max_pulse_width_s * 0.999,
+            max_duty_ratio=status.max_duty_ratio * 0.999,
+        )
+
+    def _lost(self, ser: Any, reason: str) -> None:
+        with self._write_lock:
+            if self._serial is not ser or ser is None:
+                return
+            self._serial = None
+            was_connected = self._connected.is_set()
+            self._connected.clear()
+            try:
+                ser.close()
+            except Exception:
+                pass
+        with self._pending_lock:
+            for waiter in self._pending.values():
+                waiter.lost = True
+                waiter.event.set()
+        if was_connected and not self._closing.is_set():
+            self._event("lost", f"{reason}; the controller's watchdog turns its outputs off")
+
+    def _shutdown(self) -> None:
+        self._closing.set()
+        with self._write_lock:
+            ser, self._serial = self._serial, None
+            self._connected.clear()
+        if ser is not None:
+            try:
+                ser.close()
+            except Exception:
+                pass
+        for name in ("_keeper", "_reader"):
+            t = getattr(self, name, None)
+            if t is not None and t is not threading.current_thread():
+                t.join(timeout=1.0)
+
+    def _event(self, kind: str, detail: str) -> None:
+        self.events.append((time.monotonic(), kind, detail))
+        if self._on_event is not None:
+            try:
+                self._on_event(kind, detail)
+            except Exception:
+                pass  # a faulty observer must not stop the heartbeat
+
+    # ------------------------------------------------------------ threads
+
+    def _read_loop(self) -> None:
+        while not self._closing.is_set():
+            ser = self._serial
+            if ser is None:
+                time.sleep(0.01)
+                continue
+            try:
+                data = ser.read(max(1, ser.in_waiting))
+            except Exception as exc:  # SerialException / OSError / TypeError once the fd dies
+                self._lost(ser, f"read failed ({exc.__class__.__name__})")
+                continue
+            if not data:
+                continue
+            for frame in self._decoder.feed(data):
+                self._dispatch(frame)
+
+    def _dispatch(self, frame: P.Frame) -> None:
+        self._last_rx_s = time.monotonic()
+        if frame.command == P.Command.ACK and len(frame.payload) >= 2 and frame.payload[1] & P.FLAG_WATCHDOG_TRIPPED:
+            # The controller turned its outputs off although we are alive
+            # (the host stalled); put the drives back.
+            if any(not d.is_off for d in self._desired):
+                self._reapply.set()
+        with self._pending_lock:
+            waiter = self._pending.get(frame.seq)
+        if waiter is not None:
+            waiter.reply = frame
+            waiter.event.set()
+
+    def _keep_loop(self) -> None:
+        while not self._closing.wait(self.heartbeat_interval_s):
+            if self._connected.is_set():
+                self._heartbeat()
+            else:
+                self._reconnect()
+
+    def _heartbeat(self) -> None:
+        ser = self._serial
+        if time.monotonic() - self._last_rx_s > self.unresponsive_s:
+            self._lost(ser, f"controller silent for more than {self.unresponsive_s:g} s")
+            return
+        seq = next(self._seq) & 0xFF
+        try:
+            # Not waited for: any reply refreshes _last_rx_s, and a stalled
+            # controller is caught by the silence check above.
+            self._write(P.encode_frame(seq, P.Command.HEARTBEAT))
+        except _PortLost:
+            return
+        if self._reapply.is_set():
+            self._reapply.clear()
+            self._event("watchdog", "controller watchdog fired while connected; re-applying drives")
+            self._reapply_drives()
+
+    def _reconnect(self) -> None:
+        if self._serial is None:
+            try:
+                ser = self._open()
+            except OutputError:
+                time.sleep(self.reconnect_interval_s)
+                return
+            self._decoder = P.FrameDecoder()
+            with self._write_lock:
+                self._serial = ser
+        try:
+            self._handshake(deadline_s=time.monotonic())
+        except OutputError:
+            # The path exists but nothing answers yet (a board booting): try again.
+            self._lost_quietly()
+            time.sleep(self.reconnect_interval_s)
+            return
+        self._last_rx_s = time.monotonic()
+        # Drives first, then "connected": whoever waits for the connection
+        # finds the controller already running them.
+        self._reapply_drives()
+        self._connected.set()
+        self.reconnects += 1
+        self._event("reconnected", self.port)
+
+    def _lost_quietly(self) -> None:
+        with self._write_lock:
+            ser, self._serial = self._serial, None
+        if ser is not None:
+            try:
+                ser.close()
+            except Exception:
+                pass
+
+    def _reapply_drives(self) -> None:
+        with self._apply_lock:
+            drives = [self._make_safe(d) for d in self._desired]
+            try:
+                self._send_drives(drives)
+            except OutputError as exc:
+                self._event("reapply-failed", exc.fault)
