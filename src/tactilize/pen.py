@@ -1,0 +1,596 @@
+"""The tactile pen in software: stroke tracking and real-time rendering.
+
+The paper's pen system (its Fig. 6) tracks the pen on a tablet while the texture
+picture is shown on a display, and drives the two actuators in the pen's grip
+with the texture *under the pen*, at a frequency that follows the stroking
+speed.  This module holds the two stateful pieces of that loop:
+
+:class:`StrokeTracker`
+    Speed [m/s] and direction [rad] of the stroke from the pen samples' *own*
+    timestamps (never the arrival time: samples come in bursts, coalesced to the
+    display's frame rate).  A least-squares line through the last ~30 ms of
+    samples; robust to jitter, duplicate and out-of-order samples, gaps, clock
+    resets and jumps (see the class for each rule).
+:class:`PenRenderer`
+    Feeds the tracker, looks the texture up under the pen, asks the profile for
+    the drive, splits it over the two channels and applies it to an
+    :class:`~tactilize.actuators.base.Output`.  Lifting the pen or leaving the
+    picture stops the output at once.
+
+Frames
+------
+Positions are metres from the picture's top-left corner with y pointing *down*
+(screen coordinates, as pointers report them and as
+:meth:`~tactilize.texturemap.TextureMap.lookup` takes them).  Directions are
+counter-clockwise from +x with y pointing *up* (the frame of
+``TextureFeatures.orientation_deg`` and ``Profile.drive``), so a stroke moving up
+the screen has direction +pi/2.
+
+The page reports positions in CSS pixels and times in milliseconds;
+:func:`samples_from_css` converts them with the calibrated size of a CSS pixel.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable, Sequence
+
+from .mapping import Drive, Profile
+
+__all__ = [
+    "PenSample",
+    "StrokeState",
+    "StrokeTracker",
+    "RenderResult",
+    "PenRenderer",
+    "samples_from_css",
+    "DEFAULT_M_PER_CSS_PX",
+    "sample_error",
+]
+
+#: A CSS pixel is 1/96 inch by definition (FACTS.md section 5); the page
+#: replaces this with a calibrated value.
+DEFAULT_M_PER_CSS_PX = 0.0254 / 96.0
+
+
+@dataclass(frozen=True, slots=True)
+class PenSample:
+    """One pen sample.
+
+    Attributes
+    ----------
+    t_s : float
+        The sample's own timestamp [s] (any origin; only differences matter).
+    x_m, y_m : float
+        Position from the picture's top-left corner [m], y pointing down.
+    pressure : float or None
+        Pen pressure in [0, 1]; None when the device reports none (a mouse).
+    tilt_x_deg, tilt_y_deg : float
+        Pen tilt [deg] as Pointer Events report it (-90..90).
+    """
+
+    t_s: float
+    x_m: float
+    y_m: float
+    pressure: float | None = None
+    tilt_x_deg: float = 0.0
+    tilt_y_deg: float = 0.0
+
+
+def sample_error(row: Any) -> str | None:
+    """Why a CSS sample row is malformed, or None when it is fine.
+
+    A row is ``[t_ms, x_px, y_px]`` optionally followed by ``pressure``,
+    ``tilt_x_deg``, ``tilt_y_deg`` (numbers; ``pressure`` may be null).
+    """
+    if not isinstance(row, (list, tuple)):
+        return "a sample must be an array [t_ms, x_px, y_px, pressure?, tilt_x_deg?, tilt_y_deg?]"
+    if not 3 <= len(row) <= 6:
+        return f"a sample has 3 to 6 values, got {len(row)}"
+    for i, v in enumerate(row):
+        if i == 3 and v is None:
+            continue
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            return f"sample value {i} must be a finite number, got {v!r}"
+    if len(row) > 3 and row[3] is not None and not 0.0 <= row[3] <= 1.0:
+        return f"pressure must be in [0, 1], got {row[3]!r}"
+    return None
+
+
+def samples_from_css(rows: Iterable[Sequence[Any]], m_per_px: float) -> list[PenSample]:
+    """Pen samples in SI from the page's rows.
+
+    Parameters
+    ----------
+    rows : iterable of sequences
+        ``[t_ms, x_px, y_px, pressure?, tilt_x_deg?, tilt_y_deg?]``: the event's
+        timestamp [ms], the position in CSS pixels from the picture's top-left
+        corner (y down), pressure in [0, 1] or None, tilt [deg].  Rows must
+        already pass :func:`sample_error`.
+    m_per_px : float
+        Calibrated size of one CSS pixel on the screen [m].
+
+    Returns
+    -------
+    list of PenSample
+    """
+    out = []
+    for r in rows:
+        n = len(r)
+        out.append(
+            PenSample(
+                r[0] * 1e-3,
+                r[1] * m_per_px,
+                r[2] * m_per_px,
+                r[3] if n > 3 else None,
+                r[4] if n > 4 else 0.0,
+                r[5] if n > 5 else 0.0,
+            )
+        )
+    return out
+
+
+@dataclass(frozen=True, slots=True)
+class StrokeState:
+    """The tracker's estimate after the latest accepted sample.
+
+    Attributes
+    ----------
+    t_s : float
+        Timestamp of the latest sample [s].
+    x_m, y_m : float
+        Its position [m] (y down).
+    speed_m_s : float
+        Stroking speed [m/s].
+    direction_rad : float or None
+        Stroke direction [rad], counter-clockwise from +x with y *up*, in
+        (-pi, pi]; None while the pen is (nearly) still.
+    pressure : float or None
+        Latest pressure in [0, 1].
+    samples : int
+        Samples in the estimation window.
+    """
+
+    t_s: float
+    x_m: float
+    y_m: float
+    speed_m_s: float
+    direction_rad: float | None
+    pressure: float | None
+    samples: int
+
+
+class StrokeTracker:
+    """Stroke speed and direction from timestamped pen samples.
+
+    The velocity is the slope of a least-squares line through the samples of
+    the last ``window_s`` seconds (at least ``min_samples`` of them when the
+    stroke has that many), fitted in x and y separately.  Over 30 ms a 240 Hz
+    pen gives 7 samples and a 100 Hz tablet 3 to 4, enough to average out
+    position jitter of a pixel or two while lagging the hand by only ~15 ms
+    (published texture renderers budget ~40 ms end to end, FACTS.md section 3).
+
+    Bad input, and what happens to it (each is counted in :attr:`counts`):
+
+    ``invalid``
+        Non-finite time or position: dropped.
+    ``duplicate``
+        Same timestamp and position as the previous sample (pointer stacks
+        resend samples): dropped.
+    ``out_of_order``
+        Timestamp not after the previous one: dropped, since the estimate is
+        built from the samples' own clock.  A step back by more than
+        ``max_gap_s`` is a clock reset (a reloaded page restarts its clock) and
+        starts a new stroke instead.
+    ``gap``
+        More than ``max_gap_s`` since the previous sample (the pen was lifted
+        without telling us, or the connection stalled): a new stroke starts.
+    ``jump``
+        A sample implying a speed above ``max_speed_m_s`` is held back as a
+        candidate.  If the next sample continues from the candidate, the pen
+        really moved (re-entered elsewhere): a new stroke starts at the
+        candidate.  If it continues from before, the candidate was a glitch and
+        is discarded.  Either way no impossible speed reaches the output.
+
+    Parameters
+    ----------
+    window_s : float
+        Length of the fitting window [s].
+    min_samples : int
+        Fit at least this many of the latest samples even if they span more
+        than ``window_s`` (sparse devices), never reaching across a new stroke.
+    max_gap_s : float
+        Longest silence within one stroke [s].
+    max_speed_m_s : float
+        Fastest believable pen speed [m/s]; hand strokes stay under ~1.5 m/s.
+    still_speed_m_s : float
+        Below this speed [m/s] the direction is undefined (None).
+    max_samples : int
+        Bound on the samples kept, whatever the sample rate.
+    """
+
+    def __init__(
+        self,
+        window_s: float = 0.030,
+        *,
+        min_samples: int = 3,
+        max_gap_s: float = 0.100,
+        max_speed_m_s: float = 4.0,
+        still_speed_m_s: float = 1e-4,
+        max_samples: int = 64,
+    ) -> None:
+        if not window_s > 0 or not max_gap_s > 0 or not max_speed_m_s > 0:
+            raise ValueError("window_s, max_gap_s and max_speed_m_s must be positive")
+        if min_samples < 2 or max_samples < min_samples:
+            raise ValueError("need 2 <= min_samples <= max_samples")
+        self.window_s = float(window_s)
+        self.min_samples = int(min_samples)
+        self.max_gap_s = float(max_gap_s)
+        self.max_speed_m_s = float(max_speed_m_s)
+        self.still_speed_m_s = float(still_speed_m_s)
+        self._buf: deque[PenSample] = deque(maxlen=int(max_samples))
+        self._candidate: PenSample | None = None
+        self._state: StrokeState | None = None
+        self.counts: dict[str, int] = dict.fromkeys(
+            ("accepted", "invalid", "duplicate", "out_of_order", "gap", "jump", "glitch", "clock_reset"), 0
+        )
+
+    # ------------------------------------------------------------------ input
+
+    def reset(self) -> None:
+        """Forget the stroke (the pen was lifted)."""
+        self._buf.clear()
+        self._candidate = None
+        self._state = None
+
+    @property
+    def state(self) -> StrokeState | None:
+        """The latest estimate; None before the first sample of a stroke."""
+        return self._state
+
+    def add(self, sample: PenSample) -> bool:
+        """Add one sample; True when it was accepted into the stroke."""
+        if not (math.isfinite(sample.t_s) and math.isfinite(sample.x_m) and math.isfinite(sample.y_m)):
+            self.counts["invalid"] += 1
+            return False
+        buf = self._buf
+        if not buf:
+            self._start(sample)
+            return True
+        last = self._candidate or buf[-1]
+        dt = sample.t_s - last.t_s
+        if dt <= 0:
+            if dt == 0 and sample.x_m == last.x_m and sample.y_m == last.y_m:
+                self.counts["duplicate"] += 1
+                return False
+            if dt < -self.max_gap_s:
+                self.counts["clock_reset"] += 1
+                self._start(sample)
+                return True
+            self.counts["out_of_order"] += 1
+            return False
+        if dt > self.max_gap_s:
+            self.counts["gap"] += 1
+            self._start(sample)
+            return True
+        if self._candidate is not None:
+            cand, self._candidate = self._candidate, None
+            if self._speed_between(cand, sample) <= self.max_speed_m_s:
+                # The pen really is over there now: new stroke from the candidate.
+                self.counts["jump"] += 1
+                self._start(cand)
+                return self._append(sample)
+            # The candidate was a glitch; judge this sample against the stroke.
+            self.counts["glitch"] += 1
+            if sample.t_s <= buf[-1].t_s:
+                self.counts["out_of_order"] += 1
+                return False
+            if buf[-1].t_s < sample.t_s - self.max_gap_s:
+                self.counts["gap"] += 1
+                self._start(sample)
+                return True
+        if self._speed_between(buf[-1], sample) > self.max_speed_m_s:
+            self._candidate = sample
+            return False
+        return self._append(sample)
+
+    def extend(self, samples: Iterable[PenSample]) -> StrokeState | None:
+        """Add many samples; returns the latest estimate."""
+        for s in samples:
+            self.add(s)
+        return self._state
+
+    # ------------------------------------------------------------------ estimate
+
+    @staticmethod
+    def _speed_between(a: PenSample, b: PenSample) -> float:
+        dt = b.t_s - a.t_s
+        d = math.hypot(b.x_m - a.x_m, b.y_m - a.y_m)
+        return math.inf if dt <= 0 else d / dt
+
+    def _start(self, sample: PenSample) -> None:
+        self._buf.clear()
+        self._candidate = None
+        self._buf.append(sample)
+        self.counts["accepted"] += 1
+        self._state = StrokeState(sample.t_s, sample.x_m, sample.y_m, 0.0, None, sample.pressure, 1)
+
+    def _append(self, sample: PenSample) -> bool:
+        buf = self._buf
+        buf.append(sample)
+        self.counts["accepted"] += 1
+        t_from = sample.t_s - self.window_s
+        n = len(buf)
+        # Samples in the window, but at least min_samples (all are of this stroke).
+        start = n - 1
+        while start > 0 and buf[start - 1].t_s >= t_from:
+            start -= 1
+        start = max(0, min(start, n - self.min_samples))
+        pts = [buf[i] for i in range(start, n)]
+        m = len(pts)
+        tm = sum(p.t_s for p in pts) / m
+        xm = sum(p.x_m for p in pts) / m
+        ym = sum(p.y_m for p in pts) / m
+        stt = sxt = syt = 0.0
+        for p in pts:
+            dt = p.t_s - tm
+            stt += dt * dt
+            sxt += dt * (p.x_m - xm)
+            syt += dt * (p.y_m - ym)
+        vx, vy = (sxt / stt, syt / stt) if stt > 0 else (0.0, 0.0)
+        speed = math.hypot(vx, vy)
+        # y is down on screen, up in the direction frame: flip its sign.
+        direction = math.atan2(-vy, vx) if speed > self.still_speed_m_s else None
+        self._state = StrokeState(sample.t_s, sample.x_m, sample.y_m, speed, direction, sample.pressure, m)
+        return True
+
+
+@dataclass(frozen=True)
+class RenderResult:
+    """What the renderer did with a batch of samples.
+
+    Attributes
+    ----------
+    down : bool
+        The pen is on the surface (False after a lift).
+    inside : bool
+        The pen is over the picture.
+    state : StrokeState or None
+        The stroke estimate (None after a lift).
+    features : TextureFeatures or None
+        The texture under the pen (None outside the picture).
+    requested : list of Drive
+        Per channel, what the profile asked for (after the profile's limits).
+    applied : list of Drive
+        Per channel, what the output applied (after its safety envelope); all
+        off when the output was stopped.
+    """
+
+    down: bool
+    inside: bool
+    state: StrokeState | None
+    features: Any
+    requested: list[Drive]
+    applied: list[Drive]
+
+    @property
+    def on(self) -> bool:
+        """True when any channel is driven."""
+        return any(not d.is_off for d in self.applied)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary (SI, plus ``speed_mm_s`` and ``direction_deg`` for display)."""
+        st = self.state
+        chans = []
+        for req, app in zip(self.requested, self.applied):
+            d = app.to_dict()
+            # The page shows every limit that acted, the profile's and the envelope's.
+            d["clamped"] = sorted(set(req.clamped) | set(app.clamped))
+            d["requested_frequency_hz"] = req.pulse_frequency_hz
+            chans.append(d)
+        feat = self.features
+        return {
+            "down": self.down,
+            "inside": self.inside,
+            "on": self.on,
+            "t_s": st.t_s if st else None,
+            "x_m": st.x_m if st else None,
+            "y_m": st.y_m if st else None,
+            "speed_m_s": st.speed_m_s if st else 0.0,
+            "speed_mm_s": st.speed_m_s * 1e3 if st else 0.0,
+            "direction_deg": math.degrees(st.direction_rad) if st and st.direction_rad is not None else None,
+            "pressure": st.pressure if st else None,
+            "spatial_frequency_per_m": float(feat.spatial_frequency_per_m) if feat is not None else None,
+            "spectral_intensity": float(feat.spectral_intensity) if feat is not None else None,
+            "channels": chans,
+        }
+
+
+def _equal_channels(drive: Drive, n: int, state: StrokeState | None) -> list[Drive]:
+    return [drive] * n
+
+
+def _default_splitter() -> Callable[[Drive, int, StrokeState | None], list[Drive]]:
+    """The two-channel split: synthesis's phantom/apparent-motion helper if it
+    exists, else the same drive on every channel (what the paper's pen does when
+    both pins present one texture)."""
+    try:
+        from . import synthesis
+    except Exception:  # synthesis not there (or broken): the paper's plain split
+        return _equal_channels
+    fn = getattr(synthesis, "pen_channels", None)
+    if fn is None:
+        return _equal_channels
+    return _adapt_pen_channels(fn)
+
+
+def _adapt_pen_channels(fn: Callable[..., Any]) -> Callable[[Drive, int, StrokeState | None], list[Drive]]:
+    import inspect
+
+    try:
+        params = inspect.signature(fn).parameters
+    except (TypeError, ValueError):
+        params = {}
+
+    def split(drive: Drive, n: int, state: StrokeState | None) -> list[Drive]:
+        kwargs: dict[str, Any] = {}
+        if "direction_rad" in params:
+            kwargs["direction_rad"] = state.direction_rad if state else None
+        if "speed_m_s" in params:
+            kwargs["speed_m_s"] = state.speed_m_s if state else 0.0
+        if "channels" in params:
+            kwargs["channels"] = n
+        out = list(fn(drive, **kwargs))
+        if len(out) < n:
+            out += [Drive.off()] * (n - len(out))
+        return out[:n]
+
+    return split
+
+
+class PenRenderer:
+    """Turns a stream of pen samples into drives on an output, in real time.
+
+    Parameters
+    ----------
+    texture_map : TextureMap
+        The picture under the pen, at the physical size it is shown.
+    profile : Profile
+        The laws (the paper's by default).
+    output : Output
+        Where drives go (the simulated wire, the serial controller, audio...).
+    tracker : StrokeTracker, optional
+        A tracker with non-default settings.
+    channels : int
+        Actuators in the pen (the paper's has two).
+    splitter : callable, optional
+        ``splitter(drive, channels, state) -> list[Drive]``: how one drive
+        becomes one per channel.  By default synthesis's ``pen_channels``
+        (phantom sensation / apparent motion) when available, else equal drives.
+
+    Notes
+    -----
+    One drive is computed per :meth:`feed` call, from the latest estimate: a
+    batch of coalesced samples is one display frame, and the newest sample is
+    the one that matters (older ones only improve the speed estimate).
+    """
+
+    def __init__(
+        self,
+        texture_map: Any,
+        profile: Profile | None = None,
+        output: Any = None,
+        *,
+        tracker: StrokeTracker | None = None,
+        channels: int = 2,
+        splitter: Callable[[Drive, int, StrokeState | None], list[Drive]] | None = None,
+    ) -> None:
+        self.texture_map = texture_map
+        self.profile = profile or Profile.preset("paper")
+        self.output = output
+        self.tracker = tracker or StrokeTracker()
+        self.channels = int(getattr(output, "channels", channels) or channels)
+        self.splitter = splitter or _default_splitter()
+        self._off = [Drive.off()] * self.channels
+        self._running = False  # did we leave the output driven?
+        self._last = RenderResult(False, False, None, None, self._off, self._off)
+
+    @property
+    def last(self) -> RenderResult:
+        """The latest result."""
+        return self._last
+
+    def set_texture(self, texture_map: Any) -> RenderResult:
+        """Show another picture: the stroke restarts and the output stops."""
+        self.texture_map = texture_map
+        return self.lift()
+
+    def set_profile(self, profile: Profile) -> None:
+        """Use other laws from the next sample on."""
+        self.profile = profile
+
+    def lift(self) -> RenderResult:
+        """The pen left the surface: forget the stroke and stop the output at once."""
+        self.tracker.reset()
+        self._stop()
+        self._last = RenderResult(False, False, None, None, self._off, self._off)
+        return self._last
+
+    def feed(self, samples: Iterable[PenSample]) -> RenderResult:
+        """Add a batch of samples and drive the output for the newest one."""
+        state = self.tracker.extend(samples)
+        return self._render(state)
+
+    def still(self) -> RenderResult:
+        """No samples have arrived for a while although the pen is down.
+
+        Browsers send no pointer events while a pen rests, so silence means the
+        pen is not moving: render the same place at zero speed.
+        """
+        st = self.tracker.state
+        if st is None:
+            return self._last
+        self.tracker.reset()
+        self.tracker.add(PenSample(st.t_s, st.x_m, st.y_m, st.pressure))
+        return self._render(self.tracker.state)
+
+    def _stop(self) -> None:
+        if self._running and self.output is not None:
+            self.output.stop()
+        self._running = False
+
+    def _render(self, state: StrokeState | None) -> RenderResult:
+        if state is None:
+            # Every sample so far was rejected: nothing is known about the pen.
+            self._stop()
+            self._last = RenderResult(True, False, None, None, self._off, self._off)
+            return self._last
+        feat = self.texture_map.lookup(state.x_m, state.y_m)
+        if feat is None:
+            self._stop()
+            self._last = RenderResult(True, False, state, None, self._off, self._off)
+            return self._last
+        drive = self.profile.drive(feat, state.speed_m_s, state.direction_rad, state.pressure)
+        requested = self.splitter(drive, self.channels, state)
+        if all(d.is_off for d in requested):
+            self._stop()
+            applied = self._off
+        elif self.output is not None:
+            applied = list(self.output.apply(requested))
+            self._running = True
+        else:
+            applied = requested
+        self._last = RenderResult(True, True, state, feat, requested, applied)
+        return self._last
+
+    def close(self) -> None:
+        """Stop the output (the renderer does not own it, so it is not closed)."""
+        self.lift()
+
+
+@dataclass
+class _Recorder:
+    """An output that only records (for tests and the server's last resort)."""
+
+    channels: int = 2
+    applied: list[list[Drive]] = field(default_factory=list)
+    stops: int = 0
+
+    def apply(self, channels: Sequence[Drive]) -> list[Drive]:
+        drives = list(channels) + [Drive.off()] * (self.channels - len(channels))
+        self.applied.append(drives)
+        return drives
+
+    def stop(self) -> None:
+        self.stops += 1
+
+    def close(self) -> None:
+        self.stop()
+
+    def __enter__(self) -> "_Recorder":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
