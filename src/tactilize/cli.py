@@ -118,6 +118,8 @@ def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, 
 @click.option("--profile", "profile_name", default="paper", show_default=True, help="Preset name or TOML file.")
 @click.option("--dpi", type=float, callback=_positive("dpi"), help="Pixels per inch of the displayed image.")
 @click.option("--width-mm", type=float, callback=_positive("width-mm"), help="Displayed width of the image [mm].")
+@click.option("--output", "output_spec", default=None, help="Send the drive to: simulated | serial:PATH | audio[:DEVICE].")
+@click.option("--hold", "hold_s", type=float, default=None, help="With --output: seconds to keep the drive on [s] (default 1).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
 def drive(
     image: str,
@@ -126,15 +128,20 @@ def drive(
     profile_name: str,
     dpi: float | None,
     width_mm: float | None,
+    output_spec: str | None,
+    hold_s: float | None,
     as_json: bool,
 ) -> None:
-    """The pulse drive for IMAGE stroked at a speed."""
+    """The pulse drive for IMAGE stroked at a speed; with --output, also run it on
+    an actuator for --hold seconds (exit 0 only when the output acknowledged)."""
     from .features import extract_features
     from .image import load_image
     from .mapping import Profile
 
     if not math.isfinite(speed_mm_s) or speed_mm_s < 0:
         raise TactilizeError("--speed", f"must be a number >= 0 mm/s, got {speed_mm_s}")
+    if hold_s is not None and (not math.isfinite(hold_s) or hold_s < 0 or output_spec is None):
+        raise TactilizeError("--hold", "needs --output and a number of seconds >= 0")
     profile = Profile.resolve(profile_name)
     img = load_image(image, dpi=dpi, width_mm=width_mm)
     feat = extract_features(img)
@@ -149,6 +156,10 @@ def drive(
         "orientation_deg": feat.orientation_deg,
         **drv.to_dict(),
     }
+    if output_spec is not None:
+        from .cli_outputs import hold_drive
+
+        doc["output"] = hold_drive(output_spec, drv, 1.0 if hold_s is None else hold_s)
     if as_json:
         emit_json(doc)
         return
@@ -161,6 +172,25 @@ def drive(
         f"  amplitude        {drv.amplitude:.2f}\n"
         f"  clamped by       {clamp}"
     )
+    if output_spec is not None:
+        sent = doc["output"]["applied"][0]
+        click.echo(
+            f"  output           {output_spec}: {sent['pulse_frequency_hz']:.1f} Hz, {sent['pulse_width_ms']:.3f} ms,"
+            f" held {doc['output']['held_s']:.2f} s, acknowledged"
+        )
+
+
+@main.command("controller-emulator")
+@click.option("--link", default=None, help="Also make a symlink at this path to the device (stable across restarts).")
+def controller_emulator(link: str | None) -> None:
+    """Run the tactile controller firmware on a pseudo-terminal.
+
+    Prints the device path to open as the first line, then one JSON line per
+    output change.  Runs until SIGINT or SIGTERM.
+    """
+    from .cli_outputs import run_controller_emulator
+
+    run_controller_emulator(link)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -24,7 +24,9 @@ frames and wait for replies.
 from __future__ import annotations
 
 import collections
+import errno
 import itertools
+import os
 import threading
 import time
 from dataclasses import dataclass, field
@@ -246,11 +248,11 @@ class SerialOutput(OutputBase):
         safe = self.envelope.apply(drive)
         limits = self._controller_limits
         if limits is not None and not safe.is_off:
-            before = len(safe.clamped)
-            clamped = limits.apply(safe)
-            # Name the controller's limits apart from the envelope's.
-            names = safe.clamped + tuple(f"controller:{n}" for n in clamped.clamped[before:])
-            safe = clamped.replace(clamped=names)
+            clamped = limits.apply(safe.replace(clamped=()))
+            if clamped.clamped:
+                # Name the controller's limits apart from the envelope's.
+                names = safe.clamped + tuple(f"controller:{n}" for n in clamped.clamped)
+                safe = clamped.replace(clamped=names)
         return safe
 
     def _send_drives(self, drives: Sequence[Drive]) -> None:
@@ -319,7 +321,10 @@ class SerialOutput(OutputBase):
         try:
             ser = serial.Serial(self.port, self.baudrate, timeout=0.02, write_timeout=0.5, exclusive=True)
         except (serial.SerialException, OSError, ValueError) as exc:
-            reason = getattr(exc, "strerror", None) or str(exc)
+            code = getattr(exc, "errno", None)
+            reason = os.strerror(code) if isinstance(code, int) else str(exc)
+            if code == errno.ENOTTY:
+                reason = f"not a serial port: {reason}"
             raise OutputError(self.port, f"cannot open serial port ({reason})") from None
         try:
             ser.reset_input_buffer()
@@ -343,15 +348,16 @@ class SerialOutput(OutputBase):
                     self.port, "no tactile controller answers (is the controller firmware running on it?)"
                 ) from last
         self.controller_status = status
-        # Just inside the controller's limits, so integer rounding on the wire
-        # can never make a clamped drive cross them.
+        # Frequency and width limits are exact in wire units (a clamped value
+        # encodes to the limit itself); the duty is a product of two rounded
+        # integers, so it stays 10 ppm inside to survive the rounding.
         self._controller_limits = ActuatorLimits(
             name="controller",
-            min_frequency_hz=status.min_frequency_hz * 1.001,
-            max_frequency_hz=status.max_frequency_hz * 0.999,
-            min_pulse_width_s=status.min_pulse_width_s * 1.001,
-            max_pulse_width_s=status.max_pulse_width_s * 0.999,
-            max_duty_ratio=status.max_duty_ratio * 0.999,
+            min_frequency_hz=status.min_frequency_hz,
+            max_frequency_hz=status.max_frequency_hz,
+            min_pulse_width_s=status.min_pulse_width_s,
+            max_pulse_width_s=status.max_pulse_width_s,
+            max_duty_ratio=status.max_duty_ratio * (1 - 1e-5),
         )
 
     def _lost(self, ser: Any, reason: str) -> None:

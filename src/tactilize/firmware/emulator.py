@@ -159,6 +159,10 @@ class ControllerEmulator:
         finally:
             controller.all_off("exit")
 
+    def request_stop(self) -> None:
+        """Ask :meth:`serve_forever` to return (safe from a signal handler)."""
+        self._stop.set()
+
     def start(self) -> "ControllerEmulator":
         """Serve on a daemon thread."""
         self._thread = threading.Thread(target=self.serve_forever, name="controller-emulator", daemon=True)
