@@ -41,3 +41,11 @@ class DriveError(TactilizeError):
 class OutputError(TactilizeError):
     """An output device cannot be used: a serial port that cannot be opened, a
     controller that does not answer or refuses a drive, a missing audio backend."""
+
+
+class SignalError(TactilizeError):
+    """A signal request is invalid (duration, sample rate, burst length, export format or parameters...)."""
+
+
+class WireError(TactilizeError):
+    """A wire specification or simulation request is invalid (unknown preset, non-physical value, bad current)."""
