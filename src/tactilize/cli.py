@@ -193,5 +193,59 @@ def controller_emulator(link: str | None) -> None:
     run_controller_emulator(link)
 
 
+# ----------------------------------------------------------------- batch (catalog.py)
+
+
+@main.command()
+@click.argument("source")
+@click.option("--out", "out", required=True, help="Parquet catalog folder, or an SQLAlchemy URL (sqlite:///shop.db).")
+@click.option("--profile", "profile_name", default="paper", show_default=True, help="Preset name or TOML file.")
+@click.option("--dpi", type=float, callback=_positive("dpi"), help="Pixels per inch where the manifest says nothing.")
+@click.option("--analysis-dpi", type=float, callback=_positive("analysis-dpi"), help="Lowest resolution the analysis may use; lets JPEGs decode at 1/2..1/8 size.")
+@click.option("--workers", type=int, default=None, help="Local processes (default: all cores; 1 = in this process).")
+@click.option("--scheduler", default=None, help="Dask scheduler address (tcp://HOST:PORT): run on that cluster.")
+@click.option("--retry-failed", is_flag=True, help="Analyse again the images whose earlier row is an error.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON summary document at the end.")
+def batch(
+    source: str,
+    out: str,
+    profile_name: str,
+    dpi: float | None,
+    analysis_dpi: float | None,
+    workers: int | None,
+    scheduler: str | None,
+    retry_failed: bool,
+    as_json: bool,
+) -> None:
+    """Analyse every image of SOURCE (folder, glob, or CSV/JSONL manifest) into a catalog; resumes."""
+    from .catalog import TerminalProgress, run_batch
+    from .image import METRES_PER_INCH
+
+    if workers is not None and workers < 1:
+        raise TactilizeError("--workers", f"must be at least 1, got {workers}")
+    bar = TerminalProgress(sys.stderr)
+    try:
+        summary = run_batch(
+            source,
+            out,
+            profile=profile_name,
+            dpi=dpi,
+            analysis_pitch_m=METRES_PER_INCH / analysis_dpi if analysis_dpi else None,
+            workers=workers,
+            scheduler=scheduler,
+            retry_failed=retry_failed,
+            progress=bar,
+        )
+    finally:
+        bar.close()
+    if as_json:
+        emit_json(summary.to_dict())
+        return
+    click.echo(
+        f"{summary.out}: {summary.ok} ok, {summary.failed} failed, {summary.skipped} already done "
+        f"(of {summary.total}) in {summary.seconds:.1f} s, {summary.images_per_second:.1f} images/s"
+    )
+
+
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())
