@@ -49,6 +49,7 @@ this module against that copy over a pseudo-terminal so they cannot drift apart.
 from __future__ import annotations
 
 import struct
+import time
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import NamedTuple
@@ -179,6 +180,9 @@ class FrameDecoder:
         self._buf = bytearray()
         self.crc_errors = 0
         self.discarded_bytes = 0
+        #: monotonic time [s] at which the candidate frame now held back started
+        #: waiting for its tail; None when nothing waits
+        self.pending_since_s: float | None = None
 
     def __len__(self) -> int:
         """Bytes held back, waiting to complete a frame."""
@@ -212,18 +216,34 @@ class FrameDecoder:
                 continue
             frames.append(Frame(buf[2], buf[3], bytes(buf[HEADER_SIZE : HEADER_SIZE + length])))
             del buf[:total]
+            self.pending_since_s = None
+        if not buf:
+            self.pending_since_s = None
+        elif self.pending_since_s is None:
+            self.pending_since_s = time.monotonic()
         return frames
 
-    def expire(self) -> None:
+    def expire_stale(self, max_age_s: float) -> list[Frame]:
+        """:meth:`expire` when the held-back candidate has waited longer than
+        ``max_age_s`` [s] (measured per candidate, so bytes that keep arriving
+        behind a corrupt length byte do not keep it alive)."""
+        if self.pending_since_s is not None and time.monotonic() - self.pending_since_s > max_age_s:
+            return self.expire()
+        return []
+
+    def expire(self) -> list[Frame]:
         """Give up on a partial frame (call after a silence longer than a frame
-        takes to arrive): a corrupted length byte cannot hold later frames hostage."""
-        if self._buf:
-            self._drop_start()
-            self.feed(b"")
+        takes to arrive), so a corrupted length byte cannot hold later frames
+        hostage; returns the frames that were held back behind it."""
+        if not self._buf:
+            return []
+        self._drop_start()
+        return self.feed(b"")
 
     def _drop_start(self) -> None:
         self.discarded_bytes += 1
         del self._buf[:1]
+        self.pending_since_s = None
 
 
 # ----------------------------------------------------------------- payloads

@@ -414,9 +414,11 @@ class SerialOutput(OutputBase):
             except Exception as exc:  # SerialException / OSError / TypeError once the fd dies
                 self._lost(ser, f"read failed ({exc.__class__.__name__})")
                 continue
-            if not data:
-                continue
-            for frame in self._decoder.feed(data):
+            # A reply takes well under a millisecond on USB; a candidate older
+            # than 50 ms was corrupted and must not hold later replies back.
+            frames = self._decoder.feed(data) if data else []
+            frames += self._decoder.expire_stale(0.05)
+            for frame in frames:
                 self._dispatch(frame)
 
     def _dispatch(self, frame: P.Frame) -> None:

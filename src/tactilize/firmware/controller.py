@@ -129,16 +129,20 @@ class Decoder:
         self.buf = bytearray()
         self.on_frame = on_frame
         self.on_bad = on_bad
-        self.last_rx_ms = _ticks_ms()
+        # When the frame candidate now at buf[0] started waiting for its tail;
+        # None while no candidate waits.  Measured per candidate, not from the
+        # last byte received: heartbeats arriving behind a corrupt length byte
+        # must not keep that candidate alive.
+        self.pending_since_ms = None
 
     def feed(self, data):
         self.buf.extend(data)
-        self.last_rx_ms = _ticks_ms()
         self._scan()
 
     def expire(self, now_ms):
-        if self.buf and _ticks_diff(now_ms, self.last_rx_ms) > FRAME_TIMEOUT_MS:
+        if self.pending_since_ms is not None and _ticks_diff(now_ms, self.pending_since_ms) > FRAME_TIMEOUT_MS:
             self.buf = self.buf[1:]
+            self.pending_since_ms = None
             self._scan()
 
     def _scan(self):
@@ -150,16 +154,19 @@ class Decoder:
                 while i < n and buf[i] != START:
                     i += 1
                 self.buf = buf[i:]
+                self.pending_since_ms = None
                 continue
             if len(buf) < 2:
-                return
+                break
             length = buf[1]
             if length > MAX_PAYLOAD:
                 self.buf = buf[1:]
+                self.pending_since_ms = None
                 continue
             total = 6 + length
             if len(buf) < total:
-                return
+                break
+            self.pending_since_ms = None
             got = (buf[4 + length] << 8) | buf[5 + length]
             if crc16(buf[1 : 4 + length]) != got:
                 self.buf = buf[1:]
@@ -167,6 +174,8 @@ class Decoder:
                 continue
             self.buf = buf[total:]
             self.on_frame(buf[2], buf[3], bytes(buf[4 : 4 + length]))
+        if self.buf and self.pending_since_ms is None:
+            self.pending_since_ms = _ticks_ms()
 
 
 class Channel:

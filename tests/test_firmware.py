@@ -1,0 +1,290 @@
+"""The controller firmware itself, run on the host behind a pseudo-terminal.
+
+Frames go over a real pty with pyserial; what the outputs do is read from the
+emulated ``machine`` pins (host_machine), not from the firmware's own report.
+"""
+
+from __future__ import annotations
+
+import ast
+import threading
+import time
+from importlib import resources
+
+import pytest
+import serial
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tactilize.actuators import protocol as P
+from tactilize.firmware import host_machine
+from tactilize.firmware.emulator import ControllerEmulator, load_firmware
+
+fw = load_firmware()
+PIN0, PIN1 = fw.CHANNEL_PINS
+
+
+class Link:
+    """A bare host end: pyserial plus the host decoder, one request at a time."""
+
+    def __init__(self, device: str):
+        self.ser = serial.Serial(device, timeout=0.5)
+        self.dec = P.FrameDecoder()
+        self.seq = 0
+
+    def send_raw(self, data: bytes) -> None:
+        self.ser.write(data)
+
+    def read_frame(self, timeout_s: float = 1.0) -> P.Frame | None:
+        deadline = time.monotonic() + timeout_s
+        pending: list[P.Frame] = []
+        while time.monotonic() < deadline:
+            pending += self.dec.feed(self.ser.read(max(1, self.ser.in_waiting)))
+            if pending:
+                return pending[0]
+        return None
+
+    def request(self, command: int, payload: bytes = b"") -> P.Frame:
+        self.seq = (self.seq + 1) & 0xFF
+        self.send_raw(P.encode_frame(self.seq, command, payload))
+        reply = self.read_frame()
+        assert reply is not None, "no reply from the controller"
+        assert reply.seq == self.seq
+        return reply
+
+    def set(self, channel: int, f_hz: float, w_s: float, amp: float = 1.0) -> P.Frame:
+        return self.request(P.Command.SET, P.encode_set_channel(channel, f_hz, w_s, amp))
+
+    def close(self) -> None:
+        self.ser.close()
+
+
+@pytest.fixture
+def emu():
+    host_machine.reset()
+    events: list[dict] = []
+    lock = threading.Lock()
+
+    def on_change(ev: dict) -> None:
+        ev = dict(ev, seen_s=time.monotonic())
+        with lock:
+            events.append(ev)
+
+    e = ControllerEmulator(on_change=on_change).start()
+    e.events = events  # type: ignore[attr-defined]
+    yield e
+    e.stop()
+    host_machine.reset()
+
+
+@pytest.fixture
+def link(emu):
+    lk = Link(emu.device)
+    yield lk
+    lk.close()
+
+
+def test_set_round_trip_drives_the_pwm_hardware(emu, link):
+    reply = link.set(0, 120.0, 400e-6)
+    assert reply.command == P.Command.ACK
+    assert reply.payload[0] == P.Command.SET
+    hw = host_machine.pin_state(PIN0)
+    assert hw["mode"] == "pwm"
+    assert hw["frequency_hz"] == 120.0
+    assert hw["duty_ns"] == 400_000
+    assert host_machine.pin_state(PIN1).get("duty_ns", 0) == 0
+    status = P.decode_status(link.request(P.Command.STATUS).payload)
+    assert status.channels[0] == P.ChannelStatus(True, 120.0, 400e-6, 1.0)
+    assert not status.channels[1].on
+    assert status.max_frequency_hz == 300.0 and status.watchdog_s == 0.2
+    on = [e for e in emu.events if e["on"]]
+    assert on[0]["channel"] == 0 and on[0]["frequency_hz"] == 120.0 and on[0]["pulse_width_us"] == 400.0
+
+
+def test_two_channels_run_different_frequencies(emu, link):
+    link.set(0, 120.0, 400e-6)
+    link.set(1, 250.0, 200e-6)
+    assert host_machine.pin_state(PIN0)["frequency_hz"] == 120.0
+    assert host_machine.pin_state(PIN1)["frequency_hz"] == 250.0
+
+
+def test_pins_on_one_pwm_slice_would_share_a_frequency():
+    # Why the channels are on GP16 and GP18: the stand-in models the RP2040's
+    # slices, and two pins of one slice cannot hold two frequencies.
+    host_machine.reset()
+    sent = []
+    ctl = fw.Controller(sent.append, pins=(16, 17))
+    for seq, (ch, f) in enumerate([(0, 120.0), (1, 250.0)]):
+        ctl.feed(P.encode_frame(seq, P.Command.SET, P.encode_set_channel(ch, f, 2e-4, 1.0)))
+    assert host_machine.pin_state(16)["frequency_hz"] == host_machine.pin_state(17)["frequency_hz"] == 250.0
+    ctl.all_off("exit")
+    host_machine.reset()
+
+
+def test_bad_checksum_is_nakked_and_changes_nothing(emu, link):
+    link.set(0, 100.0, 300e-6)
+    frame = bytearray(P.encode_frame(42, P.Command.SET, P.encode_set_channel(0, 200.0, 300e-6, 1.0)))
+    frame[-1] ^= 0xFF
+    link.send_raw(bytes(frame))
+    reply = link.read_frame()
+    assert reply is not None and reply.command == P.Command.NAK and reply.seq == 42
+    assert P.decode_nak(reply.payload)[0] == P.NakReason.BAD_CHECKSUM
+    assert host_machine.pin_state(PIN0)["frequency_hz"] == 100.0
+    assert P.decode_status(link.request(P.Command.STATUS).payload).frames_bad == 1
+
+
+@pytest.mark.parametrize(
+    "f_hz, w_s, refused",
+    [
+        (301.0, 300e-6, P.Refused.FREQUENCY),
+        (0.5, 300e-6, P.Refused.FREQUENCY),
+        (100.0, 6e-3, P.Refused.PULSE_WIDTH),
+        (100.0, 5e-6, P.Refused.PULSE_WIDTH),
+        (250.0, 1e-3, P.Refused.DUTY),  # 25 % duty
+    ],
+)
+def test_hard_limits_are_refused_and_the_old_drive_kept(emu, link, f_hz, w_s, refused):
+    link.set(0, 80.0, 500e-6)
+    reply = link.set(0, f_hz, w_s)
+    assert reply.command == P.Command.NAK
+    assert P.decode_nak(reply.payload) == (P.NakReason.REFUSED_LIMIT, refused)
+    hw = host_machine.pin_state(PIN0)
+    assert (hw["mode"], hw["frequency_hz"], hw["duty_ns"]) == ("pwm", 80.0, 500_000)
+
+
+def test_limit_edges_are_accepted(emu, link):
+    assert link.set(0, 300.0, 10e-6).command == P.Command.ACK
+    assert link.set(1, 40.0, 5e-3).command == P.Command.ACK  # duty exactly 20 %
+
+
+def test_unknown_command_and_bad_payload(emu, link):
+    reply = link.request(0x55)
+    assert P.decode_nak(reply.payload)[0] == P.NakReason.UNKNOWN_COMMAND
+    reply = link.request(P.Command.SET, b"\x00\x01")
+    assert P.decode_nak(reply.payload)[0] == P.NakReason.BAD_PAYLOAD
+    reply = link.set(5, 100.0, 3e-4)
+    assert P.decode_nak(reply.payload) == (P.NakReason.BAD_PAYLOAD, P.Refused.CHANNEL)
+
+
+def test_stop_turns_everything_off(emu, link):
+    link.set(0, 100.0, 3e-4)
+    link.set(1, 150.0, 3e-4)
+    assert link.request(P.Command.STOP).command == P.Command.ACK
+    assert host_machine.pin_state(PIN0)["mode"] == "gpio" and host_machine.pin_state(PIN0)["value"] == 0
+    assert host_machine.pin_state(PIN1)["mode"] == "gpio" and host_machine.pin_state(PIN1)["value"] == 0
+    offs = [e for e in emu.events if not e["on"]]
+    assert {(e["channel"], e["reason"]) for e in offs} == {(0, "stop"), (1, "stop")}
+
+
+def test_watchdog_turns_outputs_off_within_250_ms_of_silence(emu, link):
+    link.set(0, 120.0, 400e-6)
+    link.set(1, 60.0, 400e-6)
+    last_frame_s = time.monotonic()  # the ACK of the last valid frame is in
+    deadline = last_frame_s + 1.0
+    while time.monotonic() < deadline and sum(1 for e in emu.events if not e["on"]) < 2:
+        time.sleep(0.005)
+    offs = [e for e in emu.events if not e["on"]]
+    assert [e["reason"] for e in offs] == ["watchdog", "watchdog"]
+    silence = max(e["seen_s"] for e in offs) - last_frame_s
+    assert 0.19 <= silence <= 0.25, silence
+    for pin in (PIN0, PIN1):
+        hw = host_machine.pin_state(pin)
+        assert hw["mode"] == "gpio" and hw["value"] == 0
+    # the next ACK tells the host that the watchdog fired
+    ack = link.request(P.Command.HEARTBEAT)
+    assert ack.payload[1] & P.FLAG_WATCHDOG_TRIPPED
+    assert P.decode_status(link.request(P.Command.STATUS).payload).watchdog_tripped
+
+
+def test_heartbeats_keep_the_outputs_on(emu, link):
+    link.set(0, 120.0, 400e-6)
+    end = time.monotonic() + 0.6
+    while time.monotonic() < end:
+        assert link.request(P.Command.HEARTBEAT).command == P.Command.ACK
+        time.sleep(0.05)
+    assert not [e for e in emu.events if not e["on"]]
+    assert host_machine.pin_state(PIN0)["duty_ns"] == 400_000
+
+
+def test_a_corrupt_length_cannot_starve_the_watchdog(emu, link):
+    # A start byte with a long length would swallow the following heartbeats
+    # if the firmware waited for it to complete; it gives up after 50 ms.
+    link.set(0, 120.0, 400e-6)
+    link.send_raw(bytes((P.START, 64, 0, 0)))
+    end = time.monotonic() + 0.5
+    while time.monotonic() < end:
+        link.send_raw(P.encode_frame(1, P.Command.HEARTBEAT))
+        time.sleep(0.04)
+    assert not [e for e in emu.events if not e["on"]]
+
+
+def test_slow_trains_use_a_timer_with_exact_pulse_width(emu, link):
+    link.set(1, 5.0, 1e-3)
+    deadline = time.monotonic() + 1.0
+    while time.monotonic() < deadline and "last_pulse_s" not in host_machine.pin_state(PIN1):
+        time.sleep(0.01)
+    width = host_machine.pin_state(PIN1).get("last_pulse_s")
+    assert width is not None, "the timer never pulsed the pin"
+    # busy-waited: never shorter than asked; the upper bound allows host scheduling
+    assert 1e-3 <= width < 20e-3
+    ev = [e for e in emu.events if e["on"] and e["channel"] == 1][0]
+    assert ev["frequency_hz"] == 5.0 and ev["pulse_width_us"] == 1000.0
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.binary(max_size=200))
+def test_firmware_crc_equals_host_crc(data):
+    assert fw.crc16(data) == P.crc16_ccitt(data)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.tuples(st.integers(0, 255), st.integers(0, 255), st.binary(max_size=P.MAX_PAYLOAD)), max_size=5),
+    st.binary(max_size=60),
+    st.integers(0, 5),
+)
+def test_firmware_decoder_agrees_with_host_decoder(frames, garbage, where):
+    stream = b"".join(P.encode_frame(s, c, p) for s, c, p in frames)
+    cut = min(len(stream), where * 7)
+    data = stream[:cut] + garbage + stream[cut:]
+    got_fw: list[P.Frame] = []
+    bad_fw: list[int] = []
+    dec_fw = fw.Decoder(lambda s, c, p: got_fw.append(P.Frame(s, c, p)), bad_fw.append)
+    dec_fw.feed(data)
+    while dec_fw.buf:  # a silence: expire everything held back
+        dec_fw.expire(dec_fw.pending_since_ms + 10 * fw.FRAME_TIMEOUT_MS)
+    dec_host = P.FrameDecoder()
+    got_host = dec_host.feed(data)
+    while len(dec_host):
+        got_host += dec_host.expire()
+    assert got_fw == got_host
+    assert len(bad_fw) == dec_host.crc_errors
+
+
+# ------------------------------------------------------------ MicroPython compatibility
+
+MICROPYTHON_MODULES = {"struct", "sys", "time", "machine", "select", "micropython"}
+
+
+def test_controller_source_uses_only_micropython_features():
+    source = resources.files("tactilize.firmware").joinpath("controller.py").read_text("utf-8")
+    tree = ast.parse(source)
+    for node in ast.walk(tree):
+        assert not isinstance(node, ast.JoinedStr), f"f-string at line {node.lineno}"
+        assert not isinstance(node, ast.AnnAssign), f"annotation at line {node.lineno}"
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            assert node.returns is None and all(a.annotation is None for a in node.args.args), node.name
+        if isinstance(node, ast.Import):
+            assert {a.name for a in node.names} <= MICROPYTHON_MODULES
+        if isinstance(node, ast.ImportFrom):
+            assert node.module in MICROPYTHON_MODULES, node.module
+        if isinstance(node, ast.Attribute):
+            # bytearray/bytes .find and int.to_bytes are missing or partial on some ports
+            assert node.attr not in {"find", "to_bytes", "from_bytes", "monotonic"} or _in_compat_block(node), node.attr
+        if isinstance(node, (ast.With, ast.AsyncWith, ast.Lambda)) and isinstance(node, ast.AsyncWith):
+            raise AssertionError("async with")
+
+
+def _in_compat_block(node: ast.AST) -> bool:
+    # time.monotonic appears only in the CPython fallback, guarded by getattr.
+    return getattr(node, "attr", "") == "monotonic"
