@@ -1078,6 +1078,27 @@ class Catalog:
             float(row.get("anisotropy") or 0.0),
         )
 
+    def stored_drives(self, row: dict[str, Any]) -> list[tuple[float, Drive]]:
+        """(speed [m/s], drive) at the catalog's reference speeds, as the batch stored them."""
+        out = []
+        if row.get("status") != "ok":
+            return out
+        for speed in self.speeds_m_s:
+            p = f"drive_{_speed_label(speed)}_"
+            clamped = row.get(p + "clamped") or ""
+            out.append(
+                (
+                    speed,
+                    Drive(
+                        float(row[p + "pulse_frequency_hz"]),
+                        float(row[p + "pulse_width_s"]),
+                        float(row[p + "amplitude"]),
+                        tuple(c for c in clamped.split(",") if c),
+                    ),
+                )
+            )
+        return out
+
     def drive(self, row: dict[str, Any], speed_m_s: float, profile: Profile | None = None) -> Drive:
         """The drive of a stored product at any speed [m/s] (the catalog's profile by default)."""
         return (profile or self.profile).drive(self.features_of(row), speed_m_s=speed_m_s)

@@ -1,0 +1,369 @@
+"""The read API of a catalog: a product's tactile profile by id, and its exports.
+
+``tactilize serve --catalog PATH`` mounts :func:`catalog_router` on the web app;
+:func:`create_catalog_app` serves it alone.  Every route is described in the
+OpenAPI schema (``/openapi.json``; ``/api/docs`` on the web app).
+
+Routes (prefix ``/api/catalog``)
+--------------------------------
+``GET  /api/catalog``                                    counts, profile, reference speeds
+``GET  /api/catalog/products``                           ids, a page at a time
+``GET  /api/catalog/products/{id}``                      the tactile profile of a product
+``GET  /api/catalog/products/{id}/drive?speed_mm_s=``    the drive at any stroking speed
+``GET  /api/catalog/products/{id}/export/ahap``          Apple Core Haptics pattern (JSON)
+``GET  /api/catalog/products/{id}/export/android``       Android VibrationEffect waveform (JSON)
+``GET  /api/catalog/products/{id}/export/wav``           the pulse train as 16-bit PCM WAV
+
+Ids may contain ``/`` (a folder catalog's ids are relative paths).  A product
+whose image could not be analysed has a profile with ``status == "error"`` and
+its reason; its drive and exports answer 409.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from typing import Any, Literal
+
+from fastapi import APIRouter, FastAPI, Query
+from fastapi.responses import JSONResponse, Response
+from pydantic import BaseModel, Field
+
+from .catalog import Catalog
+from .mapping import Drive
+
+__all__ = ["catalog_router", "create_catalog_app", "PREFIX"]
+
+PREFIX = "/api/catalog"
+
+#: Longest export a request may ask for [s]: a WAV of 30 s at 48 kHz is 2.9 MB.
+MAX_EXPORT_S = 30.0
+
+
+# ----------------------------------------------------------------- response models
+
+
+class CatalogInfo(BaseModel):
+    """What the catalog holds."""
+
+    profile: str = Field(description="Name of the profile the stored drives were computed with.")
+    speeds_mm_s: list[float] = Field(description="Reference stroking speeds of the stored drives [mm/s].")
+    total: int
+    ok: int
+    failed: int
+
+
+class ProductPage(BaseModel):
+    """A page of product ids, in id order."""
+
+    ids: list[str]
+    offset: int
+    limit: int
+
+
+class DriveAtSpeed(BaseModel):
+    """One actuator drive at a stroking speed (SI units, plus mm/s and ms for display)."""
+
+    speed_mm_s: float
+    pulse_frequency_hz: float
+    pulse_width_s: float
+    pulse_width_ms: float
+    duty_ratio: float
+    amplitude: float = Field(description="Fraction of the actuator's rated peak current, 0..1.")
+    clamped: list[str] = Field(description="Actuator limits that changed this drive.")
+
+
+class TactileProfile(BaseModel):
+    """Everything the catalog knows about a product's texture."""
+
+    id: str
+    status: Literal["ok", "error"]
+    error: str | None = Field(None, description="Why the image could not be analysed (status 'error').")
+    profile: str = Field(description="Profile of the stored drives.")
+    image: dict[str, Any] = Field(default_factory=dict, description="width_px, height_px, width_mm, height_mm, pitch_m, decode_scale.")
+    features: dict[str, Any] = Field(default_factory=dict, description="Whole-image features (spatial_frequency_per_m, spectral_intensity, ...).")
+    texture_map: dict[str, Any] = Field(default_factory=dict, description="How the texture varies across the picture (tile grid summary).")
+    drives: list[DriveAtSpeed] = Field(default_factory=list, description="Drives at the reference speeds.")
+
+
+class AndroidWaveform(BaseModel):
+    """Arguments of ``VibrationEffect.createWaveform(timings, amplitudes, repeat)``."""
+
+    timings_ms: list[int]
+    amplitudes: list[int] = Field(description="0..255 per segment.")
+    repeat: int = Field(-1, description="Index to repeat from; -1 plays once.")
+
+
+class ErrorMessage(BaseModel):
+    error: str
+
+
+_IMAGE_KEYS = ("width_px", "height_px", "width_mm", "height_mm", "pitch_m", "decode_scale")
+_ROW_KEYS = {"id", "path", "status", "error", "profile", "seconds"}
+
+
+def _profile_doc(catalog: Catalog, row: dict[str, Any]) -> TactileProfile:
+    image = {k: row.get(k) for k in _IMAGE_KEYS}
+    texture_map = {k[4:]: v for k, v in row.items() if k.startswith("map_")}
+    features = {
+        k: v
+        for k, v in row.items()
+        if k not in _ROW_KEYS and k not in _IMAGE_KEYS and not k.startswith(("map_", "drive_"))
+    }
+    drives = [_drive_doc(drv, speed) for speed, drv in catalog.stored_drives(row)]
+    return TactileProfile(
+        id=str(row["id"]),
+        status=row.get("status") or "error",
+        error=row.get("error"),
+        profile=str(row.get("profile") or catalog.profile.name),
+        image=image,
+        features=features,
+        texture_map=texture_map,
+        drives=drives,
+    )
+
+
+def _drive_doc(drv: Drive, speed_m_s: float) -> DriveAtSpeed:
+    return DriveAtSpeed(speed_mm_s=speed_m_s * 1e3, **drv.to_dict())
+
+
+def _error(status: int, message: str) -> JSONResponse:
+    return JSONResponse({"error": message}, status_code=status)
+
+
+# ----------------------------------------------------------------- exports
+
+
+def _export_ahap(drv: Drive, duration_s: float) -> dict[str, Any]:
+    """AHAP pattern of a steady drive (tactilize.export when present)."""
+    try:
+        from . import export as ex  # helper module of the actuator issue; optional here
+
+        fn = getattr(ex, "to_ahap", None) or getattr(ex, "ahap_pattern", None)
+        if fn is not None:
+            return fn(drv, duration_s=duration_s)
+    except ImportError:
+        pass
+    # Sharpness 0..1 is commonly mapped to 65 .. 300 Hz (FACTS.md section 6).
+    sharpness = min(1.0, max(0.0, (drv.pulse_frequency_hz - 65.0) / (300.0 - 65.0)))
+    events = []
+    if not drv.is_off:
+        events.append(
+            {
+                "Event": {
+                    "Time": 0.0,
+                    "EventType": "HapticContinuous",
+                    "EventDuration": duration_s,
+                    "EventParameters": [
+                        {"ParameterID": "HapticIntensity", "ParameterValue": drv.amplitude},
+                        {"ParameterID": "HapticSharpness", "ParameterValue": sharpness},
+                    ],
+                }
+            }
+        )
+    return {"Version": 1.0, "Metadata": {"Project": "tactilize"}, "Pattern": events}
+
+
+def _export_android(drv: Drive, duration_s: float) -> dict[str, Any]:
+    """Android waveform of a steady drive (tactilize.export when present)."""
+    try:
+        from . import export as ex
+
+        fn = getattr(ex, "to_android", None) or getattr(ex, "android_waveform", None)
+        if fn is not None:
+            return fn(drv, duration_s=duration_s)
+    except ImportError:
+        pass
+    total_ms = max(1, int(round(duration_s * 1e3)))
+    if drv.is_off:
+        return {"timings_ms": [total_ms], "amplitudes": [0], "repeat": -1}
+    # Android timings are whole milliseconds: pulse trains faster than ~100 Hz cannot
+    # be spelled out, so they become one segment whose strength is the amplitude.
+    period_ms = 1e3 / drv.pulse_frequency_hz
+    level = max(1, min(255, int(round(255 * drv.amplitude))))
+    if period_ms >= 10:
+        on = max(1, int(round(drv.pulse_width_s * 1e3)))
+        off = max(1, int(round(period_ms)) - on)
+        n = max(1, int(total_ms // (on + off)))
+        return {"timings_ms": [on, off] * n, "amplitudes": [level, 0] * n, "repeat": -1}
+    return {"timings_ms": [total_ms], "amplitudes": [level], "repeat": -1}
+
+
+def _export_wav(drv: Drive, duration_s: float, sample_rate_hz: int) -> bytes:
+    """16-bit mono WAV of the pulse train (tactilize.export when present)."""
+    try:
+        from . import export as ex
+
+        fn = getattr(ex, "to_wav_bytes", None) or getattr(ex, "wav_bytes", None)
+        if fn is not None:
+            return fn(drv, duration_s=duration_s, sample_rate_hz=sample_rate_hz)
+    except ImportError:
+        pass
+    import wave
+
+    import numpy as np
+
+    n = int(round(duration_s * sample_rate_hz))
+    t = np.arange(n) / sample_rate_hz
+    if drv.is_off:
+        signal = np.zeros(n)
+    else:
+        phase = (t * drv.pulse_frequency_hz) % 1.0
+        signal = np.where(phase < drv.duty_ratio, drv.amplitude, 0.0)
+    pcm = (np.clip(signal, 0, 1) * 32767).astype("<i2")
+    buf = io.BytesIO()
+    with wave.open(buf, "wb") as w:
+        w.setnchannels(1)
+        w.setsampwidth(2)
+        w.setframerate(int(sample_rate_hz))
+        w.writeframes(pcm.tobytes())
+    return buf.getvalue()
+
+
+# ----------------------------------------------------------------- the router
+
+
+def catalog_router(catalog: Catalog | str | os.PathLike, *, prefix: str = PREFIX) -> APIRouter:
+    """The catalog read API as a FastAPI router.
+
+    Parameters
+    ----------
+    catalog : Catalog, str or path
+        An open :class:`~tactilize.catalog.Catalog`, or its Parquet folder / SQLAlchemy URL.
+    prefix : str
+        Where the routes live.
+
+    Returns
+    -------
+    APIRouter
+        Mount it with ``app.include_router(router)`` (or ``create_app(extra_routers=[router])``).
+    """
+    cat = catalog if isinstance(catalog, Catalog) else Catalog(catalog)
+    r = APIRouter(prefix=prefix, tags=["catalog"])
+    missing = {404: {"model": ErrorMessage, "description": "No product with this id."}}
+    failed = {409: {"model": ErrorMessage, "description": "The product's image could not be analysed."}}
+
+    def lookup(product_id: str) -> tuple[dict[str, Any] | None, JSONResponse | None]:
+        row = cat.get(product_id)
+        if row is None:
+            return None, _error(404, f"no product {product_id!r} in the catalog")
+        return row, None
+
+    def ok_row(product_id: str) -> tuple[dict[str, Any] | None, JSONResponse | None]:
+        row, err = lookup(product_id)
+        if err is None and row.get("status") != "ok":
+            return None, _error(409, f"product {product_id!r} has no tactile profile: {row.get('error')}")
+        return row, err
+
+    speed_q = Query(60.0, ge=0.0, le=5000.0, description="Stroking speed [mm/s].")
+    duration_q = Query(1.0, gt=0.0, le=MAX_EXPORT_S, description="Length of the export [s].")
+
+    @r.get("", response_model=CatalogInfo, summary="What the catalog holds")
+    def info() -> CatalogInfo:
+        return CatalogInfo(profile=cat.profile.name, speeds_mm_s=[v * 1e3 for v in cat.speeds_m_s], **cat.counts())
+
+    @r.get("/products", response_model=ProductPage, summary="Product ids, a page at a time")
+    def products(
+        offset: int = Query(0, ge=0),
+        limit: int = Query(100, ge=1, le=10_000),
+        status: Literal["ok", "error"] | None = Query(None, description="Only products with this status."),
+    ) -> ProductPage:
+        return ProductPage(ids=cat.ids(offset=offset, limit=limit, status=status), offset=offset, limit=limit)
+
+    # The specific routes come before the plain one: ids may contain "/", so
+    # "/products/{id:path}" would otherwise swallow ".../drive" and ".../export/...".
+    @r.get(
+        "/products/{product_id:path}/drive",
+        response_model=DriveAtSpeed,
+        responses={**missing, **failed},
+        summary="The drive of a product at any stroking speed",
+    )
+    def product_drive(product_id: str, speed_mm_s: float = speed_q) -> Any:
+        row, err = ok_row(product_id)
+        if err is not None:
+            return err
+        return _drive_doc(cat.drive(row, speed_mm_s * 1e-3), speed_mm_s * 1e-3)
+
+    @r.get(
+        "/products/{product_id:path}/export/ahap",
+        responses={200: {"content": {"application/json": {}}, "description": "An AHAP file (Apple Core Haptics)."}, **missing, **failed},
+        summary="Apple AHAP pattern of the product stroked at a speed",
+    )
+    def export_ahap(product_id: str, speed_mm_s: float = speed_q, duration_s: float = duration_q) -> Any:
+        row, err = ok_row(product_id)
+        if err is not None:
+            return err
+        doc = _export_ahap(cat.drive(row, speed_mm_s * 1e-3), duration_s)
+        return JSONResponse(doc, headers={"Content-Disposition": f'attachment; filename="{_file_stem(product_id)}.ahap"'})
+
+    @r.get(
+        "/products/{product_id:path}/export/android",
+        response_model=AndroidWaveform,
+        responses={**missing, **failed},
+        summary="Android VibrationEffect waveform of the product stroked at a speed",
+    )
+    def export_android(product_id: str, speed_mm_s: float = speed_q, duration_s: float = duration_q) -> Any:
+        row, err = ok_row(product_id)
+        if err is not None:
+            return err
+        return _export_android(cat.drive(row, speed_mm_s * 1e-3), duration_s)
+
+    @r.get(
+        "/products/{product_id:path}/export/wav",
+        response_class=Response,
+        responses={
+            200: {"content": {"audio/wav": {"schema": {"type": "string", "format": "binary"}}}, "description": "16-bit mono PCM."},
+            **missing,
+            **failed,
+        },
+        summary="The product's pulse train at a speed as a WAV file",
+    )
+    def export_wav(
+        product_id: str,
+        speed_mm_s: float = speed_q,
+        duration_s: float = duration_q,
+        sample_rate_hz: int = Query(48_000, ge=8_000, le=192_000, description="Samples per second [Hz]."),
+    ) -> Any:
+        row, err = ok_row(product_id)
+        if err is not None:
+            return err
+        data = _export_wav(cat.drive(row, speed_mm_s * 1e-3), duration_s, sample_rate_hz)
+        return Response(
+            data,
+            media_type="audio/wav",
+            headers={"Content-Disposition": f'attachment; filename="{_file_stem(product_id)}.wav"'},
+        )
+
+    @r.get(
+        "/products/{product_id:path}",
+        response_model=TactileProfile,
+        responses=missing,
+        summary="The tactile profile of a product",
+    )
+    def product(product_id: str) -> Any:
+        row, err = lookup(product_id)
+        if err is not None:
+            return err
+        return _profile_doc(cat, row)
+
+    return r
+
+
+def _file_stem(product_id: str) -> str:
+    """A download name from an id ("sub/shirt.jpg" -> "sub_shirt")."""
+    stem = os.path.splitext(product_id)[0] if "." in product_id[-6:] else product_id
+    safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in stem).strip("_")
+    return safe or "product"
+
+
+def create_catalog_app(location: str | os.PathLike | Catalog) -> FastAPI:
+    """A FastAPI app serving only the catalog read API (``uvicorn`` can run it).
+
+    Parameters
+    ----------
+    location : str, path or Catalog
+        The Parquet folder or SQLAlchemy URL made by ``tactilize batch``.
+    """
+    app = FastAPI(title="tactilize catalog", docs_url="/api/docs", redoc_url=None)
+    app.include_router(catalog_router(location))
+    return app
