@@ -1,0 +1,296 @@
+"""SerialOutput against the real firmware over a pseudo-terminal."""
+
+from __future__ import annotations
+
+import json
+import os
+import select
+import signal
+import subprocess
+import sys
+import threading
+import time
+import tty
+
+import pytest
+
+from tactilize.actuators import protocol as P
+from tactilize.actuators.factory import open_output
+from tactilize.actuators.serial import SerialOutput
+from tactilize.errors import OutputError, TactilizeError
+from tactilize.firmware import host_machine
+from tactilize.firmware.emulator import ControllerEmulator, load_firmware
+from tactilize.mapping import ActuatorLimits, Drive
+
+fw = load_firmware()
+
+
+class Identity:
+    """An envelope that lets everything through (to reach the controller's limits)."""
+
+    def apply(self, drive: Drive) -> Drive:
+        return drive
+
+
+class HalfWidth:
+    """An envelope that halves every width and says so."""
+
+    def apply(self, drive: Drive) -> Drive:
+        return drive.with_clamp("envelope", pulse_width_s=drive.pulse_width_s / 2)
+
+
+@pytest.fixture
+def emu():
+    host_machine.reset()
+    events: list[dict] = []
+    e = ControllerEmulator(on_change=events.append).start()
+    e.events = events  # type: ignore[attr-defined]
+    yield e
+    e.stop()
+    host_machine.reset()
+
+
+def wait_for(predicate, timeout_s: float = 2.0) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.01)
+    return predicate()
+
+
+def test_apply_round_trip(emu):
+    with SerialOutput(emu.device) as out:
+        assert out.connected
+        sent = out.apply([Drive(120.0, 400e-6), Drive(250.0, 200e-6, 0.5)])
+        assert [(d.pulse_frequency_hz, d.pulse_width_s) for d in sent] == [(120.0, 400e-6), (250.0, 200e-6)]
+        status = out.status()
+        assert status.channels[0] == P.ChannelStatus(True, 120.0, 400e-6, 1.0)
+        assert status.channels[1].frequency_hz == 250.0
+        assert status.channels[1].amplitude == pytest.approx(0.5, abs=1e-4)
+        assert host_machine.pin_state(fw.CHANNEL_PINS[1])["duty_ns"] == 200_000
+    # leaving the block stopped the controller
+    assert [e["reason"] for e in emu.events if not e["on"]] == ["stop", "stop"]
+
+
+def test_fewer_drives_than_channels_turn_the_rest_off(emu):
+    with SerialOutput(emu.device) as out:
+        out.apply([Drive(100.0, 3e-4), Drive(100.0, 3e-4)])
+        out.apply([Drive(150.0, 3e-4)])
+        status = out.status()
+        assert status.channels[0].frequency_hz == 150.0
+        assert not status.channels[1].on
+
+
+def test_every_drive_passes_the_envelope(emu):
+    with SerialOutput(emu.device, envelope=HalfWidth()) as out:
+        sent = out.apply([Drive(100.0, 800e-6)])
+        assert sent[0].pulse_width_s == pytest.approx(400e-6)
+        assert "envelope" in sent[0].clamped
+        assert out.status().channels[0].pulse_width_s == pytest.approx(400e-6)
+
+
+def test_the_default_envelope_clamps_before_sending(emu):
+    with SerialOutput(emu.device) as out:
+        sent = out.apply([Drive(250.0, 1e-3)])  # 25 % duty
+        assert sent[0].clamped  # named by whichever envelope is installed
+        assert sent[0].duty_ratio <= 0.2
+        assert out.status().channels[0].on
+
+
+def test_controller_limits_clamp_what_the_envelope_lets_through(emu):
+    with SerialOutput(emu.device, envelope=Identity()) as out:
+        sent = out.apply([Drive(250.0, 1e-3)])  # 25 %, above the controller's 20 %
+        assert "controller:max_duty_ratio" in sent[0].clamped
+        assert out.status().channels[0].on  # accepted, not refused
+
+
+def test_a_refusal_is_a_clear_error(emu, monkeypatch):
+    with SerialOutput(emu.device, envelope=Identity()) as out:
+        # the firmware's limit tightens after the host learnt it: the host's
+        # clamp lets 250 Hz through and the controller must refuse it
+        monkeypatch.setattr(fw, "MAX_FREQUENCY_MHZ", 200_000)
+        with pytest.raises(OutputError, match="refused SET: refused limit \\(frequency\\)"):
+            out.apply([Drive(250.0, 1e-4)])
+        assert not out.status().channels[0].on
+
+
+def test_heartbeats_keep_the_drive_alive(emu):
+    with SerialOutput(emu.device) as out:
+        out.apply([Drive(120.0, 400e-6)])
+        time.sleep(0.8)
+        assert not [e for e in emu.events if not e["on"]]
+        assert out.status().channels[0].on
+
+
+def test_a_stalled_host_gets_its_drives_back(emu, monkeypatch):
+    with SerialOutput(emu.device) as out:
+        out.apply([Drive(120.0, 400e-6)])
+        beat = out._heartbeat
+        monkeypatch.setattr(out, "_heartbeat", lambda: None)  # the host stalls
+        assert wait_for(lambda: any(e.get("reason") == "watchdog" for e in emu.events), 1.0)
+        monkeypatch.setattr(out, "_heartbeat", beat)
+        # the next heartbeat's ACK carries the watchdog flag; the host re-applies
+        assert wait_for(lambda: sum(1 for e in emu.events if e["on"]) == 2, 1.0)
+        assert any(kind == "watchdog" for _, kind, _ in out.events)
+        assert out.status().channels[0].on
+
+
+def test_port_that_cannot_be_opened(tmp_path):
+    with pytest.raises(OutputError) as err:
+        SerialOutput(str(tmp_path / "no-such-tty"))
+    assert isinstance(err.value, TactilizeError)
+    assert "no-such-tty" in str(err.value) and "cannot open" in str(err.value)
+    with pytest.raises(OutputError, match="cannot open"):
+        SerialOutput("/dev/null")
+
+
+def test_a_port_where_nobody_answers():
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    try:
+        t0 = time.monotonic()
+        with pytest.raises(OutputError, match="no tactile controller answers"):
+            SerialOutput(os.ttyname(slave), connect_timeout_s=0.4)
+        assert time.monotonic() - t0 < 2.0
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+class FlakyController(threading.Thread):
+    """A hand-written controller on a pty that ignores the first SET it sees,
+    to show that the host resends when an ACK does not come."""
+
+    def __init__(self):
+        super().__init__(daemon=True)
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)
+        self.device = os.ttyname(self.slave)
+        self.sets: list[int] = []
+        self.running = True
+
+    def status(self) -> bytes:
+        off = P.ChannelStatus(False, 0.0, 0.0, 0.0)
+        return P.encode_status(
+            P.ControllerStatus(1, False, 0.0, 0, 0, (off, off), 1.0, 300.0, 1e-5, 5e-3, 0.2, 0.2)
+        )
+
+    def run(self):
+        dec = P.FrameDecoder()
+        while self.running:
+            if not select.select([self.master], [], [], 0.02)[0]:
+                continue
+            for f in dec.feed(os.read(self.master, 1024)):
+                if f.command == P.Command.STATUS:
+                    os.write(self.master, P.encode_frame(f.seq, P.Command.STATUS_REPLY, self.status()))
+                elif f.command == P.Command.SET:
+                    self.sets.append(f.seq)
+                    if len(self.sets) > 1:
+                        os.write(self.master, P.encode_frame(f.seq, P.Command.ACK, bytes((f.command, 0))))
+                else:
+                    os.write(self.master, P.encode_frame(f.seq, P.Command.ACK, bytes((f.command, 0))))
+
+    def close(self):
+        self.running = False
+        self.join(1.0)
+        os.close(self.master)
+        os.close(self.slave)
+
+
+def test_a_lost_ack_is_resent():
+    ctl = FlakyController()
+    ctl.start()
+    try:
+        with SerialOutput(ctl.device, ack_timeout_s=0.05) as out:
+            out.apply([Drive(100.0, 3e-4), Drive.off()])
+            # channel 0 needed two attempts (two sequence numbers), channel 1 one
+            assert len(ctl.sets) == 3 and len(set(ctl.sets[:2])) == 2
+    finally:
+        ctl.close()
+
+
+# ------------------------------------------------------------ the port vanishing and returning
+
+
+class EmulatorProcess:
+    """``tactilize controller-emulator`` in a subprocess, its JSON lines collected."""
+
+    def __init__(self, link: str):
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "tactilize.cli", "controller-emulator", "--link", link],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        ready, _, _ = select.select([self.proc.stdout], [], [], 20.0)
+        assert ready, "emulator did not print its device path"
+        self.device = self.proc.stdout.readline().strip()
+        self.lines: list[dict] = []
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self):
+        for line in self.proc.stdout:
+            self.lines.append(json.loads(line))
+
+    def kill(self, sig=signal.SIGKILL):
+        self.proc.send_signal(sig)
+        self.proc.wait(5.0)
+        self._reader.join(2.0)
+
+
+def test_port_vanishes_and_returns(tmp_path):
+    link = str(tmp_path / "ttyTACTILE")
+    first = EmulatorProcess(link)
+    assert first.device == link
+    seen: list[str] = []
+    try:
+        out = SerialOutput(link, on_event=lambda kind, detail: seen.append(kind))
+        out.apply([Drive(120.0, 400e-6), Drive(80.0, 300e-6)])
+        assert wait_for(lambda: len(first.lines) == 2)
+        first.kill()  # the board is unplugged (or crashed): no goodbye
+        assert wait_for(lambda: not out.connected, 1.0)
+        assert "lost" in seen
+        with pytest.raises(OutputError, match="disconnected"):
+            out.apply([Drive(120.0, 400e-6), Drive(80.0, 300e-6)])
+        second = EmulatorProcess(link)  # plugged back in: same path, fresh firmware
+        try:
+            assert out.wait_connected(5.0)
+            assert out.reconnects == 1 and "reconnected" in seen
+            # the fresh controller was given the drives again without being asked
+            assert wait_for(lambda: len(second.lines) >= 2)
+            on = {e["channel"]: e for e in second.lines if e["on"]}
+            assert on[0]["frequency_hz"] == 120.0 and on[1]["frequency_hz"] == 80.0
+            assert out.status().channels[1].pulse_width_s == pytest.approx(300e-6)
+            out.close()
+            assert wait_for(lambda: any(e.get("reason") == "stop" for e in second.lines))
+        finally:
+            second.kill(signal.SIGTERM)
+        assert second.proc.returncode == 0
+        assert not os.path.lexists(link)  # a clean exit removes its link
+    finally:
+        if first.proc.poll() is None:
+            first.kill()
+
+
+# ------------------------------------------------------------ the factory
+
+
+def test_open_output_specs(emu):
+    out = open_output(f"serial:{emu.device}")
+    try:
+        assert isinstance(out, SerialOutput) and out.connected
+    finally:
+        out.close()
+    with pytest.raises(OutputError, match="give the port"):
+        open_output("serial:")
+    with pytest.raises(OutputError, match="unknown output"):
+        open_output("carrier-pigeon")
+
+
+def test_limits_class_is_an_envelope():
+    # ActuatorLimits has the envelope contract (apply(Drive) -> Drive), which the
+    # serial output relies on for its fallback and for the controller's limits.
+    d = ActuatorLimits().apply(Drive(1000.0, 1e-3))
+    assert d.pulse_frequency_hz == 300.0 and d.clamped
