@@ -1,0 +1,220 @@
+"""Analysis of 1..7 ratings from within-subject experiments (FACTS.md section 7).
+
+For each protocol and question:
+
+- descriptives per condition: n, median, quartiles and IQR, mean and SD;
+- Friedman's test in its F variant (Iman-Davenport style: better calibrated than
+  the chi-square approximation at n = 8 .. 10) with Kendall's W, and the
+  classic chi-square version beside it;
+- pairwise Wilcoxon signed-rank tests with Holm's correction, each with the
+  rank-biserial correlation and the common-language effect size.
+
+The tests come from pingouin (which wraps scipy), not from hand-written
+formulas.  Ratings are first averaged per participant and condition (over
+images and repetitions), because the tests assume one value per cell;
+participants who did not rate every condition are left out of the tests (not of
+the descriptives) and the count of those used is reported.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+from itertools import combinations
+from typing import Any
+
+__all__ = ["tidy_answers", "analyze", "describe", "friedman", "pairwise_wilcoxon", "export_answers", "CSV_COLUMNS"]
+
+CSV_COLUMNS = [
+    "protocol", "protocol_version", "protocol_sha256", "seed", "participant", "participant_number", "simulated",
+    "session", "trial", "repetition", "condition", "image", "question", "rating", "trial_started_at",
+    "answered_at", "response_time_s", "tactilize_version",
+]
+
+
+def tidy_answers(store, protocol_name: str | None = None):
+    """One row per answer as a pandas DataFrame (columns :data:`CSV_COLUMNS`)."""
+    import pandas as pd
+
+    from .. import __version__
+
+    rows = store.answer_rows(protocol_name)
+    df = pd.DataFrame(rows, columns=CSV_COLUMNS[:-1])
+    df["tactilize_version"] = __version__
+    return df[CSV_COLUMNS]
+
+
+def export_answers(store, fmt: str = "csv", protocol_name: str | None = None) -> str:
+    """The answers as CSV (tidy, one row per answer) or JSON (with provenance and sessions)."""
+    from .store import provenance
+
+    df = tidy_answers(store, protocol_name)
+    if fmt == "csv":
+        buf = io.StringIO()
+        df.to_csv(buf, index=False, lineterminator="\n")
+        return buf.getvalue()
+    if fmt == "json":
+        doc = {
+            "provenance": provenance(db=_redact(store.url), protocol_filter=protocol_name),
+            "protocol_versions": store.protocol_texts(),
+            "sessions": store.sessions_overview(protocol_name),
+            "answers": json.loads(df.to_json(orient="records")),
+        }
+        return json.dumps(doc, indent=2)
+    from ..errors import TactilizeError
+
+    raise TactilizeError("--format", f"must be csv or json, got {fmt!r}")
+
+
+def _redact(url: str) -> str:
+    # A PostgreSQL URL may carry a password; exports must not.
+    if "@" in url and "://" in url:
+        scheme, rest = url.split("://", 1)
+        return f"{scheme}://***@{rest.split('@', 1)[1]}"
+    return url
+
+
+def _f(x: Any) -> float | None:
+    try:
+        x = float(x)
+    except (TypeError, ValueError):
+        return None
+    return x if math.isfinite(x) else None
+
+
+def _col(row, *names):
+    # pingouin renamed columns across versions ("p-unc" -> "p_unc", "W-val" -> "W_val").
+    for n in names:
+        if n in row.index:
+            return row[n]
+    return float("nan")
+
+
+def describe(values) -> dict[str, Any]:
+    """n, median, q1, q3, IQR, mean, SD (ddof = 1) of one condition's ratings."""
+    import numpy as np
+
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return {"n": 0, "median": None, "q1": None, "q3": None, "iqr": None, "mean": None, "sd": None}
+    q1, med, q3 = np.percentile(v, [25, 50, 75])
+    return {
+        "n": int(v.size),
+        "median": float(med),
+        "q1": float(q1),
+        "q3": float(q3),
+        "iqr": float(q3 - q1),
+        "mean": float(v.mean()),
+        "sd": _f(v.std(ddof=1)) if v.size > 1 else None,
+    }
+
+
+def _wide(cell):
+    """participants x conditions, complete cases only."""
+    wide = cell.pivot(index="participant", columns="condition", values="rating")
+    return wide.dropna(axis=0, how="any")
+
+
+def friedman(cell) -> dict[str, Any] | None:
+    """Friedman's test (F and chi-square variants) with Kendall's W, via pingouin.
+
+    ``cell``: long DataFrame with participant, condition, rating (one row per cell).
+    None when there are fewer than 2 conditions or 2 complete participants.
+    """
+    import pingouin as pg
+
+    wide = _wide(cell)
+    if wide.shape[1] < 2 or wide.shape[0] < 2:
+        return None
+    long = wide.reset_index().melt(id_vars="participant", var_name="condition", value_name="rating")
+    if long["rating"].nunique() < 2:
+        return {"n": int(wide.shape[0]), "k": int(wide.shape[1]), "F": None, "ddof1": None, "ddof2": None,
+                "p": 1.0, "W": 0.0, "Q": 0.0, "p_chisq": 1.0, "note": "all ratings identical"}
+    f = pg.friedman(long, dv="rating", within="condition", subject="participant", method="f").iloc[0]
+    c = pg.friedman(long, dv="rating", within="condition", subject="participant", method="chisq").iloc[0]
+    return {
+        "n": int(wide.shape[0]),
+        "k": int(wide.shape[1]),
+        "F": _f(f["F"]),
+        "ddof1": _f(f["ddof1"]),
+        "ddof2": _f(f["ddof2"]),
+        "p": _f(_col(f, "p_unc", "p-unc")),
+        "W": _f(f["W"]),
+        "Q": _f(c["Q"]),
+        "p_chisq": _f(_col(c, "p_unc", "p-unc")),
+    }
+
+
+def pairwise_wilcoxon(cell) -> list[dict[str, Any]]:
+    """Wilcoxon signed-rank tests for every pair of conditions, Holm-corrected (pingouin)."""
+    import numpy as np
+    import pingouin as pg
+
+    wide = _wide(cell)
+    out = []
+    for a, b in combinations(list(wide.columns), 2):
+        x, y = wide[a].to_numpy(float), wide[b].to_numpy(float)
+        d = x - y
+        row = {"a": str(a), "b": str(b), "n": int(len(d)), "median_diff": _f(np.median(d)) if len(d) else None}
+        if len(d) < 2 or np.all(d == 0):
+            # No non-zero difference: the test is undefined; nothing differs.
+            row.update({"W": 0.0, "p": 1.0, "rbc": 0.0, "cles": 0.5, "note": "no non-zero differences"})
+        else:
+            r = pg.wilcoxon(x, y).iloc[0]
+            row.update({"W": _f(_col(r, "W_val", "W-val")), "p": _f(_col(r, "p_val", "p-val")),
+                        "rbc": _f(r["RBC"]), "cles": _f(r["CLES"])})
+        out.append(row)
+    pvals = [r["p"] if r["p"] is not None else 1.0 for r in out]
+    if pvals:
+        reject, corrected = pg.multicomp(pvals, method="holm")
+        for r, pc, rej in zip(out, corrected, reject):
+            r["p_holm"] = _f(pc)
+            r["significant_0_05"] = bool(rej)
+    return out
+
+
+def analyze(store_or_df, protocol_name: str | None = None) -> dict[str, Any]:
+    """Analyse every protocol in the store (or a tidy DataFrame).
+
+    Returns
+    -------
+    dict
+        ``{"provenance": ..., "protocols": {name: {"n_participants", "questions":
+        {qid: {"descriptives": {condition: {...}}, "friedman": {...} | None,
+        "pairwise": [...]}}}}}``.  Values are plain floats (None for undefined).
+    """
+    from .store import provenance
+
+    if hasattr(store_or_df, "answer_rows"):
+        df = tidy_answers(store_or_df, protocol_name)
+        prov = provenance(db=_redact(store_or_df.url))
+    else:
+        df = store_or_df if protocol_name is None else store_or_df[store_or_df["protocol"] == protocol_name]
+        prov = provenance()
+    import pingouin
+    import scipy
+
+    prov.update({"pingouin": pingouin.__version__, "scipy": scipy.__version__,
+                 "aggregation": "mean rating per participant and condition (over images and repetitions)"})
+    result: dict[str, Any] = {"provenance": prov, "protocols": {}}
+    for pname, pdf in df.groupby("protocol", sort=True):
+        pres: dict[str, Any] = {
+            "n_participants": int(pdf["participant"].nunique()),
+            "n_answers": int(len(pdf)),
+            "seeds": sorted({int(s) for s in pdf["seed"]}),
+            "protocol_sha256": sorted(set(pdf["protocol_sha256"])),
+            "conditions": list(dict.fromkeys(sorted(pdf["condition"].unique()))),
+            "questions": {},
+        }
+        for qid, qdf in pdf.groupby("question", sort=False):
+            cell = qdf.groupby(["participant", "condition"], as_index=False)["rating"].mean()
+            desc = {str(c): describe(g["rating"]) for c, g in cell.groupby("condition", sort=True)}
+            pres["questions"][str(qid)] = {
+                "descriptives": desc,
+                "friedman": friedman(cell),
+                "pairwise": pairwise_wilcoxon(cell) if cell["condition"].nunique() > 1 else [],
+            }
+        result["protocols"][str(pname)] = pres
+    return result

@@ -1,0 +1,425 @@
+"""The participant flow: a small state machine over the store.
+
+::
+
+    (consent + participant ID) --start--> calibration --calibrate--> trial 1
+        trial i --answers--> [break] --> trial i+1 ... --> done
+
+Each state is computed from the database, never kept in memory, so a restarted
+server (or a second browser tab) sees exactly what is stored: a session resumes
+at the first trial without answers, and a page showing an old state is told so
+instead of writing over the present.  The HTTP routes (:mod:`.web`) and the
+synthetic participants (:mod:`.simulate`) both go through this class.
+"""
+
+from __future__ import annotations
+
+import collections
+import json
+import math
+import re
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..errors import TactilizeError
+from .protocols import Protocol
+from .store import ExperimentSession, Store, iso, utcnow
+
+__all__ = ["Flow", "FlowError", "SpeedEstimator", "CODE_PATTERN"]
+
+CODE_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,31}$")
+# Plausible screen scales: 0.05 mm/px (a 500 DPI panel) .. 1 mm/px (a projector).
+MM_PER_PX_RANGE = (0.05, 1.0)
+
+
+class FlowError(TactilizeError):
+    """A request the flow refuses; ``status`` is the HTTP status to answer with."""
+
+    def __init__(self, source: str, fault: str, status: int = 400, **detail: Any):
+        super().__init__(source, fault)
+        self.status = status
+        self.detail = detail
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"error": self.fault, "source": self.source, **self.detail}
+
+
+class SpeedEstimator:
+    """Pen speed from timestamped positions: path length over a short window.
+
+    A window (default 40 ms, about 8 samples of a 200 Hz tablet) rather than one
+    sample pair, because single differences of tablet coordinates are noisy and
+    coalesced browser events arrive in bursts with near-equal timestamps.
+    """
+
+    def __init__(self, window_s: float = 0.04):
+        self.window_s = window_s
+        self.samples: collections.deque[tuple[float, float, float]] = collections.deque()
+        self.gap_s = 0.2  # a pause this long starts a new stroke
+
+    def add(self, t_s: float, x_m: float, y_m: float) -> float:
+        """Add one sample; returns the speed [m/s] at it."""
+        if self.samples and (t_s - self.samples[-1][0] > self.gap_s or t_s < self.samples[-1][0]):
+            self.samples.clear()
+        self.samples.append((t_s, x_m, y_m))
+        while len(self.samples) > 2 and t_s - self.samples[1][0] >= self.window_s:
+            self.samples.popleft()
+        if len(self.samples) < 2:
+            return 0.0
+        dt = self.samples[-1][0] - self.samples[0][0]
+        if dt <= 0:
+            return 0.0
+        path = 0.0
+        it = iter(self.samples)
+        t0, x0, y0 = next(it)
+        for _t, x, y in it:
+            path += math.hypot(x - x0, y - y0)
+            x0, y0 = x, y
+        return path / dt
+
+
+@dataclass
+class _Features:
+    spatial_frequency_per_m: float
+    spectral_intensity: float
+    orientation_deg: float = 0.0
+    anisotropy: float = 1.0
+
+
+class Flow:
+    """The control layer for one protocol.
+
+    Parameters
+    ----------
+    protocol : Protocol
+    store : Store
+    admin_token : str, optional
+        When set, the experimenter endpoints require it (see :mod:`.web`).
+    """
+
+    def __init__(self, protocol: Protocol, store: Store, admin_token: str | None = None):
+        self.protocol = protocol
+        self.store = store
+        self.admin_token = admin_token
+        self.protocol_version = store.protocol_version(protocol)
+        self._profiles = {c.id: protocol.profile(c.id) for c in protocol.conditions}
+        self._features = {im.id: self._image_features(im) for im in protocol.images}
+
+    # ------------------------------------------------------------ helpers
+
+    def _resolve(self, im):
+        """The image spec with its path made relative to the protocol file."""
+        if im.path and self.protocol.source.endswith(".toml"):
+            import dataclasses
+            from pathlib import Path
+
+            cand = Path(self.protocol.source).parent / im.path
+            if cand.exists():
+                return dataclasses.replace(im, path=str(cand))
+        return im
+
+    def _image_features(self, im) -> Any:
+        if im.path:
+            from ..features import extract_features
+            from ..image import load_image
+
+            return extract_features(load_image(self._resolve(im).path))
+        return _Features(im.spatial_frequency_per_m, im.spectral_intensity, im.orientation_deg, im.anisotropy)
+
+    def image_png(self, image_id: str) -> bytes:
+        """The picture shown for a protocol image, as PNG bytes."""
+        from .stimuli import render_png
+
+        try:
+            spec = self.protocol.image(image_id)
+        except TactilizeError:
+            raise FlowError("image", f"no image {image_id!r} in this protocol", 404) from None
+        return render_png(self._resolve(spec))
+
+    def image_features(self, image_id: str) -> Any:
+        return self._features[image_id]
+
+    def profile(self, condition_id: str):
+        return self._profiles[condition_id]
+
+    def _session(self, token: str) -> ExperimentSession:
+        sess = self.store.session_by_token(token) if isinstance(token, str) and len(token) < 100 else None
+        if sess is None:
+            raise FlowError("session", "unknown session; start again or resume with your participant ID", 404)
+        if sess.protocol_version_id != self.protocol_version.id:
+            raise FlowError("session", "this session belongs to another protocol version than the one being served", 409)
+        return sess
+
+    @staticmethod
+    def _check_code(code: Any) -> str:
+        if not isinstance(code, str) or not CODE_PATTERN.match(code.strip()):
+            raise FlowError(
+                "participant_id",
+                "must be 1 to 32 letters, digits, - or _ (starting with a letter or digit)",
+                422,
+            )
+        return code.strip()
+
+    # ------------------------------------------------------------ transitions
+
+    def start(self, code: Any, consent: Any, *, simulated: bool = False, extra_provenance: dict | None = None) -> dict:
+        """Consent given and participant ID entered: register and plan the session."""
+        code = self._check_code(code)
+        if consent is not True:
+            raise FlowError("consent", "the participant must give consent before the session starts", 422)
+        try:
+            sess = self.store.create_session(self.protocol, code, simulated=simulated, extra_provenance=extra_provenance)
+        except KeyError:
+            existing = self.store.session_by_code(self.protocol.name, code)
+            done = existing is not None and existing.completed_at is not None
+            raise FlowError(
+                "participant_id",
+                f"{code} is already registered for {self.protocol.name}"
+                + (" and has finished" if done else "; use 'resume' to continue that session"),
+                409,
+                finished=done,
+            ) from None
+        return self.state(sess.token)
+
+    def resume(self, code: Any) -> dict:
+        """The state of an existing participant's session (to continue after a crash)."""
+        code = self._check_code(code)
+        sess = self.store.session_by_code(self.protocol.name, code)
+        if sess is None:
+            raise FlowError("participant_id", f"{code} is not registered for {self.protocol.name}; start a new session", 404)
+        return self.state(sess.token)
+
+    def calibrate(self, token: str, data: Any) -> dict:
+        """Record the calibration check: the on-screen scale and whether the pen was felt.
+
+        ``data``: ``card_width_px`` (the ID-1 card's width measured on screen, in
+        CSS px) or ``mm_per_px`` directly, and ``felt`` (bool: the test vibration
+        was felt).
+        """
+        sess = self._session(token)
+        if not isinstance(data, dict):
+            raise FlowError("calibration", "expected a JSON object", 422)
+        card_mm = self.protocol.calibration_card_mm
+        mm_per_px = data.get("mm_per_px")
+        if mm_per_px is None and data.get("card_width_px") is not None:
+            w = data["card_width_px"]
+            if isinstance(w, (int, float)) and not isinstance(w, bool) and math.isfinite(w) and w > 0:
+                mm_per_px = card_mm / float(w)
+        if (not isinstance(mm_per_px, (int, float)) or isinstance(mm_per_px, bool) or not math.isfinite(mm_per_px)
+                or not MM_PER_PX_RANGE[0] <= mm_per_px <= MM_PER_PX_RANGE[1]):
+            raise FlowError("calibration", f"screen scale must be {MM_PER_PX_RANGE[0]} .. {MM_PER_PX_RANGE[1]} mm per px "
+                            f"(measure the {card_mm} mm card again)", 422)
+        if data.get("felt") is not True:
+            raise FlowError("calibration", "the test vibration must be felt before the trials start; "
+                            "check the pen and its connection", 422)
+        if sess.completed_at is None:
+            # Recalibration after a resume is allowed and replaces the scale; the
+            # answers already given keep the scale they were given with (logged below).
+            self.store.set_calibration(sess.id, {"mm_per_px": float(mm_per_px), "felt": True,
+                                                 "card_width_mm": card_mm, "at": iso(utcnow())})
+        return self.state(token)
+
+    def end_break(self, token: str, trial_index: Any) -> dict:
+        sess = self._session(token)
+        n = self._break_due(sess, self._first_open(sess))
+        if n and trial_index == self._first_open(sess):
+            self.store.set_breaks_done(sess.id, n)
+        return self.state(token)
+
+    def submit(self, token: str, trial_index: Any, ratings: Any, *, response_time_s: Any = None,
+               submission_id: Any = None) -> dict:
+        """Record the answers of one trial; returns the next state plus ``recorded``.
+
+        Idempotent: resubmitting the same answers (a double click, a retry
+        after a lost response) reports ``"duplicate"`` and changes nothing.
+        """
+        sess = self._session(token)
+        trials = self.store.trials(sess.id)
+        if isinstance(trial_index, bool) or not isinstance(trial_index, int) or not 0 <= trial_index < len(trials):
+            raise FlowError("trial", f"trial must be an index 0 .. {len(trials) - 1}", 422)
+        ratings = self._check_ratings(ratings)
+        if response_time_s is not None and (not isinstance(response_time_s, (int, float)) or isinstance(response_time_s, bool)
+                                            or not math.isfinite(response_time_s) or response_time_s < 0):
+            response_time_s = None
+        trial = trials[trial_index]
+        answered = self.store.answers_of(sess.id)
+        current = self._first_open(sess, trials, answered)
+        if trial_index in answered:
+            stored = answered[trial_index]
+            if all(stored.get(q) == r for q, r in ratings.items()) and len(stored) == len(ratings):
+                out = self.state(token)
+                out["recorded"] = "duplicate"
+                return out
+            raise FlowError("trial", f"trial {trial_index + 1} was already answered (a stale page?); answers are "
+                            "never overwritten. Reload to continue.", 409, current_trial=current)
+        if sess.calibrated_at is None:
+            raise FlowError("trial", "the calibration check comes first; reload the page", 409, current_trial=current)
+        if trial_index != current:
+            raise FlowError("trial", f"trial {trial_index + 1} is not open (a stale page?); the current trial is "
+                            f"{(current or 0) + 1}. Reload to continue.", 409, current_trial=current)
+        if self._break_due(sess, current):
+            raise FlowError("trial", "a break is due first; reload the page", 409, current_trial=current)
+        try:
+            status = self.store.record_answers(trial.id, ratings, response_time_s=response_time_s,
+                                               submission_id=str(submission_id)[:64] if submission_id else None)
+        except ValueError:
+            raise FlowError("trial", f"trial {trial_index + 1} was already answered differently; answers are never "
+                            "overwritten. Reload to continue.", 409, current_trial=current) from None
+        out = self.state(token)
+        out["recorded"] = status
+        return out
+
+    def _check_ratings(self, ratings: Any) -> dict[str, int]:
+        if not isinstance(ratings, dict):
+            raise FlowError("ratings", "expected an object {question id: rating}", 422)
+        expected = {q.id: q for q in self.protocol.questions}
+        missing = sorted(set(expected) - set(ratings))
+        extra = sorted(set(ratings) - set(expected))
+        if missing:
+            raise FlowError("ratings", f"missing answer(s) to {', '.join(missing)}", 422)
+        if extra:
+            raise FlowError("ratings", f"unknown question(s) {', '.join(map(str, extra))}", 422)
+        out = {}
+        for qid, r in ratings.items():
+            q = expected[qid]
+            if isinstance(r, bool) or not isinstance(r, int) or not q.scale_min <= r <= q.scale_max:
+                raise FlowError("ratings", f"{qid}: rating must be a whole number {q.scale_min} .. {q.scale_max}, "
+                                f"got {r!r}", 422)
+            out[qid] = r
+        return out
+
+    # ------------------------------------------------------------ state
+
+    def _first_open(self, sess, trials=None, answered=None) -> int | None:
+        trials = trials if trials is not None else self.store.trials(sess.id)
+        answered = answered if answered is not None else self.store.answers_of(sess.id)
+        nq = len(self.protocol.questions)
+        for t in trials:
+            if len(answered.get(t.index, {})) < nq:
+                return t.index
+        return None
+
+    def _break_due(self, sess, index: int | None) -> int:
+        """The number of the break due before trial ``index`` (0: none)."""
+        every = self.protocol.break_every
+        if not every or not index or index % every:
+            return 0
+        n = index // every
+        return n if (sess.breaks_done or 0) < n else 0
+
+    def state(self, token: str) -> dict[str, Any]:
+        """Where the session stands, for the page: one of ``calibration``, ``trial``,
+        ``break`` or ``done``, with progress and (for a trial) what to show.
+
+        The condition is not revealed to the participant (the page is blind)."""
+        sess = self._session(token)
+        part = self.store.participant(sess)
+        trials = self.store.trials(sess.id)
+        answered = self.store.answers_of(sess.id)
+        current = self._first_open(sess, trials, answered)
+        done = sum(1 for t in trials if len(answered.get(t.index, {})) >= len(self.protocol.questions))
+        doc: dict[str, Any] = {
+            "session": token,
+            "participant": part.code,
+            "protocol": {"name": self.protocol.name, "title": self.protocol.title,
+                         "description": self.protocol.description,
+                         "calibration_card_mm": self.protocol.calibration_card_mm},
+            "progress": {"done": done, "total": len(trials)},
+            "calibration": json.loads(sess.calibration_json) if sess.calibration_json else None,
+        }
+        if current is None:
+            doc["state"] = "done"
+            return doc
+        if sess.calibrated_at is None:
+            doc["state"] = "calibration"
+            doc["next_trial"] = current
+            return doc
+        brk = self._break_due(sess, current)
+        if brk:
+            doc["state"] = "break"
+            doc["break"] = brk
+            doc["next_trial"] = current
+            return doc
+        t = trials[current]
+        self.store.mark_trial_started(t.id)
+        doc["state"] = "trial"
+        doc["trial"] = {
+            "index": t.index,
+            "number": t.index + 1,
+            "images": [{"id": iid, "label": self.protocol.image(iid).label,
+                        "url": f"images/{iid}.png"} for iid in t.image_ids],
+            "questions": [q.to_dict() for q in self.protocol.questions],
+            "min_stroke_s": self.protocol.min_stroke_s,
+        }
+        return doc
+
+    # ------------------------------------------------------------ strokes
+
+    def stroke_handler(self, token: str) -> "StrokeHandler":
+        return StrokeHandler(self, self._session(token))
+
+
+@dataclass
+class StrokeHandler:
+    """Turns pen samples of one session into drives, and logs both.
+
+    Messages (JSON)::
+
+        {"trial": 3, "image": "image2",
+         "samples": [[t_ms, x_mm, y_mm, pressure or null], ...]}
+
+    Positions are millimetres on the displayed image (the page converts CSS
+    pixels with the calibrated scale); the answer carries the drive at the last
+    sample.  Samples for a trial other than the open one are refused: a stale
+    page must not write into another trial's log.
+    """
+
+    flow: Flow
+    session: Any
+    estimators: dict[str, SpeedEstimator] = field(default_factory=dict)
+    trial_cache: dict[int, Any] = field(default_factory=dict)
+
+    def handle(self, msg: Any) -> dict[str, Any]:
+        if not isinstance(msg, dict):
+            raise FlowError("stroke", "expected a JSON object", 422)
+        idx = msg.get("trial")
+        image_id = msg.get("image")
+        samples = msg.get("samples")
+        trials = self.trial_cache or {t.index: t for t in self.flow.store.trials(self.session.id)}
+        self.trial_cache = trials
+        if isinstance(idx, bool) or not isinstance(idx, int) or idx not in trials:
+            raise FlowError("stroke", "unknown trial", 422)
+        trial = trials[idx]
+        if image_id not in trial.image_ids:
+            raise FlowError("stroke", f"image {image_id!r} is not part of trial {idx + 1}", 422)
+        if not isinstance(samples, list) or not samples or len(samples) > 1000:
+            raise FlowError("stroke", "samples must be a list of 1 .. 1000 [t_ms, x_mm, y_mm, pressure]", 422)
+        current = self.flow._first_open(self.session)
+        if current != idx:
+            raise FlowError("stroke", f"trial {idx + 1} is not open (a stale page?)", 409, current_trial=current)
+        profile = self.flow.profile(trial.condition_id)
+        feats = self.flow.image_features(image_id)
+        est = self.estimators.setdefault(image_id, SpeedEstimator())
+        rows = []
+        drive = None
+        speed = 0.0
+        for s in samples:
+            if not isinstance(s, (list, tuple)) or len(s) < 3:
+                raise FlowError("stroke", "each sample is [t_ms, x_mm, y_mm, pressure]", 422)
+            vals = list(s[:4]) + [None] * (4 - len(s[:4]))
+            t_ms, x_mm, y_mm, p = vals
+            for v in (t_ms, x_mm, y_mm):
+                if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                    raise FlowError("stroke", "sample values must be finite numbers", 422)
+            if p is not None and (isinstance(p, bool) or not isinstance(p, (int, float)) or not math.isfinite(p)):
+                p = None
+            t_s, x_m, y_m = t_ms / 1e3, x_mm / 1e3, y_mm / 1e3
+            speed = est.add(t_s, x_m, y_m)
+            drive = profile.drive(feats, speed_m_s=speed, pressure=p)
+            rows.append({"image_id": image_id, "t_s": t_s, "x_m": x_m, "y_m": y_m, "pressure": p,
+                         "speed_m_s": speed, "pulse_frequency_hz": drive.pulse_frequency_hz,
+                         "pulse_width_s": drive.pulse_width_s, "amplitude": drive.amplitude})
+        self.flow.store.log_samples(trial.id, rows)
+        return {"type": "drive", "trial": idx, "image": image_id, "speed_mm_s": speed * 1e3,
+                "logged": len(rows), "drive": drive.to_dict()}
+

@@ -1,0 +1,298 @@
+// The participant's page: a thin view over the server's state machine.
+// Every transition asks the server, which answers with the next state; the page
+// never decides on its own where the session stands, so a reload, a second tab
+// or a restarted server all land on the same, stored state.
+
+const api = new URL("api/", document.baseURI);
+const $ = (id) => document.getElementById(id);
+const views = ["welcome", "calibration", "trial", "break", "done"];
+let session = localStorage.getItem("tactilize.session") || null;
+let current = null;       // the last state document
+let busy = false;         // one request at a time: no double submissions
+
+function show(view) {
+  for (const v of views) $("view-" + v).hidden = v !== view;
+}
+
+function message(text) {
+  const m = $("message");
+  m.textContent = text || "";
+  m.hidden = !text;
+}
+
+async function call(method, path, body) {
+  const res = await fetch(new URL(path, api), {
+    method,
+    headers: body ? { "Content-Type": "application/json" } : {},
+    body: body ? JSON.stringify(body) : undefined,
+  });
+  let doc = null;
+  try { doc = await res.json(); } catch { doc = { error: `server answered ${res.status}` }; }
+  if (!res.ok) {
+    const err = new Error(doc.error || `error ${res.status}`);
+    err.status = res.status;
+    err.doc = doc;
+    throw err;
+  }
+  return doc;
+}
+
+async function guarded(fn) {
+  if (busy) return;
+  busy = true;
+  document.querySelectorAll("button").forEach((b) => (b.dataset.wasDisabled = b.disabled, b.disabled = true));
+  try {
+    await fn();
+  } catch (err) {
+    message(err.message);
+    if (err.status === 409 && session) {
+      // A stale page: show the stored state instead of what this page assumed.
+      try { render(await call("GET", `sessions/${session}`), true); } catch { /* keep the message */ }
+    }
+    if (err.status === 404 && err.doc && err.doc.source === "session") {
+      localStorage.removeItem("tactilize.session");
+      session = null;
+      show("welcome");
+    }
+  } finally {
+    busy = false;
+    document.querySelectorAll("button").forEach((b) => (b.disabled = b.dataset.wasDisabled === "true"));
+    if (current && current.state === "trial") updateSubmit();
+  }
+}
+
+// ---------------------------------------------------------------- state
+
+function render(state, keepMessage = false) {
+  current = state;
+  if (!keepMessage) message("");
+  session = state.session;
+  localStorage.setItem("tactilize.session", session);
+  $("title").textContent = state.protocol.title;
+  $("progress").textContent = `${state.participant} · ${state.progress.done} of ${state.progress.total} done`;
+  show(state.state);
+  document.body.dataset.state = state.state;
+  if (state.state === "calibration") renderCalibration(state);
+  if (state.state === "trial") renderTrial(state.trial);
+  if (state.state === "done") { localStorage.removeItem("tactilize.session"); closeSocket(); }
+}
+
+// ---------------------------------------------------------------- welcome
+
+async function welcome() {
+  const info = await call("GET", "protocol");
+  $("title").textContent = info.title;
+  $("description").textContent = info.description;
+  $("card-mm").textContent = info.calibration_card_mm;
+  if (session) {
+    try { render(await call("GET", `sessions/${session}`)); return; } catch { localStorage.removeItem("tactilize.session"); session = null; }
+  }
+  show("welcome");
+}
+
+$("start").addEventListener("click", () => guarded(async () => {
+  render(await call("POST", "sessions", { participant_id: $("participant-id").value.trim(), consent: $("consent").checked }));
+}));
+$("resume").addEventListener("click", () => guarded(async () => {
+  render(await call("POST", "resume", { participant_id: $("participant-id").value.trim() }));
+}));
+
+// ---------------------------------------------------------------- calibration
+
+let mmPerPx = null;
+
+function renderCalibration(state) {
+  const updateCard = () => ($("card").style.width = `${$("scale").value}px`);
+  $("scale").oninput = updateCard;
+  updateCard();
+}
+
+$("test-vibration").addEventListener("click", () => audio.pulse(150, 0.0004, 1.0, 0.6));
+$("calibrate").addEventListener("click", () => guarded(async () => {
+  render(await call("POST", `sessions/${session}/calibration`, {
+    card_width_px: Number($("scale").value), felt: $("felt").checked,
+  }));
+}));
+
+// ---------------------------------------------------------------- trial
+
+let trial = null, image = null, strokeMs = 0, lastT = null, shownAt = 0;
+let ws = null, queue = [], points = [];
+
+function renderTrial(t) {
+  const fresh = !trial || trial.index !== t.index;
+  trial = t;
+  mmPerPx = current.calibration ? current.calibration.mm_per_px : 0.2646;
+  $("trial-title").textContent = `Trial ${t.number} of ${current.progress.total}`;
+  $("min-stroke").textContent = t.min_stroke_s;
+  if (fresh) { strokeMs = 0; shownAt = performance.now(); buildForm(t.questions); }
+  const tabs = $("tabs");
+  tabs.replaceChildren();
+  t.images.forEach((im, i) => {
+    const b = document.createElement("button");
+    b.type = "button"; b.textContent = im.label; b.setAttribute("role", "tab");
+    b.onclick = () => selectImage(im);
+    b.dataset.image = im.id;
+    tabs.append(b);
+  });
+  selectImage(t.images[0]);
+  openSocket();
+  updateSubmit();
+}
+
+function selectImage(im) {
+  image = im;
+  document.querySelectorAll("#tabs button").forEach((b) => b.setAttribute("aria-selected", String(b.dataset.image === im.id)));
+  const img = $("texture");
+  img.onload = () => {
+    // Show the picture at true size: the rendering's 0.1 mm/px over the calibrated mm per CSS px.
+    const w = img.naturalWidth * 0.1 / mmPerPx, h = img.naturalHeight * 0.1 / mmPerPx;
+    img.style.width = `${w}px`; img.style.height = `${h}px`;
+    const c = $("surface");
+    c.width = Math.round(w); c.height = Math.round(h);
+    c.style.width = `${w}px`; c.style.height = `${h}px`;
+    points = [];
+  };
+  img.src = new URL(im.url, api);
+}
+
+function buildForm(questions) {
+  const form = $("answers");
+  form.replaceChildren();
+  for (const q of questions) {
+    const fs = document.createElement("fieldset");
+    const lg = document.createElement("legend");
+    lg.textContent = q.text;
+    fs.append(lg);
+    const scale = document.createElement("div");
+    scale.className = "scale";
+    for (let r = q.scale_min; r <= q.scale_max; r++) {
+      const lab = document.createElement("label");
+      const inp = document.createElement("input");
+      inp.type = "radio"; inp.name = q.id; inp.value = String(r);
+      inp.onchange = updateSubmit;
+      lab.append(inp, document.createTextNode(String(r)));
+      if (q.anchors[String(r)]) { const s = document.createElement("small"); s.textContent = q.anchors[String(r)]; lab.append(s); }
+      scale.append(lab);
+    }
+    fs.append(scale);
+    form.append(fs);
+  }
+}
+
+function ratings() {
+  const out = {};
+  for (const q of trial.questions) {
+    const sel = document.querySelector(`#answers input[name="${q.id}"]:checked`);
+    if (sel) out[q.id] = Number(sel.value);
+  }
+  return out;
+}
+
+function updateSubmit() {
+  if (!trial) return;
+  const ready = strokeMs / 1000 >= trial.min_stroke_s;
+  $("answers").hidden = !ready;
+  $("stroke-time").textContent = (strokeMs / 1000).toFixed(1);
+  $("submit").disabled = busy || !ready || Object.keys(ratings()).length !== trial.questions.length;
+}
+
+$("submit").addEventListener("click", () => guarded(async () => {
+  const doc = await call("POST", `sessions/${session}/answers`, {
+    trial: trial.index, ratings: ratings(),
+    response_time_s: (performance.now() - shownAt) / 1000,
+    submission_id: `${session}:${trial.index}`,
+  });
+  audio.stop();
+  render(doc);
+}));
+
+$("end-break").addEventListener("click", () => guarded(async () => {
+  render(await call("POST", `sessions/${session}/break`, { trial: current.next_trial }));
+}));
+
+// ---------------------------------------------------------------- pen
+
+function openSocket() {
+  if (ws && ws.readyState <= 1) return;
+  const u = new URL(`ws/${session}`, document.baseURI);
+  u.protocol = u.protocol === "https:" ? "wss:" : "ws:";
+  ws = new WebSocket(u);
+  ws.onmessage = (ev) => {
+    const msg = JSON.parse(ev.data);
+    if (msg.type === "drive") { audio.set(msg.drive); document.body.dataset.lastDriveHz = msg.drive.pulse_frequency_hz; }
+    else if (msg.type === "error") message(msg.error);
+  };
+  ws.onclose = () => { ws = null; };
+}
+
+function closeSocket() { if (ws) ws.close(); ws = null; }
+
+function flush() {
+  if (!queue.length || !ws || ws.readyState !== 1 || !trial) return;
+  ws.send(JSON.stringify({ trial: trial.index, image: image.id, samples: queue }));
+  queue = [];
+}
+setInterval(flush, 30);
+
+const surface = $("surface");
+surface.addEventListener("pointerdown", (ev) => { surface.setPointerCapture(ev.pointerId); lastT = ev.timeStamp; points = []; onMove(ev); });
+surface.addEventListener("pointermove", (ev) => { if (ev.buttons || ev.pointerType === "touch") onMove(ev); });
+const up = () => { lastT = null; audio.set(null); };
+surface.addEventListener("pointerup", up);
+surface.addEventListener("pointercancel", up);
+
+function onMove(ev) {
+  // Coalesced events carry every tablet sample with its own timestamp (FACTS.md section 5).
+  const evs = ev.getCoalescedEvents ? ev.getCoalescedEvents() : [];
+  const list = evs.length ? evs : [ev];
+  const rect = surface.getBoundingClientRect();
+  for (const e of list) {
+    const xPx = e.clientX - rect.left, yPx = e.clientY - rect.top;
+    queue.push([e.timeStamp, xPx * mmPerPx, yPx * mmPerPx, e.pointerType === "mouse" ? null : e.pressure]);
+    points.push([xPx, yPx]);
+    if (lastT !== null && e.timeStamp - lastT < 200) strokeMs += e.timeStamp - lastT;
+    lastT = e.timeStamp;
+  }
+  draw();
+  updateSubmit();
+}
+
+function draw() {
+  const ctx = surface.getContext("2d");
+  ctx.clearRect(0, 0, surface.width, surface.height);
+  ctx.strokeStyle = "rgba(229, 57, 53, .8)"; ctx.lineWidth = 2; ctx.beginPath();
+  points.slice(-400).forEach(([x, y], i) => (i ? ctx.lineTo(x, y) : ctx.moveTo(x, y)));
+  ctx.stroke();
+}
+
+// ---------------------------------------------------------------- audio actuator
+// A voice-coil or LRA actuator on the headphone output plays the pulse train.
+// An oscillator with a pulse-shaped wave is enough here: frequency and duty follow the drive.
+
+const audio = {
+  ctx: null, osc: null, gain: null,
+  ensure() {
+    if (this.ctx) return true;
+    const AC = window.AudioContext || window.webkitAudioContext;
+    if (!AC) return false;
+    this.ctx = new AC();
+    this.gain = this.ctx.createGain(); this.gain.gain.value = 0; this.gain.connect(this.ctx.destination);
+    this.osc = this.ctx.createOscillator(); this.osc.type = "square"; this.osc.connect(this.gain); this.osc.start();
+    return true;
+  },
+  set(drive) {
+    if (!this.ensure()) return;
+    const on = drive && drive.pulse_frequency_hz > 0 && drive.amplitude > 0;
+    const now = this.ctx.currentTime;
+    if (on) this.osc.frequency.setTargetAtTime(drive.pulse_frequency_hz, now, 0.005);
+    this.gain.gain.setTargetAtTime(on ? 0.25 * drive.amplitude : 0, now, 0.005);
+  },
+  pulse(hz, width, amp, seconds) {
+    this.set({ pulse_frequency_hz: hz, pulse_width_s: width, amplitude: amp });
+    setTimeout(() => this.set(null), seconds * 1000);
+  },
+  stop() { if (this.ctx) this.set(null); },
+};
+
+welcome().catch((err) => message(err.message));

@@ -1,0 +1,538 @@
+"""The experiment store: SQLAlchemy tables, written so that no answer is ever lost,
+duplicated or overwritten.
+
+An SQLite file under the user's data directory by default (see
+:func:`default_db_url`), any SQLAlchemy URL otherwise (``postgresql://...``).
+
+Durability rules, and why:
+
+- every answer form is one transaction, committed before the HTTP response
+  leaves, so "the page moved on" implies "the answers are on disk";
+- ``UNIQUE(trial_id, question_id)`` makes a second copy of an answer impossible
+  whatever the client does (double clicks, retries after a timeout, a restarted
+  server); a resubmission with the same ratings is recognised and answered as
+  success, a different one is refused (data are never overwritten);
+- the whole trial plan is written when the session starts, so resuming is a
+  query ("the first trial without all its answers"), not a reconstruction;
+- SQLite runs in WAL mode with ``synchronous=FULL``: a committed transaction
+  survives the process being killed (SIGKILL) and the machine losing power.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import platform
+import secrets
+from pathlib import Path
+from typing import Any, Iterable
+
+from sqlalchemy import (
+    Boolean,
+    DateTime,
+    Float,
+    ForeignKey,
+    Integer,
+    String,
+    Text,
+    UniqueConstraint,
+    create_engine,
+    event,
+    func,
+    select,
+)
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, relationship, sessionmaker
+
+__all__ = [
+    "SCHEMA_VERSION",
+    "Store",
+    "default_db_url",
+    "provenance",
+    "utcnow",
+    "ProtocolVersion",
+    "Participant",
+    "ExperimentSession",
+    "Trial",
+    "Answer",
+    "StrokeSample",
+]
+
+SCHEMA_VERSION = 1
+
+
+def utcnow() -> dt.datetime:
+    """Now, in UTC (every stored timestamp is UTC)."""
+    return dt.datetime.now(dt.timezone.utc)
+
+
+def iso(t: dt.datetime | None) -> str | None:
+    """ISO 8601 in UTC with a ``Z``; SQLite hands datetimes back naive, and they are UTC."""
+    if t is None:
+        return None
+    if t.tzinfo is None:
+        t = t.replace(tzinfo=dt.timezone.utc)
+    return t.astimezone(dt.timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def default_db_url() -> str:
+    """``sqlite:///<user data dir>/tactilize/experiments.sqlite3`` (the directory is created)."""
+    import platformdirs
+
+    root = Path(platformdirs.user_data_dir("tactilize", appauthor=False))
+    root.mkdir(parents=True, exist_ok=True)
+    return f"sqlite:///{root / 'experiments.sqlite3'}"
+
+
+def provenance(**extra: Any) -> dict[str, Any]:
+    """Versions of everything that shaped the data (written with every export)."""
+    import sqlalchemy
+
+    from .. import __version__
+
+    doc = {
+        "tactilize": __version__,
+        "python": platform.python_version(),
+        "sqlalchemy": sqlalchemy.__version__,
+        "platform": platform.platform(terse=True),
+        "schema_version": SCHEMA_VERSION,
+    }
+    doc.update(extra)
+    return doc
+
+
+class Base(DeclarativeBase):
+    pass
+
+
+class Meta(Base):
+    __tablename__ = "meta"
+    key: Mapped[str] = mapped_column(String(64), primary_key=True)
+    value: Mapped[str] = mapped_column(Text)
+
+
+class ProtocolVersion(Base):
+    """One exact protocol text, identified by its SHA-256."""
+
+    __tablename__ = "protocol_versions"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    name: Mapped[str] = mapped_column(String(64), index=True)
+    version: Mapped[str] = mapped_column(String(32))
+    sha256: Mapped[str] = mapped_column(String(64), unique=True)
+    text: Mapped[str] = mapped_column(Text)
+    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class Participant(Base):
+    """A participant of one protocol: the code they were given and their number
+    (1, 2, ... in registration order), which picks their Latin-square row."""
+
+    __tablename__ = "participants"
+    __table_args__ = (
+        UniqueConstraint("protocol_name", "code", name="uq_participant_code"),
+        UniqueConstraint("protocol_name", "number", name="uq_participant_number"),
+    )
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    protocol_name: Mapped[str] = mapped_column(String(64))
+    code: Mapped[str] = mapped_column(String(64))
+    number: Mapped[int] = mapped_column(Integer)
+    simulated: Mapped[bool] = mapped_column(Boolean, default=False)
+    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class ExperimentSession(Base):
+    """One participant's run through one protocol version."""
+
+    __tablename__ = "sessions"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    token: Mapped[str] = mapped_column(String(64), unique=True)
+    participant_id: Mapped[int] = mapped_column(ForeignKey("participants.id"), unique=True)
+    protocol_version_id: Mapped[int] = mapped_column(ForeignKey("protocol_versions.id"))
+    seed: Mapped[int] = mapped_column(Integer)
+    order_json: Mapped[str] = mapped_column(Text)
+    consent_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True))
+    calibration_json: Mapped[str | None] = mapped_column(Text, nullable=True)
+    calibrated_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    breaks_done: Mapped[int] = mapped_column(Integer, default=0)
+    provenance_json: Mapped[str] = mapped_column(Text)
+    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    completed_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+
+    participant: Mapped[Participant] = relationship()
+    protocol_version: Mapped[ProtocolVersion] = relationship()
+    trials: Mapped[list["Trial"]] = relationship(order_by="Trial.index", back_populates="session")
+
+
+class Trial(Base):
+    __tablename__ = "trials"
+    __table_args__ = (UniqueConstraint("session_id", "index", name="uq_trial_index"),)
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    session_id: Mapped[int] = mapped_column(ForeignKey("sessions.id"), index=True)
+    index: Mapped[int] = mapped_column(Integer)
+    condition_id: Mapped[str] = mapped_column(String(64))
+    repetition: Mapped[int] = mapped_column(Integer)
+    image_ids_json: Mapped[str] = mapped_column(Text)
+    started_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    completed_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+
+    session: Mapped[ExperimentSession] = relationship(back_populates="trials")
+    answers: Mapped[list["Answer"]] = relationship(back_populates="trial", order_by="Answer.id")
+
+    @property
+    def image_ids(self) -> list[str]:
+        return json.loads(self.image_ids_json)
+
+
+class Answer(Base):
+    __tablename__ = "answers"
+    __table_args__ = (UniqueConstraint("trial_id", "question_id", name="uq_answer"),)
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    trial_id: Mapped[int] = mapped_column(ForeignKey("trials.id"), index=True)
+    question_id: Mapped[str] = mapped_column(String(64))
+    rating: Mapped[int] = mapped_column(Integer)
+    answered_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    response_time_s: Mapped[float | None] = mapped_column(Float, nullable=True)
+    submission_id: Mapped[str | None] = mapped_column(String(64), nullable=True)
+
+    trial: Mapped[Trial] = relationship(back_populates="answers")
+
+
+class StrokeSample(Base):
+    """One pen sample of a trial and the drive the server answered with (SI units)."""
+
+    __tablename__ = "stroke_samples"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    trial_id: Mapped[int] = mapped_column(ForeignKey("trials.id"), index=True)
+    image_id: Mapped[str] = mapped_column(String(64))
+    t_s: Mapped[float] = mapped_column(Float)
+    x_m: Mapped[float] = mapped_column(Float)
+    y_m: Mapped[float] = mapped_column(Float)
+    pressure: Mapped[float | None] = mapped_column(Float, nullable=True)
+    speed_m_s: Mapped[float] = mapped_column(Float)
+    pulse_frequency_hz: Mapped[float] = mapped_column(Float)
+    pulse_width_s: Mapped[float] = mapped_column(Float)
+    amplitude: Mapped[float] = mapped_column(Float)
+    received_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+def _sqlite_pragmas(dbapi_conn, _record) -> None:
+    cur = dbapi_conn.cursor()
+    # WAL + FULL: a commit is on disk when it returns, and readers (the
+    # experimenter's view) never block the participant's writes.
+    cur.execute("PRAGMA journal_mode=WAL")
+    cur.execute("PRAGMA synchronous=FULL")
+    cur.execute("PRAGMA foreign_keys=ON")
+    cur.execute("PRAGMA busy_timeout=10000")
+    cur.close()
+
+
+class Store:
+    """The experiment database.
+
+    Parameters
+    ----------
+    url : str, optional
+        An SQLAlchemy URL; :func:`default_db_url` when None.  A bare file path is
+        taken as an SQLite file.
+    """
+
+    def __init__(self, url: str | None = None):
+        from ..errors import TactilizeError
+
+        url = url or default_db_url()
+        if "://" not in url:
+            url = f"sqlite:///{Path(url).expanduser().resolve()}"
+        self.url = url
+        try:
+            self.engine = create_engine(url, future=True)
+        except Exception as exc:  # a malformed URL or a missing driver
+            raise TactilizeError(url, f"cannot open database ({exc.__class__.__name__}: {exc})") from None
+        if self.engine.dialect.name == "sqlite":
+            event.listen(self.engine, "connect", _sqlite_pragmas)
+        try:
+            Base.metadata.create_all(self.engine)
+        except Exception as exc:
+            raise TactilizeError(url, f"cannot open database ({exc.__class__.__name__})") from None
+        self.Session = sessionmaker(self.engine, expire_on_commit=False)
+        with self.Session.begin() as s:
+            if s.get(Meta, "schema_version") is None:
+                s.add(Meta(key="schema_version", value=str(SCHEMA_VERSION)))
+                s.add(Meta(key="created_with", value=json.dumps(provenance())))
+        # Insert races on the Meta rows are harmless: both writers write the same.
+
+    def close(self) -> None:
+        self.engine.dispose()
+
+    # ------------------------------------------------------------ protocols
+
+    def protocol_version(self, protocol) -> ProtocolVersion:
+        """The stored row for this exact protocol text, inserted on first use."""
+        with self.Session() as s:
+            row = s.scalar(select(ProtocolVersion).where(ProtocolVersion.sha256 == protocol.sha256))
+            if row is not None:
+                return row
+            row = ProtocolVersion(name=protocol.name, version=protocol.version, sha256=protocol.sha256, text=protocol.text)
+            s.add(row)
+            try:
+                s.commit()
+            except IntegrityError:  # another process stored it first
+                s.rollback()
+                row = s.scalar(select(ProtocolVersion).where(ProtocolVersion.sha256 == protocol.sha256))
+            return row
+
+    # ------------------------------------------------------------ sessions
+
+    def create_session(self, protocol, code: str, *, simulated: bool = False, extra_provenance: dict | None = None):
+        """Register participant ``code`` and write their whole trial plan.
+
+        Returns the new :class:`ExperimentSession`.  Raises ``KeyError`` with the
+        existing session when the code is already registered for this protocol.
+        """
+        pv = self.protocol_version(protocol)
+        for _attempt in range(20):
+            with self.Session() as s:
+                existing = s.scalar(
+                    select(Participant).where(Participant.protocol_name == protocol.name, Participant.code == code)
+                )
+                if existing is not None:
+                    raise KeyError(code)
+                number = (
+                    s.scalar(select(func.max(Participant.number)).where(Participant.protocol_name == protocol.name)) or 0
+                ) + 1
+                part = Participant(protocol_name=protocol.name, code=code, number=number, simulated=simulated)
+                s.add(part)
+                plan = protocol.plan(number)
+                sess = ExperimentSession(
+                    token=secrets.token_urlsafe(18),
+                    participant=part,
+                    protocol_version_id=pv.id,
+                    seed=protocol.seed,
+                    order_json=json.dumps([t.condition_id for t in plan]),
+                    consent_at=utcnow(),
+                    provenance_json=json.dumps(
+                        provenance(protocol=protocol.name, protocol_version=protocol.version,
+                                   protocol_sha256=protocol.sha256, seed=protocol.seed,
+                                   order_method=protocol.order_method, participant_number=number,
+                                   **(extra_provenance or {}))
+                    ),
+                )
+                s.add(sess)
+                for t in plan:
+                    s.add(Trial(session=sess, index=t.index, condition_id=t.condition_id,
+                                repetition=t.repetition, image_ids_json=json.dumps(list(t.image_ids))))
+                try:
+                    s.commit()
+                except IntegrityError:
+                    # Two registrations raced for the same number (or code): retry,
+                    # the loser recomputes; a taken code is reported above.
+                    s.rollback()
+                    continue
+                return self.session_by_token(sess.token)
+        raise RuntimeError("could not allocate a participant number")
+
+    def session_by_token(self, token: str) -> ExperimentSession | None:
+        with self.Session() as s:
+            return s.scalar(select(ExperimentSession).where(ExperimentSession.token == token).execution_options())
+
+    def session_by_code(self, protocol_name: str, code: str) -> ExperimentSession | None:
+        with self.Session() as s:
+            return s.scalar(
+                select(ExperimentSession)
+                .join(Participant)
+                .where(Participant.protocol_name == protocol_name, Participant.code == code)
+            )
+
+    def participant(self, session: ExperimentSession) -> Participant:
+        with self.Session() as s:
+            return s.get(Participant, session.participant_id)
+
+    def trials(self, session_id: int) -> list[Trial]:
+        with self.Session() as s:
+            return list(s.scalars(select(Trial).where(Trial.session_id == session_id).order_by(Trial.index)))
+
+    def answers_of(self, session_id: int) -> dict[int, dict[str, int]]:
+        """``{trial index: {question id: rating}}`` for one session."""
+        with self.Session() as s:
+            rows = s.execute(
+                select(Trial.index, Answer.question_id, Answer.rating)
+                .join(Answer, Answer.trial_id == Trial.id)
+                .where(Trial.session_id == session_id)
+            )
+            out: dict[int, dict[str, int]] = {}
+            for idx, q, r in rows:
+                out.setdefault(idx, {})[q] = r
+            return out
+
+    def set_calibration(self, session_id: int, calibration: dict) -> None:
+        with self.Session.begin() as s:
+            sess = s.get(ExperimentSession, session_id)
+            sess.calibration_json = json.dumps(calibration)
+            sess.calibrated_at = utcnow()
+
+    def set_breaks_done(self, session_id: int, n: int) -> None:
+        with self.Session.begin() as s:
+            sess = s.get(ExperimentSession, session_id)
+            # Monotone: a stale page acknowledging an old break changes nothing.
+            sess.breaks_done = max(sess.breaks_done or 0, n)
+
+    def mark_trial_started(self, trial_id: int) -> None:
+        with self.Session.begin() as s:
+            t = s.get(Trial, trial_id)
+            if t.started_at is None:
+                t.started_at = utcnow()
+
+    def record_answers(
+        self,
+        trial_id: int,
+        ratings: dict[str, int],
+        *,
+        response_time_s: float | None = None,
+        submission_id: str | None = None,
+        complete_session_if_last: bool = True,
+    ) -> str:
+        """Write a trial's answers in one transaction.
+
+        Returns ``"recorded"`` or ``"duplicate"`` (every rating already stored,
+        identical).  Raises ``ValueError`` when a stored rating differs (answers
+        are never overwritten).
+        """
+        with self.Session() as s:
+            trial = s.get(Trial, trial_id)
+            stored = {a.question_id: a.rating for a in trial.answers}
+            clash = {q: (stored[q], r) for q, r in ratings.items() if q in stored and stored[q] != r}
+            if clash:
+                raise ValueError(clash)
+            new = {q: r for q, r in ratings.items() if q not in stored}
+            if not new:
+                return "duplicate"
+            now = utcnow()
+            for q, r in new.items():
+                s.add(Answer(trial_id=trial_id, question_id=q, rating=int(r), answered_at=now,
+                             response_time_s=response_time_s, submission_id=submission_id))
+            trial.completed_at = now
+            if trial.started_at is None:
+                trial.started_at = now
+            if complete_session_if_last:
+                remaining = s.scalar(
+                    select(func.count(Trial.id)).where(
+                        Trial.session_id == trial.session_id, Trial.completed_at.is_(None), Trial.id != trial.id
+                    )
+                )
+                if remaining == 0:
+                    s.get(ExperimentSession, trial.session_id).completed_at = now
+            try:
+                s.commit()
+            except IntegrityError:
+                # A concurrent identical submission won the race; the unique
+                # constraint kept the data single.  Report what is stored now.
+                s.rollback()
+                again = {a.question_id: a.rating for a in s.get(Trial, trial_id).answers}
+                if all(again.get(q) == r for q, r in ratings.items()):
+                    return "duplicate"
+                raise ValueError({q: (again.get(q), r) for q, r in ratings.items() if again.get(q) != r}) from None
+            return "recorded"
+
+    def log_samples(self, trial_id: int, rows: Iterable[dict[str, Any]]) -> int:
+        rows = list(rows)
+        if not rows:
+            return 0
+        with self.Session.begin() as s:
+            now = utcnow()
+            s.add_all([StrokeSample(trial_id=trial_id, received_at=now, **r) for r in rows])
+            t = s.get(Trial, trial_id)
+            if t.started_at is None:
+                t.started_at = now
+        return len(rows)
+
+    # ------------------------------------------------------------ reporting
+
+    def sessions_overview(self, protocol_name: str | None = None) -> list[dict[str, Any]]:
+        """One dict per session: participant, protocol, progress, timestamps."""
+        with self.Session() as s:
+            q = select(ExperimentSession, Participant, ProtocolVersion).join(Participant).join(ProtocolVersion)
+            if protocol_name:
+                q = q.where(Participant.protocol_name == protocol_name)
+            out = []
+            for sess, part, pv in s.execute(q.order_by(ExperimentSession.id)):
+                n_trials = s.scalar(select(func.count(Trial.id)).where(Trial.session_id == sess.id))
+                n_done = s.scalar(
+                    select(func.count(Trial.id)).where(Trial.session_id == sess.id, Trial.completed_at.is_not(None))
+                )
+                n_samples = s.scalar(
+                    select(func.count(StrokeSample.id)).join(Trial).where(Trial.session_id == sess.id)
+                )
+                out.append({
+                    "session": sess.id,
+                    "participant": part.code,
+                    "participant_number": part.number,
+                    "simulated": part.simulated,
+                    "protocol": pv.name,
+                    "protocol_version": pv.version,
+                    "protocol_sha256": pv.sha256,
+                    "seed": sess.seed,
+                    "trials_done": n_done,
+                    "trials_total": n_trials,
+                    "stroke_samples": n_samples,
+                    "calibrated": sess.calibrated_at is not None,
+                    "created_at": iso(sess.created_at),
+                    "completed_at": iso(sess.completed_at),
+                })
+            return out
+
+    def answer_rows(self, protocol_name: str | None = None) -> list[dict[str, Any]]:
+        """Tidy rows, one per answer (see :func:`tactilize.experiments.analysis.tidy_answers`)."""
+        with self.Session() as s:
+            q = (
+                select(Answer, Trial, ExperimentSession, Participant, ProtocolVersion)
+                .join(Trial, Answer.trial_id == Trial.id)
+                .join(ExperimentSession, Trial.session_id == ExperimentSession.id)
+                .join(Participant, ExperimentSession.participant_id == Participant.id)
+                .join(ProtocolVersion, ExperimentSession.protocol_version_id == ProtocolVersion.id)
+            )
+            if protocol_name:
+                q = q.where(Participant.protocol_name == protocol_name)
+            rows = []
+            for a, t, sess, part, pv in s.execute(q.order_by(ExperimentSession.id, Trial.index, Answer.id)):
+                images = json.loads(t.image_ids_json)
+                rows.append({
+                    "protocol": pv.name,
+                    "protocol_version": pv.version,
+                    "protocol_sha256": pv.sha256[:12],
+                    "seed": sess.seed,
+                    "participant": part.code,
+                    "participant_number": part.number,
+                    "simulated": part.simulated,
+                    "session": sess.id,
+                    "trial": t.index,
+                    "repetition": t.repetition,
+                    "condition": t.condition_id,
+                    "image": "+".join(images),
+                    "question": a.question_id,
+                    "rating": a.rating,
+                    "trial_started_at": iso(t.started_at),
+                    "answered_at": iso(a.answered_at),
+                    "response_time_s": a.response_time_s,
+                })
+            return rows
+
+    def stroke_rows(self, session_id: int | None = None) -> list[dict[str, Any]]:
+        with self.Session() as s:
+            q = select(StrokeSample, Trial).join(Trial, StrokeSample.trial_id == Trial.id)
+            if session_id is not None:
+                q = q.where(Trial.session_id == session_id)
+            return [
+                {
+                    "session": t.session_id, "trial": t.index, "image": ss.image_id, "t_s": ss.t_s, "x_m": ss.x_m,
+                    "y_m": ss.y_m, "pressure": ss.pressure, "speed_m_s": ss.speed_m_s,
+                    "pulse_frequency_hz": ss.pulse_frequency_hz, "pulse_width_s": ss.pulse_width_s,
+                    "amplitude": ss.amplitude, "received_at": iso(ss.received_at),
+                }
+                for ss, t in s.execute(q.order_by(StrokeSample.id))
+            ]
+
+    def protocol_texts(self) -> list[dict[str, Any]]:
+        with self.Session() as s:
+            return [
+                {"name": pv.name, "version": pv.version, "sha256": pv.sha256, "created_at": iso(pv.created_at)}
+                for pv in s.scalars(select(ProtocolVersion).order_by(ProtocolVersion.id))
+            ]

@@ -1,0 +1,307 @@
+"""HTTP and WebSocket routes of the participant flow and the experimenter view.
+
+:func:`experiment_router` returns a FastAPI ``APIRouter`` (mounted under
+``/experiment`` in ``tactilize serve``'s app, or standalone by
+:func:`create_experiment_app`).  Participant routes (``/experiment/api/...``)::
+
+    GET  api/protocol                         title, description, questions (no conditions: blind)
+    POST api/sessions        {participant_id, consent}        -> state   (409: ID taken)
+    POST api/resume          {participant_id}                  -> state   (404: unknown ID)
+    GET  api/sessions/{s}                                       -> state
+    POST api/sessions/{s}/calibration {card_width_px|mm_per_px, felt}
+    POST api/sessions/{s}/break       {trial}
+    POST api/sessions/{s}/answers     {trial, ratings, response_time_s, submission_id}
+    GET  api/images/{id}.png
+    WS   ws/{s}          pen samples in, drives out (see flow.StrokeHandler)
+
+Experimenter routes (``api/admin/...``: sessions, export.csv, export.json,
+analysis) need the admin token whenever one is set, and :func:`serve_flow`
+sets one whenever the server is bound beyond loopback.  Pass it as
+``Authorization: Bearer <token>``, ``X-Tactilize-Token`` or ``?token=``.
+
+Every route is a plain function run in FastAPI's thread pool, because the store
+is synchronous; the answer route returns only after the commit.
+"""
+
+from __future__ import annotations
+
+import hmac
+import json
+import secrets
+from importlib import resources
+from typing import Any
+
+from fastapi import APIRouter, FastAPI, Request, WebSocket, WebSocketDisconnect
+from fastapi.responses import FileResponse, JSONResponse, PlainTextResponse, RedirectResponse, Response
+from starlette.concurrency import run_in_threadpool
+
+from .flow import Flow, FlowError
+
+__all__ = ["experiment_router", "create_experiment_app", "serve_flow", "is_loopback", "PREFIX"]
+
+PREFIX = "/experiment"
+_STATIC_FILES = {"index.html", "experiment.js", "experiment.css", "admin.html", "admin.js"}
+_TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8", ".css": "text/css; charset=utf-8"}
+
+
+def is_loopback(host: str) -> bool:
+    """True for addresses only this machine can reach."""
+    import ipaddress
+
+    if host in ("localhost", ""):
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+def _static_dir():
+    return resources.files("tactilize.experiments").joinpath("static")
+
+
+def _error(exc: FlowError) -> JSONResponse:
+    return JSONResponse(exc.to_dict(), status_code=exc.status)
+
+
+async def _json_body(request: Request) -> Any:
+    try:
+        return await request.json()
+    except (json.JSONDecodeError, UnicodeDecodeError, ValueError):
+        raise FlowError("request", "the body must be JSON", 400) from None
+
+
+def experiment_router(flow: Flow) -> APIRouter:
+    """The routes of one protocol's flow (include with ``prefix="/experiment"``)."""
+    router = APIRouter()
+
+    def admin_ok(request: Request) -> bool:
+        if not flow.admin_token:
+            return True
+        given = request.headers.get("x-tactilize-token") or request.query_params.get("token") or ""
+        auth = request.headers.get("authorization", "")
+        if auth.lower().startswith("bearer "):
+            given = auth[7:].strip()
+        return hmac.compare_digest(given.encode(), flow.admin_token.encode())
+
+    def denied() -> JSONResponse:
+        return JSONResponse({"error": "experimenter token required (see the server's start-up message)",
+                             "source": "token"}, status_code=401)
+
+    # ------------------------------------------------------------ pages
+
+    @router.get("/", include_in_schema=False)
+    def index() -> Response:
+        return FileResponse(str(_static_dir().joinpath("index.html")), media_type=_TYPES[".html"])
+
+    @router.get("/admin", include_in_schema=False)
+    def admin_page() -> Response:
+        return FileResponse(str(_static_dir().joinpath("admin.html")), media_type=_TYPES[".html"])
+
+    @router.get("/static/{name}", include_in_schema=False)
+    def static(name: str) -> Response:
+        if name not in _STATIC_FILES:  # a whitelist: no path tricks possible
+            return PlainTextResponse("not found", status_code=404)
+        ext = name[name.rindex("."):]
+        return FileResponse(str(_static_dir().joinpath(name)), media_type=_TYPES[ext],
+                            headers={"Cache-Control": "no-cache"})
+
+    # ------------------------------------------------------------ participant API
+
+    @router.get("/api/protocol")
+    def protocol_info() -> dict:
+        p = flow.protocol
+        return {"name": p.name, "title": p.title, "description": p.description,
+                "questions": [q.to_dict() for q in p.questions], "calibration_card_mm": p.calibration_card_mm,
+                "trials": len(p.plan(1))}
+
+    @router.post("/api/sessions")
+    async def start(request: Request) -> Response:
+        try:
+            body = await _json_body(request)
+            if not isinstance(body, dict):
+                raise FlowError("request", "expected a JSON object", 400)
+            return JSONResponse(await run_in_threadpool(flow.start, body.get("participant_id"), body.get("consent")))
+        except FlowError as exc:
+            return _error(exc)
+
+    @router.post("/api/resume")
+    async def resume(request: Request) -> Response:
+        try:
+            body = await _json_body(request)
+            if not isinstance(body, dict):
+                raise FlowError("request", "expected a JSON object", 400)
+            return JSONResponse(await run_in_threadpool(flow.resume, body.get("participant_id")))
+        except FlowError as exc:
+            return _error(exc)
+
+    @router.get("/api/sessions/{token}")
+    def state(token: str) -> Response:
+        try:
+            return JSONResponse(flow.state(token))
+        except FlowError as exc:
+            return _error(exc)
+
+    @router.post("/api/sessions/{token}/calibration")
+    async def calibrate(token: str, request: Request) -> Response:
+        try:
+            body = await _json_body(request)
+            return JSONResponse(await run_in_threadpool(flow.calibrate, token, body))
+        except FlowError as exc:
+            return _error(exc)
+
+    @router.post("/api/sessions/{token}/break")
+    async def end_break(token: str, request: Request) -> Response:
+        try:
+            body = await _json_body(request)
+            idx = body.get("trial") if isinstance(body, dict) else None
+            return JSONResponse(await run_in_threadpool(flow.end_break, token, idx))
+        except FlowError as exc:
+            return _error(exc)
+
+    @router.post("/api/sessions/{token}/answers")
+    async def answers(token: str, request: Request) -> Response:
+        try:
+            body = await _json_body(request)
+            if not isinstance(body, dict):
+                raise FlowError("request", "expected a JSON object", 400)
+            doc = await run_in_threadpool(
+                lambda: flow.submit(token, body.get("trial"), body.get("ratings"),
+                                    response_time_s=body.get("response_time_s"),
+                                    submission_id=body.get("submission_id")))
+            return JSONResponse(doc)
+        except FlowError as exc:
+            return _error(exc)
+
+    @router.get("/api/images/{image_id}.png")
+    def image(image_id: str) -> Response:
+        try:
+            return Response(flow.image_png(image_id), media_type="image/png",
+                            headers={"Cache-Control": "max-age=3600"})
+        except FlowError as exc:
+            return _error(exc)
+
+    @router.websocket("/ws/{token}")
+    async def pen(ws: WebSocket, token: str) -> None:
+        await ws.accept()
+        try:
+            handler = await run_in_threadpool(flow.stroke_handler, token)
+        except FlowError as exc:
+            await ws.send_json({"type": "error", **exc.to_dict()})
+            await ws.close(code=4404)
+            return
+        try:
+            while True:
+                text = await ws.receive_text()
+                try:
+                    msg = json.loads(text)
+                    reply = await run_in_threadpool(handler.handle, msg)
+                except json.JSONDecodeError:
+                    reply = {"type": "error", "error": "messages must be JSON", "source": "stroke"}
+                except FlowError as exc:
+                    reply = {"type": "error", **exc.to_dict()}
+                await ws.send_json(reply)
+        except WebSocketDisconnect:
+            return
+
+    # ------------------------------------------------------------ experimenter API
+
+    @router.get("/api/admin/sessions")
+    def admin_sessions(request: Request) -> Response:
+        if not admin_ok(request):
+            return denied()
+        return JSONResponse({"protocol": flow.protocol.to_dict(),
+                             "sessions": flow.store.sessions_overview(flow.protocol.name)})
+
+    @router.get("/api/admin/export.csv")
+    def admin_csv(request: Request) -> Response:
+        if not admin_ok(request):
+            return denied()
+        from .analysis import export_answers
+
+        return Response(export_answers(flow.store, "csv", flow.protocol.name), media_type="text/csv",
+                        headers={"Content-Disposition": f'attachment; filename="{flow.protocol.name}-answers.csv"'})
+
+    @router.get("/api/admin/export.json")
+    def admin_json(request: Request) -> Response:
+        if not admin_ok(request):
+            return denied()
+        from .analysis import export_answers
+
+        return Response(export_answers(flow.store, "json", flow.protocol.name), media_type="application/json")
+
+    @router.get("/api/admin/analysis")
+    def admin_analysis(request: Request) -> Response:
+        if not admin_ok(request):
+            return denied()
+        from .analysis import analyze
+
+        return JSONResponse(_nan_free(analyze(flow.store, flow.protocol.name)))
+
+    return router
+
+
+def _nan_free(x: Any) -> Any:
+    if isinstance(x, float):
+        return x if x == x and x not in (float("inf"), float("-inf")) else None
+    if isinstance(x, dict):
+        return {k: _nan_free(v) for k, v in x.items()}
+    if isinstance(x, list):
+        return [_nan_free(v) for v in x]
+    return x
+
+
+def create_experiment_app(protocol, db_url: str | None = None, admin_token: str | None = None) -> FastAPI:
+    """A standalone app serving one protocol's flow under ``/experiment``.
+
+    Parameters
+    ----------
+    protocol : Protocol or str
+        A protocol, a built-in name or a TOML path.
+    db_url : str, optional
+        SQLAlchemy URL or SQLite file path; the default data-directory file if None.
+    admin_token : str, optional
+        Required by the experimenter routes when set.
+    """
+    from .protocols import Protocol, load_protocol
+    from .store import Store
+
+    if not isinstance(protocol, Protocol):
+        protocol = load_protocol(protocol)
+    flow = Flow(protocol, Store(db_url), admin_token=admin_token)
+    app = FastAPI(title=f"tactilize experiment: {protocol.name}", docs_url=None, redoc_url=None)
+    app.state.experiment_flow = flow
+    app.include_router(experiment_router(flow), prefix=PREFIX)
+
+    @app.get("/", include_in_schema=False)
+    def root() -> Response:
+        return RedirectResponse(f"{PREFIX}/")
+
+    return app
+
+
+def mount_experiment(app: FastAPI, flow: Flow) -> None:
+    """Add a flow's routes to an existing app (``tactilize serve``'s)."""
+    app.state.experiment_flow = flow
+    app.include_router(experiment_router(flow), prefix=PREFIX)
+
+
+def serve_flow(protocol, db_url: str | None, host: str = "127.0.0.1", port: int = 8765,
+               admin_token: str | None = None, echo=print) -> None:
+    """Run the flow with uvicorn (the CLI's ``experiment run``).
+
+    Beyond loopback an experimenter token is mandatory: one is generated and
+    printed when none is given, so the data are never open to the network.
+    """
+    import uvicorn
+
+    if not is_loopback(host) and not admin_token:
+        admin_token = secrets.token_urlsafe(16)
+    app = create_experiment_app(protocol, db_url, admin_token)
+    flow = app.state.experiment_flow
+    shown = "localhost" if is_loopback(host) else host
+    echo(f"tactilize experiment: {flow.protocol.name} v{flow.protocol.version} ({flow.protocol.sha256[:12]})")
+    echo(f"  database     {flow.store.url}")
+    echo(f"  participant  http://{shown}:{port}{PREFIX}/")
+    echo(f"  experimenter http://{shown}:{port}{PREFIX}/admin" + (f"?token={admin_token}" if admin_token else ""))
+    uvicorn.run(app, host=host, port=port, log_level="warning")
