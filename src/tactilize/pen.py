@@ -400,7 +400,7 @@ class RenderResult:
             "y_m": st.y_m if st else None,
             "speed_m_s": st.speed_m_s if st else 0.0,
             "speed_mm_s": st.speed_m_s * 1e3 if st else 0.0,
-            "direction_deg": math.degrees(st.direction_rad) if st and st.direction_rad is not None else None,
+            "direction_deg": math.degrees(st.direction_rad) + 0.0 if st and st.direction_rad is not None else None,
             "pressure": st.pressure if st else None,
             "spatial_frequency_per_m": float(feat.spatial_frequency_per_m) if feat is not None else None,
             "spectral_intensity": float(feat.spectral_intensity) if feat is not None else None,

@@ -1,0 +1,483 @@
+"""The ASGI application behind ``tactilize serve``.
+
+Routes
+------
+``GET /``                              the page
+``GET /static/...``                    its ES modules and stylesheet (no build step)
+``GET /api/config``                    defaults: mm per CSS px, profile, output, channels
+``GET /api/textures``                  the gallery: built-ins and uploads, with features
+``GET /api/textures/{id}.png``         a picture (grey PNG carrying its DPI)
+``GET /api/textures/{id}/features``    whole-picture features and the tile map
+``POST /api/textures``                 upload a picture (multipart ``file``, optional
+                                       ``width_mm`` or ``dpi``); size-limited, validated
+                                       by :func:`tactilize.image.load_image`
+``GET /api/profiles``                  the profiles the page may pick
+``GET /api/stats``                     server-side latency percentiles and counters
+``WS  /ws``                            pen samples in, drives out (see :mod:`.session`)
+
+Extending
+---------
+Pass routers to :func:`create_app` (``extra_routers=[router]``) or call
+``app.include_router(router)`` on the returned app; the shared state (output,
+profile, textures) is ``app.state.tactilize`` (a :class:`ServerState`), reachable
+from a request as ``request.app.state.tactilize``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import collections
+import hashlib
+import logging
+import math
+import threading
+from contextlib import asynccontextmanager
+from importlib import resources
+from pathlib import Path
+from typing import Any, Callable, Iterable
+
+from fastapi import APIRouter, FastAPI, File, Form, HTTPException, Request, UploadFile, WebSocket
+from fastapi.responses import FileResponse, JSONResponse, Response
+from fastapi.staticfiles import StaticFiles
+
+from ..errors import ImageError, ProfileError, TactilizeError
+from ..mapping import Profile, preset_names
+from ..pen import DEFAULT_M_PER_CSS_PX
+
+__all__ = ["create_app", "ServerState", "TextureEntry", "MAX_UPLOAD_BYTES", "MAX_UPLOAD_PIXELS"]
+
+log = logging.getLogger("tactilize.web")
+
+#: Largest upload accepted [bytes]: a high-quality phone photo fits.
+MAX_UPLOAD_BYTES = 12 * 1024 * 1024
+#: Largest upload accepted [pixels]: 16 Mpx; analysing it takes about a second.
+MAX_UPLOAD_PIXELS = 16 * 1024 * 1024
+#: Uploads kept in memory; the oldest is forgotten first.
+MAX_UPLOADS = 24
+
+_STATIC = Path(str(resources.files("tactilize.web").joinpath("static")))
+
+
+class TextureEntry:
+    """A picture the page can show: a built-in or an upload.
+
+    The PNG and the texture map are made on first use (thread-safe, once), so
+    listing textures is cheap and the server starts at once.
+
+    Attributes
+    ----------
+    id, name, description : str
+    width_m, height_m : float
+        Physical size it is shown at [m].
+    width_px, height_px : int
+    builtin : bool
+    """
+
+    def __init__(
+        self,
+        id: str,
+        name: str,
+        description: str,
+        width_m: float,
+        height_m: float,
+        width_px: int,
+        height_px: int,
+        builtin: bool,
+        make_png: Callable[[], bytes],
+        make_map: Callable[[], Any],
+    ) -> None:
+        self.id, self.name, self.description = id, name, description
+        self.width_m, self.height_m = float(width_m), float(height_m)
+        self.width_px, self.height_px = int(width_px), int(height_px)
+        self.builtin = builtin
+        self._make_png, self._make_map = make_png, make_map
+        self._png: bytes | None = None
+        self._map: Any = None
+        self._lock = threading.Lock()
+
+    @property
+    def png(self) -> bytes:
+        """The grey picture as PNG carrying its DPI (what was analysed is what is shown)."""
+        if self._png is None:
+            with self._lock:
+                if self._png is None:
+                    self._png = self._make_png()
+        return self._png
+
+    @property
+    def map(self):
+        """The :class:`~tactilize.texturemap.TextureMap` at the displayed size."""
+        if self._map is None:
+            with self._lock:
+                if self._map is None:
+                    self._map = self._make_map()
+        return self._map
+
+    def describe(self, with_features: bool = True) -> dict[str, Any]:
+        """JSON-ready listing entry (sizes in mm for the page, SI features)."""
+        d: dict[str, Any] = {
+            "id": self.id,
+            "name": self.name,
+            "description": self.description,
+            "builtin": self.builtin,
+            "width_mm": self.width_m * 1e3,
+            "height_mm": self.height_m * 1e3,
+            "width_px": self.width_px,
+            "height_px": self.height_px,
+            "url": f"/api/textures/{self.id}.png",
+        }
+        if with_features:
+            d["features"] = _clean(self.map.whole.to_dict())
+        return d
+
+
+def _clean(x: Any) -> Any:
+    """JSON has no NaN or infinity: make them null."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {k: _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    return x
+
+
+class ServerState:
+    """What every request and session shares.
+
+    Parameters
+    ----------
+    output : Output
+        Where drives go; shared by all sessions (it is one device).
+    profile : Profile
+        The default profile.
+    m_per_px : float
+        Default size of a CSS pixel [m] until the page sends its calibration.
+    """
+
+    def __init__(self, output: Any, profile: Profile, m_per_px: float = DEFAULT_M_PER_CSS_PX, output_name: str = "") -> None:
+        self.output = output
+        self.output_name = output_name or type(output).__name__
+        self.profile = profile
+        self.m_per_px = float(m_per_px)
+        self.textures: "collections.OrderedDict[str, TextureEntry]" = collections.OrderedDict()
+        self.uploads: "collections.deque[str]" = collections.deque()
+        self._builtin_ids: list[str] = []
+        # Server-side latency of each rendered batch [ns]: arrival of the
+        # message to its drive handed to the socket.  Bounded ring.
+        self.latency_ns: "collections.deque[int]" = collections.deque(maxlen=20_000)
+        self.counters: dict[str, int] = collections.Counter()
+        self.sessions = 0
+        from ..textures import builtin_textures
+
+        for t in builtin_textures():
+            # The PNG and the map are built lazily (warm() does it at startup
+            # off the event loop); only cheap metadata here.
+            self.textures[t.id] = _builtin_entry(t)
+            self._builtin_ids.append(t.id)
+
+    # ----------------------------------------------------------- profiles
+
+    def profiles(self) -> dict[str, Profile]:
+        """Profiles the page may pick: the presets plus the default (maybe a file)."""
+        out = {}
+        for name in preset_names():
+            try:
+                out[name] = Profile.preset(name)
+            except ProfileError:  # a broken preset must not take the page down
+                log.warning("preset %s does not load", name)
+        out[self.profile.name] = self.profile
+        return out
+
+    def profile_named(self, name: str) -> Profile:
+        """A profile by name (only presets and the default: the page cannot read files)."""
+        if name == self.profile.name:
+            return self.profile
+        if name in preset_names():
+            return Profile.preset(name)
+        raise ProfileError(name, f"unknown profile (known: {', '.join(self.profiles())})")
+
+    # ----------------------------------------------------------- textures
+
+    def texture(self, texture_id: str) -> TextureEntry:
+        """A texture by id; KeyError when unknown."""
+        return self.textures[texture_id]
+
+    def add_upload(self, data: bytes, filename: str, width_mm: float | None, dpi: float | None) -> TextureEntry:
+        """Validate, analyse and keep an uploaded picture (blocking: run in a thread)."""
+        from ..image import load_image
+        from ..texturemap import texture_map
+        from ..textures import png_bytes
+
+        name = Path(filename or "upload").name[:80] or "upload"
+        img = load_image(data, dpi=dpi, width_mm=width_mm, max_pixels=MAX_UPLOAD_PIXELS)
+        digest = hashlib.sha256(data + repr((width_mm, dpi)).encode()).hexdigest()[:12]
+        tid = f"upload-{digest}"
+        if tid in self.textures:
+            return self.textures[tid]
+        grey = (img.pixels * 255.0 + 0.5).astype("uint8")
+        png = png_bytes(grey, img.dpi[0])
+        tmap = texture_map(img)  # now, in the upload's thread: the first stroke must not wait
+        entry = TextureEntry(
+            tid, name, f"Uploaded picture {name}", img.width_m, img.height_m, img.shape[1], img.shape[0], False,
+            lambda: png, lambda: tmap,
+        )
+        self.textures[tid] = entry
+        self.uploads.append(tid)
+        while len(self.uploads) > MAX_UPLOADS:
+            self.textures.pop(self.uploads.popleft(), None)
+        return entry
+
+    def warm(self) -> None:
+        """Generate every built-in picture and its map (about a second, once)."""
+        for tid in self._builtin_ids:
+            e = self.textures.get(tid)
+            if e is not None:
+                _ = e.png, e.map
+
+    # ----------------------------------------------------------- stats
+
+    def stats(self) -> dict[str, Any]:
+        """Latency percentiles [us] and counters."""
+        lat = sorted(self.latency_ns)
+
+        def pct(p: float) -> float | None:
+            if not lat:
+                return None
+            return lat[min(len(lat) - 1, int(p / 100.0 * len(lat)))] / 1e3
+
+        return {
+            "batches": len(lat),
+            "server_latency_us": {"p50": pct(50), "p90": pct(90), "p99": pct(99), "max": lat[-1] / 1e3 if lat else None},
+            "counters": dict(self.counters),
+            "sessions": self.sessions,
+        }
+
+
+def _builtin_entry(t: Any) -> TextureEntry:
+    from ..textures import TEXTURE_SIZE_PX, builtin_map
+
+    return TextureEntry(
+        t.id, t.name, t.description, t.width_m, t.height_m, *TEXTURE_SIZE_PX, True,
+        lambda: t.png, lambda: builtin_map(t.id),
+    )
+
+
+def _default_output() -> tuple[Any, str]:
+    """The simulated wire through the output factory; a recorder if it is not built yet."""
+    try:
+        from ..actuators.factory import open_output
+
+        return open_output("simulated"), "simulated"
+    except (ImportError, TactilizeError) as exc:
+        from ..pen import _Recorder
+
+        log.warning("simulated output unavailable (%s); drives are only recorded", exc)
+        return _Recorder(), "recorder"
+
+
+def create_app(
+    output: Any = None,
+    profile: Profile | str | None = None,
+    *,
+    output_name: str | None = None,
+    m_per_px: float = DEFAULT_M_PER_CSS_PX,
+    extra_routers: Iterable[APIRouter] = (),
+    warm: bool = True,
+    close_output: bool | None = None,
+) -> FastAPI:
+    """Build the tactile pen application.
+
+    Parameters
+    ----------
+    output : Output, optional
+        Where drives go.  By default the simulated SMA wire from
+        ``open_output("simulated")``.
+    profile : Profile or str, optional
+        The default profile, or a preset name / TOML path; the paper's by default.
+    output_name : str, optional
+        How the page names the output (e.g. ``"serial:/dev/ttyACM0"``).
+    m_per_px : float
+        Size of a CSS pixel [m] before the page is calibrated (1/96 inch).
+    extra_routers : iterable of APIRouter
+        Mounted as they are (experiments, catalogs...).
+    warm : bool
+        Generate the built-in pictures at startup (in a thread, not blocking requests).
+    close_output : bool, optional
+        Close the output at shutdown; by default only when the app opened it.
+
+    Returns
+    -------
+    FastAPI
+        ``app.state.tactilize`` is the :class:`ServerState`.
+    """
+    if profile is None or isinstance(profile, str):
+        profile = Profile.resolve(profile)
+    owned = output is None
+    if output is None:
+        output, default_name = _default_output()
+        output_name = output_name or default_name
+    state = ServerState(output, profile, m_per_px, output_name or "")
+    if close_output is None:
+        close_output = owned
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI):
+        warm_task = None
+        if warm:
+            warm_task = asyncio.get_running_loop().run_in_executor(None, state.warm)
+        try:
+            yield
+        finally:
+            if warm_task is not None:
+                try:
+                    await asyncio.wait_for(asyncio.shield(warm_task), 5.0)
+                except Exception:
+                    pass
+            try:
+                state.output.stop()
+            finally:
+                if close_output:
+                    state.output.close()
+
+    app = FastAPI(title="tactilize", lifespan=lifespan, docs_url="/api/docs", redoc_url=None)
+    app.state.tactilize = state
+
+    @app.get("/", include_in_schema=False)
+    async def index() -> FileResponse:
+        return FileResponse(_STATIC / "index.html", media_type="text/html", headers={"Cache-Control": "no-cache"})
+
+    app.mount("/static", StaticFiles(directory=_STATIC), name="static")
+    app.include_router(_api_router())
+    from .session import websocket_endpoint
+
+    @app.websocket("/ws")
+    async def ws(websocket: WebSocket) -> None:
+        await websocket_endpoint(websocket, state)
+
+    for router in extra_routers:
+        app.include_router(router)
+    return app
+
+
+def _error(status: int, message: str) -> JSONResponse:
+    return JSONResponse({"error": message}, status_code=status)
+
+
+def _api_router() -> APIRouter:
+    r = APIRouter(prefix="/api")
+
+    def st(request: Request) -> ServerState:
+        return request.app.state.tactilize
+
+    @r.get("/config")
+    async def config(request: Request) -> dict[str, Any]:
+        s = st(request)
+        return {
+            "default_mm_per_px": s.m_per_px * 1e3,
+            "profile": s.profile.name,
+            "output": s.output_name,
+            "channels": int(getattr(s.output, "channels", 2)),
+            "max_upload_bytes": MAX_UPLOAD_BYTES,
+            "card_mm": [85.60, 53.98],
+        }
+
+    @r.get("/textures")
+    async def textures(request: Request) -> list[dict[str, Any]]:
+        s = st(request)
+        # The first call may have to generate pictures: keep the loop free.
+        entries = list(s.textures.values())
+        return await asyncio.get_running_loop().run_in_executor(None, lambda: [e.describe() for e in entries])
+
+    @r.get("/textures/{texture_id}.png")
+    async def texture_png(texture_id: str, request: Request) -> Response:
+        try:
+            e = st(request).texture(texture_id)
+        except KeyError:
+            return _error(404, f"no texture {texture_id!r}")
+        png = await asyncio.get_running_loop().run_in_executor(None, lambda: e.png)
+        return Response(png, media_type="image/png", headers={"Cache-Control": "max-age=3600"})
+
+    @r.get("/textures/{texture_id}/features")
+    async def texture_features(texture_id: str, request: Request) -> Any:
+        try:
+            e = st(request).texture(texture_id)
+        except KeyError:
+            return _error(404, f"no texture {texture_id!r}")
+        m = await asyncio.get_running_loop().run_in_executor(None, lambda: e.map)
+        return _clean(
+            {
+                **e.describe(with_features=False),
+                "features": m.whole.to_dict(),
+                "map": {
+                    **m.summary(),
+                    "spatial_frequency_per_m": m.field("spatial_frequency_per_m").tolist(),
+                    "spectral_intensity": m.field("spectral_intensity").tolist(),
+                    "orientation_deg": m.field("orientation_deg").tolist(),
+                },
+            }
+        )
+
+    @r.post("/textures")
+    async def upload(
+        request: Request,
+        file: UploadFile = File(...),
+        width_mm: str | None = Form(None),
+        dpi: str | None = Form(None),
+    ) -> Any:
+        s = st(request)
+        size = _number(width_mm, "width_mm"), _number(dpi, "dpi")
+        if isinstance(size[0], str) or isinstance(size[1], str):
+            return _error(422, next(x for x in size if isinstance(x, str)))
+        # Read one byte past the limit: enough to know it is too large without
+        # holding an arbitrarily large body in memory.
+        data = await file.read(MAX_UPLOAD_BYTES + 1)
+        if len(data) > MAX_UPLOAD_BYTES:
+            s.counters["uploads_refused"] += 1
+            return _error(413, f"{file.filename}: file too large (limit {MAX_UPLOAD_BYTES // (1024 * 1024)} MB)")
+        if not data:
+            return _error(422, f"{file.filename}: empty file")
+        try:
+            entry = await asyncio.get_running_loop().run_in_executor(
+                None, s.add_upload, data, file.filename or "upload", size[0], size[1]
+            )
+        except ImageError as exc:
+            s.counters["uploads_refused"] += 1
+            src = file.filename or "upload"
+            return _error(415 if "not an image" in exc.fault else 422, f"{src}: {exc.fault}")
+        s.counters["uploads"] += 1
+        return JSONResponse(entry.describe(), status_code=201)
+
+    @r.get("/profiles")
+    async def profiles(request: Request) -> dict[str, Any]:
+        s = st(request)
+        return {
+            "default": s.profile.name,
+            "profiles": [
+                {"name": name, "description": p.description, "limits": p.limits.to_dict(), "laws": _clean(p.to_dict())}
+                for name, p in s.profiles().items()
+            ],
+        }
+
+    @r.get("/stats")
+    async def stats(request: Request) -> dict[str, Any]:
+        return st(request).stats()
+
+    return r
+
+
+def _number(text: str | None, name: str) -> float | None | str:
+    """A positive form number, None when absent, or an error message (str)."""
+    if text is None or str(text).strip() == "":
+        return None
+    try:
+        v = float(text)
+    except ValueError:
+        return f"{name} must be a number, got {text!r}"
+    if not math.isfinite(v) or v <= 0:
+        return f"{name} must be a positive number, got {text!r}"
+    if name == "width_mm" and v > 2000:
+        return f"{name} must be at most 2000 mm, got {text!r}"
+    if name == "dpi" and not 10 <= v <= 10000:
+        return f"{name} must be between 10 and 10000, got {text!r}"
+    return v

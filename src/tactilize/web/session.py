@@ -1,0 +1,435 @@
+"""The WebSocket protocol of the pen page: pen samples in, drives out.
+
+Every message is one JSON object with a ``type``.
+
+Page to server
+--------------
+``{"type": "hello", "texture": ID, "mm_per_px": F, "profile": NAME}``
+    Any subset of the three settings below in one message.
+``{"type": "texture", "id": ID}``
+    Show another picture (the stroke restarts, the output stops).
+``{"type": "calibrate", "mm_per_px": F}``
+    The calibrated size of a CSS pixel [mm], 0.01 .. 5.
+``{"type": "profile", "name": NAME}``
+    Another profile: a preset or the server's default.
+``{"type": "samples", "seq": N, "samples": [[t_ms, x_px, y_px, pressure, tilt_x_deg, tilt_y_deg], ...]}``
+    Pen samples in CSS px from the picture's top-left corner (y down), each with
+    its own event timestamp [ms]; pressure may be null; the last three values
+    may be left out.  At most :data:`MAX_BATCH` samples.
+``{"type": "lift", "seq": N}``
+    The pen left the surface (pointerup, pointercancel): stop at once.
+``{"type": "ping", "id": X}``
+    Answered with ``{"type": "pong", "id": X}`` (round-trip measurements).
+
+Server to page
+--------------
+``{"type": "ready", ...}`` and ``{"type": "state", ...}``
+    The session's settings after a change (texture, profile, mm_per_px, limits).
+``{"type": "drive", "seq": N, ...}``
+    After each batch (or lift): per channel the applied drive (frequency [Hz],
+    width [s] and [ms], duty ratio, amplitude, the limits that clamped), the
+    speed [m/s] and [mm/s], direction [deg, y up], whether the pen is down and
+    over the picture.  ``seq`` echoes the newest batch it covers.
+``{"type": "wire", "t_s": [...], "displacement_um": [...]}``
+    The simulated wire's displacement since the previous message, when the
+    output records one (about 20 messages per second while anything moves).
+``{"type": "error", "message": TEXT}``
+    A malformed message was ignored; the connection stays open.
+
+Floods
+------
+A reader task parses messages as fast as they come and keeps at most
+:data:`MAX_PENDING` samples waiting; a render task renders whatever is waiting
+in one go.  When the page sends faster than the server renders, old samples
+fall off the front of the queue (counted, never queued without bound) and the
+newest always wins.  A lift discards whatever samples were waiting before it.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import logging
+import math
+import time
+from collections import deque
+from typing import Any
+
+from fastapi import WebSocket
+from starlette.websockets import WebSocketDisconnect, WebSocketState
+
+from ..errors import TactilizeError
+from ..pen import PenRenderer, sample_error, samples_from_css
+
+__all__ = ["websocket_endpoint", "PenSession", "MAX_BATCH", "MAX_PENDING", "MAX_MESSAGE_CHARS", "IDLE_S"]
+
+log = logging.getLogger("tactilize.web")
+
+#: Samples allowed in one message: a 1 kHz device coalesced at 4 Hz would fit.
+MAX_BATCH = 256
+#: Samples waiting to be rendered, at most; older ones are dropped first.
+MAX_PENDING = 512
+#: Longest message accepted [characters].
+MAX_MESSAGE_CHARS = 64 * 1024
+#: Silence [s] after which a pen that is down counts as resting (speed 0):
+#: browsers send no pointer events while the pen does not move.
+IDLE_S = 0.08
+#: Period of the wire trace messages [s].
+WIRE_PERIOD_S = 0.05
+#: Bounds on calibration [mm per CSS px]: a CSS pixel is 0.26 mm by definition;
+#: anything outside 0.01 .. 5 mm is a typo, not a screen.
+MM_PER_PX_RANGE = (0.01, 5.0)
+
+
+class _Bad(Exception):
+    """A malformed message: reported to the page, connection kept."""
+
+
+class PenSession:
+    """One page's connection: its settings, renderer and queues.
+
+    Parameters
+    ----------
+    state : ServerState
+        Shared server state (output, profiles, textures, statistics).
+    """
+
+    def __init__(self, state: Any) -> None:
+        self.state = state
+        self.m_per_px = state.m_per_px
+        self.texture_id: str | None = None
+        self.renderer = PenRenderer(_NoPicture(), state.profile, state.output)
+        self.pending: deque[tuple] = deque()
+        self.pending_lift = False
+        self.seq: Any = None
+        self.arrival_ns = 0
+        self.wake = asyncio.Event()
+        self._idle: asyncio.TimerHandle | None = None
+        self._idle_due = False
+
+    # ------------------------------------------------------------- messages
+
+    def handle(self, text: Any) -> dict[str, Any] | None:
+        """Parse and apply one message; returns an immediate reply or None.
+
+        Raises
+        ------
+        _Bad
+            The message is malformed (its text is the reason).
+        """
+        if not isinstance(text, str):
+            raise _Bad("messages must be JSON text, not binary")
+        if len(text) > MAX_MESSAGE_CHARS:
+            raise _Bad(f"message too long ({len(text)} characters, limit {MAX_MESSAGE_CHARS})")
+        try:
+            msg = json.loads(text)
+        except (ValueError, RecursionError) as exc:
+            raise _Bad(f"not JSON ({exc.__class__.__name__}: {str(exc)[:80]})") from None
+        if not isinstance(msg, dict):
+            raise _Bad("a message must be a JSON object with a 'type'")
+        kind = msg.get("type")
+        if kind == "samples":
+            self._samples(msg)
+            return None
+        if kind == "lift":
+            self.pending.clear()
+            self.pending_lift = True
+            self.seq = msg.get("seq", self.seq)
+            self._wake()
+            return None
+        if kind == "ping":
+            return {"type": "pong", "id": msg.get("id"), "server_time_s": time.time()}
+        if kind in ("hello", "texture", "calibrate", "profile"):
+            return self._settings(kind, msg)
+        raise _Bad(f"unknown message type {kind!r} (known: samples, lift, hello, texture, calibrate, profile, ping)")
+
+    def _samples(self, msg: dict[str, Any]) -> None:
+        rows = msg.get("samples")
+        if not isinstance(rows, list):
+            raise _Bad("'samples' must be an array of [t_ms, x_px, y_px, pressure?, tilt_x_deg?, tilt_y_deg?]")
+        if len(rows) > MAX_BATCH:
+            raise _Bad(f"too many samples in one message ({len(rows)}, limit {MAX_BATCH})")
+        for i, row in enumerate(rows):
+            err = sample_error(row)
+            if err is not None:
+                raise _Bad(f"sample {i}: {err}")
+        if self.texture_id is None:
+            raise _Bad("no texture selected: send {'type': 'texture', 'id': ...} first")
+        if not rows:
+            return
+        pending = self.pending
+        pending.extend(rows)
+        over = len(pending) - MAX_PENDING
+        if over > 0:
+            # Latest wins: the oldest samples only refine a speed estimate that
+            # the newest ones will give anyway.
+            for _ in range(over):
+                pending.popleft()
+            self.state.counters["samples_dropped"] += over
+        self.state.counters["samples_received"] += len(rows)
+        self.seq = msg.get("seq", self.seq)
+        self._wake()
+
+    def _settings(self, kind: str, msg: dict[str, Any]) -> dict[str, Any]:
+        st = self.state
+        tid = msg.get("texture") if kind == "hello" else msg.get("id") if kind == "texture" else None
+        mm = msg.get("mm_per_px") if kind in ("hello", "calibrate") else None
+        pname = msg.get("profile") if kind == "hello" else msg.get("name") if kind == "profile" else None
+        if kind == "texture" and tid is None:
+            raise _Bad("'texture' needs an 'id'")
+        if kind == "calibrate" and mm is None:
+            raise _Bad("'calibrate' needs 'mm_per_px'")
+        if kind == "profile" and pname is None:
+            raise _Bad("'profile' needs a 'name'")
+        # Validate everything before changing anything.
+        entry = None
+        if tid is not None:
+            if not isinstance(tid, str):
+                raise _Bad("texture id must be a string")
+            try:
+                entry = st.texture(tid)
+            except KeyError:
+                raise _Bad(f"no texture {tid!r}") from None
+        if mm is not None:
+            lo, hi = MM_PER_PX_RANGE
+            if isinstance(mm, bool) or not isinstance(mm, (int, float)) or not math.isfinite(mm) or not lo <= mm <= hi:
+                raise _Bad(f"mm_per_px must be a number in [{lo}, {hi}], got {mm!r}")
+        profile = None
+        if pname is not None:
+            if not isinstance(pname, str):
+                raise _Bad("profile name must be a string")
+            try:
+                profile = st.profile_named(pname)
+            except TactilizeError as exc:
+                raise _Bad(f"{exc.source}: {exc.fault}") from None
+        # The pen starts a new stroke after any change: a speed estimated in the
+        # old millimetres, or a drive for the old picture, must not carry over.
+        self.pending.clear()
+        if entry is not None:
+            self.texture_id = entry.id
+            self.renderer.set_texture(entry.map)
+        if mm is not None:
+            self.m_per_px = float(mm) * 1e-3
+            self.renderer.lift()
+        if profile is not None:
+            self.renderer.set_profile(profile)
+            self.renderer.lift()
+        return self.describe("ready" if kind == "hello" else "state")
+
+    def describe(self, kind: str = "state") -> dict[str, Any]:
+        """The session's settings as a message."""
+        p = self.renderer.profile
+        d: dict[str, Any] = {
+            "type": kind,
+            "texture": self.texture_id,
+            "mm_per_px": self.m_per_px * 1e3,
+            "profile": p.name,
+            "limits": p.limits.to_dict(),
+            "output": self.state.output_name,
+            "channels": self.renderer.channels,
+        }
+        if self.texture_id is not None:
+            e = self.state.texture(self.texture_id)
+            d["texture_width_mm"] = e.width_m * 1e3
+            d["texture_height_mm"] = e.height_m * 1e3
+        return d
+
+    def _wake(self) -> None:
+        self.arrival_ns = self._msg_ns
+        self.wake.set()
+
+    _msg_ns = 0
+
+    # ------------------------------------------------------------- rendering
+
+    def render_pending(self) -> dict[str, Any] | None:
+        """Render whatever is waiting; the drive message, or None if nothing was."""
+        if self._idle_due:
+            self._idle_due = False
+            if not self.pending and not self.pending_lift:
+                res = self.renderer.still()
+                return self._drive_msg(res)
+        if not self.pending and not self.pending_lift:
+            return None
+        res = None
+        if self.pending_lift:
+            self.pending_lift = False
+            res = self.renderer.lift()
+        if self.pending:
+            rows = list(self.pending)
+            self.pending.clear()
+            res = self.renderer.feed(samples_from_css(rows, self.m_per_px))
+        return self._drive_msg(res)
+
+    def _drive_msg(self, res: Any) -> dict[str, Any]:
+        d = res.to_dict()
+        d["type"] = "drive"
+        d["seq"] = self.seq
+        return d
+
+    def schedule_idle(self, loop: asyncio.AbstractEventLoop) -> None:
+        """(Re)arm the resting-pen timer after a render with the pen down."""
+        if self._idle is not None:
+            self._idle.cancel()
+            self._idle = None
+        if self.renderer.last.down and self.renderer.tracker.state is not None and self.renderer.tracker.state.speed_m_s > 0:
+            self._idle = loop.call_later(IDLE_S, self._on_idle)
+
+    def _on_idle(self) -> None:
+        self._idle = None
+        self._idle_due = True
+        self.wake.set()
+
+    def close(self) -> None:
+        if self._idle is not None:
+            self._idle.cancel()
+        self.renderer.lift()
+
+
+class _NoPicture:
+    """The map before a texture is chosen: the pen is never over a picture."""
+
+    def lookup(self, x_m: float, y_m: float) -> None:
+        return None
+
+
+def _dumps(doc: dict[str, Any]) -> str:
+    # allow_nan=False would raise on a stray NaN; replace instead (JSON has none).
+    try:
+        return json.dumps(doc, allow_nan=False, separators=(",", ":"))
+    except ValueError:
+        from .app import _clean
+
+        return json.dumps(_clean(doc), separators=(",", ":"))
+
+
+async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
+    """Serve one page over its WebSocket until it disconnects."""
+    await ws.accept()
+    session = PenSession(state)
+    state.sessions += 1
+    loop = asyncio.get_running_loop()
+    send_lock = asyncio.Lock()
+    closed = asyncio.Event()
+
+    async def send(doc: dict[str, Any]) -> None:
+        if ws.application_state != WebSocketState.CONNECTED:
+            return
+        async with send_lock:
+            await ws.send_text(_dumps(doc))
+
+    async def renderer_task() -> None:
+        while not closed.is_set():
+            await session.wake.wait()
+            session.wake.clear()
+            arrival = session.arrival_ns
+            try:
+                msg = session.render_pending()
+            except TactilizeError as exc:  # e.g. a profile law refusing a value
+                await send({"type": "error", "message": f"{exc.source}: {exc.fault}"})
+                continue
+            if msg is None:
+                continue
+            await send(msg)
+            if arrival:
+                state.latency_ns.append(time.perf_counter_ns() - arrival)
+                session.arrival_ns = 0
+            state.counters["drives_sent"] += 1
+            session.schedule_idle(loop)
+
+    async def wire_task() -> None:
+        source = _wire_source(state.output)
+        if source is None:
+            return
+        while not closed.is_set():
+            await asyncio.sleep(WIRE_PERIOD_S)
+            try:
+                trace = source()
+            except Exception as exc:  # the page's plot must never kill the pen
+                log.debug("wire trace failed: %s", exc)
+                return
+            if trace is not None:
+                await send(trace)
+
+    tasks = [asyncio.create_task(renderer_task()), asyncio.create_task(wire_task())]
+    try:
+        while True:
+            message = await ws.receive()
+            session._msg_ns = time.perf_counter_ns()
+            if message["type"] == "websocket.disconnect":
+                break
+            text = message.get("text")
+            if text is None:
+                text = message.get("bytes")
+            try:
+                reply = session.handle(text)
+            except _Bad as exc:
+                state.counters["bad_messages"] += 1
+                await send({"type": "error", "message": str(exc)})
+                continue
+            if reply is not None:
+                await send(reply)
+            # Let the renderer run between messages of a burst, so that a
+            # steady stream is rendered batch by batch, not only at the end.
+            if session.wake.is_set():
+                await asyncio.sleep(0)
+            for t in tasks:
+                if t.done() and not t.cancelled() and t.exception() is not None:
+                    raise t.exception()  # type: ignore[misc]
+    except WebSocketDisconnect:
+        pass
+    finally:
+        closed.set()
+        session.wake.set()
+        for t in tasks:
+            t.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
+        session.close()
+        state.sessions -= 1
+
+
+def _wire_source(output: Any):
+    """A callable returning the newest wire trace message, or None if the output has no trace.
+
+    The simulated output exposes its recent traces; this adapts whatever it
+    offers to ``{"type": "wire", "t_s": [...], "displacement_um": [...]}``.
+    """
+    fn = getattr(output, "traces", None)
+    if fn is None:
+        return None
+    last_t = [-math.inf]
+
+    def pull() -> dict[str, Any] | None:
+        tr = fn() if callable(fn) else fn
+        if tr is None:
+            return None
+        t = _field(tr, ("t_s", "time_s", "times_s"))
+        disp = _field(tr, ("displacement_m", "contraction_m", "stroke_m"))
+        if t is None or disp is None:
+            return None
+        t = list(map(float, t))
+        if disp and hasattr(disp[0], "__len__"):
+            disp = [float(row[0]) if len(row) else 0.0 for row in disp]  # channel 0 per sample
+        disp = list(map(float, disp))
+        new = [i for i, ti in enumerate(t) if ti > last_t[0]]
+        if not new:
+            return None
+        last_t[0] = t[new[-1]]
+        step = max(1, len(new) // 200)  # the plot needs ~200 points per message
+        idx = new[::step]
+        return {
+            "type": "wire",
+            "t_s": [t[i] for i in idx],
+            "displacement_um": [disp[i] * 1e6 for i in idx],
+        }
+
+    return pull
+
+
+def _field(tr: Any, names: tuple[str, ...]) -> Any:
+    for n in names:
+        if isinstance(tr, dict) and n in tr:
+            return tr[n]
+        if hasattr(tr, n):
+            return getattr(tr, n)
+    return None

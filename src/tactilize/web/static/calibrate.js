@@ -1,0 +1,84 @@
+// Calibration: how many millimetres one CSS pixel measures on this screen.
+//
+// A CSS pixel is 1/96 inch only by definition (FACTS.md section 5); real screens
+// differ.  The user matches an on-screen card to a real ID-1 card (85.60 mm wide).
+// What is stored is mm per *device* pixel, so that browser zoom (which changes
+// devicePixelRatio and the size of a CSS pixel together) keeps the calibration.
+
+export const CARD_MM = [85.60, 53.98];
+export const DEFAULT_MM_PER_PX = 25.4 / 96;
+const KEY = "tactilize.calibration.v1";
+
+/** The calibrated mm per CSS pixel for the current zoom, or the 1/96 inch default. */
+export function mmPerPx() {
+  const c = load();
+  if (!c) return DEFAULT_MM_PER_PX;
+  return c.mm_per_device_px * (window.devicePixelRatio || 1);
+}
+
+/** Is the stored value a calibration (true) or the default (false)? */
+export function isCalibrated() { return load() !== null; }
+
+function load() {
+  try {
+    const c = JSON.parse(localStorage.getItem(KEY) || "null");
+    if (c && Number.isFinite(c.mm_per_device_px) && c.mm_per_device_px > 0) return c;
+  } catch (e) { /* a corrupt entry is the same as none */ }
+  return null;
+}
+
+/** Keep a calibration given in mm per CSS pixel at the current zoom. */
+export function save(mmPerCssPx) {
+  if (!(Number.isFinite(mmPerCssPx) && mmPerCssPx >= 0.01 && mmPerCssPx <= 5)) {
+    throw new RangeError(`mm per CSS px must be in [0.01, 5], got ${mmPerCssPx}`);
+  }
+  const dpr = window.devicePixelRatio || 1;
+  localStorage.setItem(KEY, JSON.stringify({ mm_per_device_px: mmPerCssPx / dpr, dpr, at: new Date().toISOString() }));
+}
+
+export function reset() { localStorage.removeItem(KEY); }
+
+/** Wire the dialog: slider and number for the card width, or mm/px directly.
+ *  onChange(mmPerPx) is called after a save or a reset. */
+export function setupDialog(dialog, openButton, onChange) {
+  const card = dialog.querySelector("#card");
+  const range = dialog.querySelector("#card-range");
+  const cardPx = dialog.querySelector("#card-px");
+  const mmInput = dialog.querySelector("#mm-per-px");
+  const show = (mm) => {
+    const w = CARD_MM[0] / mm;
+    card.style.width = `${w}px`;
+    range.value = String(w);
+    cardPx.value = w.toFixed(1);
+    mmInput.value = mm.toFixed(5);
+  };
+  range.addEventListener("input", () => show(CARD_MM[0] / Number(range.value)));
+  cardPx.addEventListener("input", () => {
+    const w = Number(cardPx.value);
+    if (w > 0) { card.style.width = `${w}px`; range.value = String(w); mmInput.value = (CARD_MM[0] / w).toFixed(5); }
+  });
+  mmInput.addEventListener("input", () => {
+    const mm = Number(mmInput.value);
+    if (mm > 0) { const w = CARD_MM[0] / mm; card.style.width = `${w}px`; range.value = String(w); cardPx.value = w.toFixed(1); }
+  });
+  openButton.addEventListener("click", () => { show(mmPerPx()); dialog.showModal(); });
+  dialog.addEventListener("close", () => {
+    if (dialog.returnValue === "save") {
+      const mm = Number(mmInput.value);
+      try { save(mm); } catch (e) { alert(e.message); return; }
+    } else if (dialog.returnValue === "reset") {
+      reset();
+    } else {
+      return;
+    }
+    onChange(mmPerPx());
+  });
+  // Zoom changes devicePixelRatio; the stored mm per device px keeps the size right.
+  let dpr = window.devicePixelRatio;
+  const watch = () => {
+    matchMedia(`(resolution: ${dpr}dppx)`).addEventListener("change", () => {
+      dpr = window.devicePixelRatio; onChange(mmPerPx()); watch();
+    }, { once: true });
+  };
+  watch();
+}

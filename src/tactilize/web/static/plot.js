@@ -1,0 +1,85 @@
+// A scrolling plot of the last WINDOW_S seconds: the pulse train of each channel
+// (rebuilt here from the drives, phase-continuous, exactly as the audio and the
+// controller play it) and the simulated wire's displacement sent by the server.
+
+const WINDOW_S = 0.5;
+
+export class Plot {
+  constructor(canvas, channels = 2) {
+    this.canvas = canvas;
+    this.ctx = canvas.getContext("2d");
+    this.drives = Array.from({ length: channels }, () => ({ f: 0, w: 0, a: 0 }));
+    this.next = new Array(channels).fill(null);       // time of the next pulse onset [s]
+    this.pulses = Array.from({ length: channels }, () => []);  // [t_s, width_s, amp]
+    this.wire = [];  // [t_s (local clock), displacement_um]
+    this.wireOffset = null;
+    this.running = true;
+    requestAnimationFrame(() => this.frame());
+  }
+
+  /** New drives: [{pulse_frequency_hz, pulse_width_s, amplitude}, ...]. */
+  setDrives(channels) {
+    channels.forEach((c, i) => {
+      if (i >= this.drives.length) return;
+      this.drives[i] = { f: c.pulse_frequency_hz || 0, w: c.pulse_width_s || 0, a: c.amplitude || 0 };
+    });
+  }
+
+  /** Wire samples from the server's clock; aligned so the newest is "now". */
+  addWire(tS, dispUm) {
+    if (!tS.length) return;
+    const now = performance.now() / 1e3;
+    this.wireOffset = now - tS[tS.length - 1];
+    for (let i = 0; i < tS.length; i++) this.wire.push([tS[i] + this.wireOffset, dispUm[i]]);
+    const from = now - WINDOW_S;
+    while (this.wire.length && this.wire[0][0] < from) this.wire.shift();
+  }
+
+  frame() {
+    if (!this.running) return;
+    const now = performance.now() / 1e3;
+    const from = now - WINDOW_S;
+    this.drives.forEach((d, i) => {
+      const list = this.pulses[i];
+      if (d.f > 0 && d.w > 0 && d.a > 0) {
+        if (this.next[i] === null || this.next[i] < from) this.next[i] = now;
+        while (this.next[i] <= now) { list.push([this.next[i], d.w, d.a]); this.next[i] += 1 / d.f; }
+      } else {
+        this.next[i] = null;
+      }
+      while (list.length && list[0][0] < from) list.shift();
+    });
+    this.draw(now);
+    requestAnimationFrame(() => this.frame());
+  }
+
+  draw(now) {
+    const { ctx, canvas } = this;
+    const W = canvas.width, H = canvas.height;
+    const lanes = this.drives.length + 1;
+    const lh = H / lanes;
+    const x = (t) => (t - (now - WINDOW_S)) / WINDOW_S * W;
+    ctx.clearRect(0, 0, W, H);
+    ctx.font = "11px system-ui, sans-serif";
+    this.pulses.forEach((list, i) => {
+      const top = i * lh, base = top + lh - 4;
+      ctx.fillStyle = "#888"; ctx.fillText(`channel ${i + 1} pulses`, 4, top + 12);
+      ctx.fillStyle = i ? "#c46a00" : "#1f6feb";
+      for (const [t, w, a] of list) {
+        const h = a * (lh - 18);
+        ctx.fillRect(x(t), base - h, Math.max(1, w / WINDOW_S * W), h);
+      }
+    });
+    const top = (lanes - 1) * lh, base = top + lh - 4;
+    let max = 0.05;
+    for (const [, d] of this.wire) max = Math.max(max, Math.abs(d));
+    ctx.fillStyle = "#888";
+    ctx.fillText(this.wire.length ? `wire displacement (max ${max.toFixed(2)} µm)` : "wire displacement (no simulated wire data)", 4, top + 12);
+    ctx.strokeStyle = "#2a9d4b"; ctx.beginPath();
+    this.wire.forEach(([t, d], k) => {
+      const px = x(t), py = base - d / max * (lh - 18);
+      k ? ctx.lineTo(px, py) : ctx.moveTo(px, py);
+    });
+    ctx.stroke();
+  }
+}
