@@ -247,5 +247,21 @@ def batch(
     )
 
 
+# ----------------------------------------------------------------- serve (web/)
+
+
+@main.command()
+@click.option("--host", default="127.0.0.1", show_default=True, help="Address to bind; anything but loopback must be asked for.")
+@click.option("--port", type=click.IntRange(0, 65535), default=8765, show_default=True, help="TCP port (0: any free port).")
+@click.option("--output", "output_spec", default="simulated", show_default=True, help="simulated | serial:PORT | audio[:DEVICE]")
+@click.option("--profile", "profile_name", default=None, help="Preset name or TOML file [default: paper].")
+@click.option("--open/--no-open", "open_browser", default=None, help="Open the page in a browser [default: when a display exists].")
+def serve(host: str, port: int, output_spec: str, profile_name: str | None, open_browser: bool | None) -> None:
+    """Serve the tactile pen page: textures, pen stroke, live drive, simulated wire."""
+    from .web.serve import serve as run
+
+    run(host, port, output_spec, profile_name, open_browser, echo=click.echo, warn=lambda s: click.echo(s, err=True))
+
+
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())

@@ -1,0 +1,137 @@
+"""Running the pen page: ``tactilize serve`` calls :func:`serve`.
+
+The server binds to loopback unless another host is given explicitly; the
+socket is bound *before* uvicorn starts, so the printed address is the real one
+(port 0 picks a free port) and a busy port is a one-line error, not a traceback.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import os
+import socket
+import sys
+import threading
+import webbrowser
+from typing import Any, Callable, Iterable
+
+from ..errors import TactilizeError
+
+__all__ = ["serve", "is_loopback", "bind_socket", "display_available"]
+
+
+def is_loopback(host: str) -> bool:
+    """True when ``host`` only accepts connections from this machine."""
+    if host in ("localhost", "localhost.localdomain", "ip6-localhost"):
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+def bind_socket(host: str, port: int) -> socket.socket:
+    """A listening TCP socket on host:port (port 0: any free port).
+
+    Raises
+    ------
+    TactilizeError
+        The address is in use, not available here, or the host is unknown.
+    """
+    try:
+        infos = socket.getaddrinfo(host.strip("[]"), port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+    except socket.gaierror as exc:
+        raise TactilizeError(f"--host {host}", f"unknown host ({exc.strerror})") from None
+    family, _, _, _, addr = infos[0]
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind(addr)
+        sock.listen(128)
+    except OSError as exc:
+        sock.close()
+        raise TactilizeError(f"{host}:{port}", f"cannot listen ({exc.strerror or exc})") from None
+    sock.set_inheritable(True)
+    return sock
+
+
+def display_available() -> bool:
+    """Can a browser window be opened here?  (Not on a headless server.)"""
+    if sys.platform in ("darwin", "win32"):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def serve(
+    host: str = "127.0.0.1",
+    port: int = 8765,
+    output: str = "simulated",
+    profile: str | None = None,
+    open_browser: bool | None = None,
+    *,
+    extra_routers: Iterable[Any] = (),
+    echo: Callable[[str], None] = print,
+    warn: Callable[[str], None] = lambda s: print(s, file=sys.stderr),
+    log_level: str = "warning",
+) -> None:
+    """Serve the tactile pen page until interrupted.
+
+    Parameters
+    ----------
+    host : str
+        Address to bind; loopback unless the caller was given another explicitly.
+    port : int
+        TCP port; 0 picks a free one.
+    output : str
+        Output spec for :func:`tactilize.actuators.factory.open_output`.
+    profile : str, optional
+        Preset name or TOML file (the paper's by default).
+    open_browser : bool, optional
+        Open the page in a browser; by default only when a display exists.
+    extra_routers : iterable of APIRouter
+        Mounted into the app.
+    """
+    import uvicorn
+
+    from ..actuators.factory import open_output
+    from ..mapping import Profile
+    from .app import create_app
+
+    prof = Profile.resolve(profile)  # bad profiles fail before anything opens
+    sock = bind_socket(host, port)
+    try:
+        out = open_output(output)
+    except BaseException:
+        sock.close()
+        raise
+    try:
+        app = create_app(out, prof, output_name=output, extra_routers=extra_routers, close_output=True)
+        bound_host, bound_port = sock.getsockname()[:2]
+        shown = f"[{bound_host}]" if ":" in bound_host else bound_host
+        url = f"http://{shown}:{bound_port}/"
+        if not is_loopback(host):
+            warn(
+                f"tactilize: warning: serving on {host}, reachable from other machines on the network; "
+                "anyone who can reach it can drive the actuators"
+            )
+        config = uvicorn.Config(
+            app,
+            log_level=log_level,
+            ws_max_size=1024 * 1024,  # the protocol's messages are far smaller
+            ws_ping_interval=20.0,
+            ws_ping_timeout=20.0,
+            lifespan="on",
+        )
+        server = uvicorn.Server(config)
+        echo(f"tactilize: serving the tactile pen at {url} (output {output}, profile {prof.name}); Ctrl-C to stop")
+        if open_browser is None:
+            open_browser = display_available()
+        if open_browser:
+            threading.Timer(0.5, lambda: webbrowser.open(url)).start()
+        server.run(sockets=[sock])
+    finally:
+        sock.close()
+        try:
+            out.close()
+        except Exception:
+            pass
