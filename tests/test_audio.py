@@ -1,0 +1,159 @@
+"""AudioOutput with a fake sounddevice module (no sound card in tests)."""
+
+from __future__ import annotations
+
+import sys
+import types
+
+import numpy as np
+import pytest
+
+from tactilize.actuators import audio as audio_mod
+from tactilize.actuators.audio import AudioOutput
+from tactilize.actuators.factory import open_output
+from tactilize.errors import OutputError
+from tactilize.mapping import Drive
+
+RATE = 48_000
+
+
+class FakeStream:
+    instances: list["FakeStream"] = []
+
+    def __init__(self, **kwargs):
+        self.kwargs = kwargs
+        self.callback = kwargs["callback"]
+        self.started = False
+        self.closed = False
+        FakeStream.instances.append(self)
+
+    def start(self):
+        self.started = True
+
+    def stop(self):
+        self.started = False
+
+    def close(self):
+        self.closed = True
+
+    def pull(self, frames: int, block: int = 256) -> np.ndarray:
+        """Run the callback as PortAudio would, block by block."""
+        out = []
+        for start in range(0, frames, block):
+            n = min(block, frames - start)
+            buf = np.full((n, self.kwargs["channels"]), np.nan, dtype=np.float32)
+            self.callback(buf, n, None, None)
+            out.append(buf)
+        return np.concatenate(out)
+
+
+class PortAudioError(Exception):
+    pass
+
+
+@pytest.fixture
+def fake_sd(monkeypatch):
+    mod = types.ModuleType("sounddevice")
+    FakeStream.instances.clear()
+
+    def output_stream(**kwargs):
+        if kwargs.get("device") == "missing":
+            raise PortAudioError("No such device")
+        return FakeStream(**kwargs)
+
+    mod.OutputStream = output_stream
+    mod.PortAudioError = PortAudioError
+    monkeypatch.setitem(sys.modules, "sounddevice", mod)
+    return mod
+
+
+class Identity:
+    def apply(self, d: Drive) -> Drive:
+        return d
+
+
+def runs(x: np.ndarray) -> list[int]:
+    """Lengths of the runs of nonzero samples."""
+    on = np.concatenate([[0], (x > 0).astype(int), [0]])
+    edges = np.diff(on)
+    return list(np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1))
+
+
+def test_stream_parameters(fake_sd):
+    with AudioOutput(device=3, envelope=Identity()):
+        s = FakeStream.instances[0]
+        assert s.started
+        assert s.kwargs["samplerate"] == RATE and s.kwargs["channels"] == 2 and s.kwargs["device"] == 3
+    assert s.closed
+
+
+def test_pulse_trains_per_channel(fake_sd):
+    with AudioOutput(envelope=Identity(), gain=0.5) as out:
+        out.apply([Drive(120.0, 400e-6, 1.0), Drive(50.0, 1e-3, 0.5)])
+        x = FakeStream.instances[0].pull(RATE)  # one second
+    ch0, ch1 = x[:, 0], x[:, 1]
+    assert len(runs(ch0)) == 120 and len(runs(ch1)) == 50
+    # 400 us at 48 kHz is 19.2 samples, 1 ms is 48 samples
+    assert set(runs(ch0)) <= {19, 20} and set(runs(ch1)) <= {48, 49}
+    assert ch0.max() == pytest.approx(0.5) and ch1.max() == pytest.approx(0.25)
+    assert not np.isnan(x).any()
+
+
+def test_drive_change_mid_stream_is_continuous_and_stop_silences(fake_sd):
+    with AudioOutput(envelope=Identity()) as out:
+        stream = FakeStream.instances[0]
+        out.apply([Drive(100.0, 500e-6)])
+        a = stream.pull(RATE // 2)
+        out.apply([Drive(200.0, 500e-6)])
+        b = stream.pull(RATE // 2)
+        assert len(runs(a[:, 0])) == 50 and len(runs(b[:, 0])) == 100
+        # no sliver of a pulse where the blocks meet
+        assert min(runs(np.concatenate([a[:, 0], b[:, 0]]))) >= 24
+        assert not a[:, 1].any()  # the channel not given a drive stays silent
+        out.stop()
+        assert not stream.pull(4800).any()
+
+
+def test_drives_pass_the_envelope(fake_sd):
+    class Halve:
+        def apply(self, d: Drive) -> Drive:
+            return d.with_clamp("envelope", pulse_width_s=d.pulse_width_s / 2)
+
+    with AudioOutput(envelope=Halve()) as out:
+        sent = out.apply([Drive(100.0, 1e-3)])
+        assert sent[0].pulse_width_s == pytest.approx(5e-4) and "envelope" in sent[0].clamped
+        x = FakeStream.instances[0].pull(RATE)
+    assert set(runs(x[:, 0])) <= {24, 25}
+
+
+def test_missing_sounddevice_says_how_to_install(monkeypatch):
+    monkeypatch.setitem(sys.modules, "sounddevice", None)  # import fails
+    with pytest.raises(OutputError, match=r"pip install 'tactilize\[audio\]'"):
+        AudioOutput()
+
+
+def test_missing_portaudio_says_how_to_install(monkeypatch):
+    def no_portaudio(name):
+        raise OSError("PortAudio library not found")
+
+    monkeypatch.setattr(audio_mod.importlib, "import_module", no_portaudio)
+    with pytest.raises(OutputError, match="PortAudio"):
+        AudioOutput()
+
+
+def test_a_device_that_cannot_be_opened(fake_sd):
+    with pytest.raises(OutputError, match="cannot open the sound device"):
+        AudioOutput(device="missing")
+
+
+def test_factory_audio_spec(fake_sd):
+    out = open_output("audio:2", envelope=Identity())
+    try:
+        assert isinstance(out, AudioOutput) and FakeStream.instances[-1].kwargs["device"] == 2
+    finally:
+        out.close()
+    out = open_output("audio:USB Audio", envelope=Identity())
+    try:
+        assert FakeStream.instances[-1].kwargs["device"] == "USB Audio"
+    finally:
+        out.close()
