@@ -167,7 +167,7 @@ class FlakyController(threading.Thread):
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)
         self.device = os.ttyname(self.slave)
-        self.sets: list[int] = []
+        self.sets: list[tuple[int, int]] = []
         self.running = True
 
     def status(self) -> bytes:
@@ -185,7 +185,7 @@ class FlakyController(threading.Thread):
                 if f.command == P.Command.STATUS:
                     os.write(self.master, P.encode_frame(f.seq, P.Command.STATUS_REPLY, self.status()))
                 elif f.command == P.Command.SET:
-                    self.sets.append(f.seq)
+                    self.sets.append((f.seq, P.decode_set_channel(f.payload).channel))
                     if len(self.sets) > 1:
                         os.write(self.master, P.encode_frame(f.seq, P.Command.ACK, bytes((f.command, 0))))
                 else:
@@ -204,8 +204,10 @@ def test_a_lost_ack_is_resent():
     try:
         with SerialOutput(ctl.device, ack_timeout_s=0.05) as out:
             out.apply([Drive(100.0, 3e-4), Drive.off()])
-            # channel 0 needed two attempts (two sequence numbers), channel 1 one
-            assert len(ctl.sets) == 3 and len(set(ctl.sets[:2])) == 2
+            # both SETs go out back to back; channel 0's is ignored and resent
+            # under a fresh sequence number, channel 1's is acknowledged at once
+            assert [ch for _, ch in ctl.sets] == [0, 1, 0]
+            assert len({seq for seq, _ in ctl.sets}) == 3
     finally:
         ctl.close()
 

@@ -64,6 +64,13 @@ def default_envelope() -> Any:
     return ActuatorLimits()
 
 
+def _command_name(command: int) -> str:
+    try:
+        return P.Command(command).name
+    except ValueError:
+        return f"0x{command:02x}"
+
+
 class _PortLost(Exception):
     """The port failed under us (internal; callers see OutputError)."""
 
@@ -256,13 +263,15 @@ class SerialOutput(OutputBase):
         return safe
 
     def _send_drives(self, drives: Sequence[Drive]) -> None:
+        requests = []
+        for index, d in enumerate(drives):
+            if d.is_off:
+                payload = P.encode_set_channel(index, 0.0, 0.0, 0.0)
+            else:
+                payload = P.encode_set_channel(index, d.pulse_frequency_hz, d.pulse_width_s, d.amplitude)
+            requests.append((int(P.Command.SET), payload))
         try:
-            for index, d in enumerate(drives):
-                if d.is_off:
-                    payload = P.encode_set_channel(index, 0.0, 0.0, 0.0)
-                else:
-                    payload = P.encode_set_channel(index, d.pulse_frequency_hz, d.pulse_width_s, d.amplitude)
-                self._request(P.Command.SET, payload)
+            self._transact(requests)
         except _PortLost:
             raise OutputError(
                 self.port, "controller disconnected; outputs are off and the drives will be re-applied when it returns"
@@ -271,36 +280,60 @@ class SerialOutput(OutputBase):
     # ------------------------------------------------------------ requests
 
     def _request(self, command: int, payload: bytes = b"", *, attempts: int | None = None) -> P.Frame:
-        """Send a frame and wait for its ACK/STATUS_REPLY, resending on timeout or
-        checksum NAK.  Raises OutputError on a refusal or no answer, _PortLost when
-        the port is gone."""
+        """One request and its reply (see :meth:`_transact`)."""
+        return self._transact([(int(command), payload)], attempts=attempts)[0]
+
+    def _transact(self, requests: Sequence[tuple[int, bytes]], *, attempts: int | None = None) -> list[P.Frame]:
+        """Send frames back to back and wait for every reply (pipelined: one
+        round trip for all channels, not one each).  Frames whose reply times out
+        or is a checksum NAK are resent, each with a fresh sequence number.
+
+        Raises OutputError on a refusal or no answer after ``attempts`` tries,
+        _PortLost when the port is gone.  Commands are idempotent, so a frame
+        applied but whose ACK was lost is harmless to resend.
+        """
         attempts = self.retries + 1 if attempts is None else attempts
-        name = P.Command(command).name if command in P.Command._value2member_map_ else f"0x{command:02x}"
+        replies: list[P.Frame | None] = [None] * len(requests)
+        todo = list(range(len(requests)))
         for _ in range(attempts):
-            seq = next(self._seq) & 0xFF
-            waiter = _Waiter()
-            with self._pending_lock:
-                self._pending[seq] = waiter
+            waiting: dict[int, tuple[int, _Waiter]] = {}
             try:
-                self._write(P.encode_frame(seq, command, payload))
-                answered = waiter.event.wait(self.ack_timeout_s)
+                for i in todo:
+                    seq = next(self._seq) & 0xFF
+                    waiter = _Waiter()
+                    with self._pending_lock:
+                        self._pending[seq] = waiter
+                    waiting[i] = (seq, waiter)
+                    self._write(P.encode_frame(seq, requests[i][0], requests[i][1]))
+                deadline = time.monotonic() + self.ack_timeout_s
+                for _, waiter in waiting.values():
+                    waiter.event.wait(max(0.0, deadline - time.monotonic()))
             finally:
                 with self._pending_lock:
-                    self._pending.pop(seq, None)
-            if waiter.lost:
+                    for seq, _ in waiting.values():
+                        self._pending.pop(seq, None)
+            if any(w.lost for _, w in waiting.values()):
                 raise _PortLost()
-            if not answered or waiter.reply is None:
-                continue
-            reply = waiter.reply
-            if reply.command == P.Command.NAK:
-                reason, detail = P.decode_nak(reply.payload)
-                if reason == P.NakReason.BAD_CHECKSUM:
-                    continue  # corrupted on the wire: send again
-                what = getattr(reason, "name", str(reason)).lower().replace("_", " ")
-                extra = f" ({detail.name.lower().replace('_', ' ')})" if getattr(detail, "value", 0) else ""
-                raise OutputError(self.port, f"controller refused {name}: {what}{extra}")
-            return reply
-        raise OutputError(self.port, f"controller did not acknowledge {name} after {attempts} attempts")
+            retry = []
+            for i, (_, waiter) in waiting.items():
+                reply = waiter.reply
+                if reply is None:
+                    retry.append(i)
+                    continue
+                if reply.command == P.Command.NAK:
+                    reason, detail = P.decode_nak(reply.payload)
+                    if reason == P.NakReason.BAD_CHECKSUM:
+                        retry.append(i)  # corrupted on the wire: send again
+                        continue
+                    what = getattr(reason, "name", str(reason)).lower().replace("_", " ")
+                    extra = f" ({detail.name.lower().replace('_', ' ')})" if getattr(detail, "value", 0) else ""
+                    raise OutputError(self.port, f"controller refused {_command_name(requests[i][0])}: {what}{extra}")
+                replies[i] = reply
+            todo = retry
+            if not todo:
+                return replies  # type: ignore[return-value]
+        names = ", ".join(sorted({_command_name(requests[i][0]) for i in todo}))
+        raise OutputError(self.port, f"controller did not acknowledge {names} after {attempts} attempts")
 
     def _write(self, frame: bytes) -> None:
         with self._write_lock:
