@@ -752,7 +752,9 @@ def _run_processes(chunks: list[list[CatalogItem]], settings: AnalysisSettings, 
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _run_dask(chunks: list[list[CatalogItem]], settings: AnalysisSettings, scheduler: Any) -> Iterator[list[dict[str, Any]]]:
+def _run_dask(
+    chunks: list[list[CatalogItem]], settings: AnalysisSettings, scheduler: Any, timeout_s: float
+) -> Iterator[list[dict[str, Any]]]:
     try:
         from distributed import Client, as_completed
     except ImportError:  # pragma: no cover - the batch extra is not installed
@@ -761,7 +763,7 @@ def _run_dask(chunks: list[list[CatalogItem]], settings: AnalysisSettings, sched
     own = not isinstance(scheduler, Client)
     if own:
         try:
-            client = Client(str(scheduler), timeout="10s", set_as_default=False)
+            client = Client(str(scheduler), timeout=f"{timeout_s}s", set_as_default=False)
         except (OSError, TimeoutError) as exc:
             raise CatalogError(str(scheduler), f"cannot reach the Dask scheduler ({exc.__class__.__name__}: {exc})") from None
     else:
@@ -771,7 +773,7 @@ def _run_dask(chunks: list[list[CatalogItem]], settings: AnalysisSettings, sched
         todo = iter(chunks)
         # range first: zip must not pull (and drop) a chunk once the window is full.
         first = [client.submit(analyse_chunk, c, settings, pure=False) for _, c in zip(range(3 * n_slots), todo)]
-        queue = as_completed(first)
+        queue = as_completed(first, loop=client.loop)  # this client need not be the default one
         for fut in queue:
             nxt = next(todo, None)
             if nxt is not None:
@@ -796,6 +798,7 @@ def run_batch(
     analysis_pitch_m: float | None = None,
     workers: int | None = None,
     scheduler: Any = None,
+    scheduler_timeout_s: float = 10.0,
     retry_failed: bool = False,
     chunk_size: int | None = None,
     part_rows: int = 500,
@@ -828,6 +831,8 @@ def run_batch(
     scheduler : str or distributed.Client, optional
         A Dask scheduler address (``tcp://host:8786``) or a connected client:
         the work runs on that cluster, whose workers must see the image paths.
+    scheduler_timeout_s : float
+        How long to try to reach the scheduler [s].
     retry_failed : bool
         Also analyse again the ids whose earlier row is an error.
     chunk_size : int, optional
@@ -871,7 +876,7 @@ def run_batch(
         size = chunk_size or max(1, min(8, len(todo) // (4 * slots) or 1))
         chunks = _chunks(todo, size)
         if scheduler is not None:
-            results = _run_dask(chunks, settings, scheduler)
+            results = _run_dask(chunks, settings, scheduler, scheduler_timeout_s)
         elif n_workers == 1 or len(chunks) <= 1:
             results = _run_serial(chunks, settings)
         else:
