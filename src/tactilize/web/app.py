@@ -347,6 +347,10 @@ def create_app(
     async def index() -> FileResponse:
         return FileResponse(_STATIC / "index.html", media_type="text/html", headers={"Cache-Control": "no-cache"})
 
+    @app.get("/favicon.ico", include_in_schema=False)
+    async def favicon() -> Response:
+        return Response(status_code=204)
+
     app.mount("/static", StaticFiles(directory=_STATIC), name="static")
     app.include_router(_api_router())
     from .session import websocket_endpoint

@@ -100,7 +100,17 @@ def serve(
     prof = Profile.resolve(profile)  # bad profiles fail before anything opens
     sock = bind_socket(host, port)
     try:
-        out = open_output(output)
+        try:
+            out = open_output(output)
+        except ImportError as exc:
+            if output.strip().lower() != "simulated":
+                raise TactilizeError(f"--output {output}", f"not available in this installation ({exc})") from None
+            # A partial build without the wire model: still serve the page.
+            from ..pen import _Recorder
+
+            warn(f"tactilize: warning: the simulated wire is not available ({exc}); drives are only recorded")
+            out = _Recorder()
+            output = "recorder (no simulated wire)"
     except BaseException:
         sock.close()
         raise
