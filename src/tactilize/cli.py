@@ -256,11 +256,24 @@ def batch(
 @click.option("--output", "output_spec", default="simulated", show_default=True, help="simulated | serial:PORT | audio[:DEVICE]")
 @click.option("--profile", "profile_name", default=None, help="Preset name or TOML file [default: paper].")
 @click.option("--open/--no-open", "open_browser", default=None, help="Open the page in a browser [default: when a display exists].")
-def serve(host: str, port: int, output_spec: str, profile_name: str | None, open_browser: bool | None) -> None:
+@click.option("--catalog", "catalog_path", default=None, help="Also serve this catalog (Parquet folder or SQLAlchemy URL) at /api/catalog.")
+def serve(host: str, port: int, output_spec: str, profile_name: str | None, open_browser: bool | None, catalog_path: str | None) -> None:
     """Serve the tactile pen page: textures, pen stroke, live drive, simulated wire."""
     from .web.serve import serve as run
 
-    run(host, port, output_spec, profile_name, open_browser, echo=click.echo, warn=lambda s: click.echo(s, err=True))
+    routers = []
+    if catalog_path is not None:
+        from .catalog_api import catalog_router
+
+        routers.append(catalog_router(catalog_path))  # a bad catalog fails here, before the socket opens
+    run(host, port, output_spec, profile_name, open_browser, extra_routers=routers, echo=click.echo, warn=lambda s: click.echo(s, err=True))
+
+
+# ----------------------------------------------------------------- experiment (experiments/)
+
+from .experiments.cli import experiment as _experiment  # noqa: E402  (click only; the package loads lazily)
+
+main.add_command(_experiment)
 
 
 if __name__ == "__main__":  # pragma: no cover
