@@ -90,12 +90,15 @@ def test_every_drive_passes_the_envelope(emu):
         assert out.status().channels[0].pulse_width_s == pytest.approx(400e-6)
 
 
-def test_the_default_envelope_clamps_before_sending(emu):
+def test_the_default_envelope_is_the_wire_models(emu):
+    from tactilize.actuators.sma import SafetyEnvelope
+
     with SerialOutput(emu.device) as out:
-        sent = out.apply([Drive(250.0, 1e-3)])  # 25 % duty
-        assert sent[0].clamped  # named by whichever envelope is installed
-        assert sent[0].duty_ratio <= 0.2
-        assert out.status().channels[0].on
+        assert isinstance(out.envelope, SafetyEnvelope)
+        sent = out.apply([Drive(250.0, 1e-3)])  # 25 % duty would overheat the wire
+        assert sent[0].clamped == ("envelope",)
+        assert sent[0].pulse_width_s == pytest.approx(out.envelope.apply(Drive(250.0, 1e-3)).pulse_width_s)
+        assert out.status().channels[0].pulse_width_s == pytest.approx(sent[0].pulse_width_s, abs=1e-9)
 
 
 def test_controller_limits_clamp_what_the_envelope_lets_through(emu):

@@ -43,25 +43,18 @@ __all__ = ["SerialOutput", "default_envelope"]
 def default_envelope() -> Any:
     """The safety envelope every drive passes through before it leaves the host.
 
-    The SMA wire model's envelope (``tactilize.actuators.sma``) when available,
-    else the pen's :class:`~tactilize.mapping.ActuatorLimits` (1..300 Hz,
-    20 us..2 ms, duty 10 %), which bound the same risk more coarsely.
+    The SMA wire model's envelope for the paper's 75 um wire
+    (:func:`tactilize.actuators.sma.build_envelope`: the largest pulse width per
+    frequency and current that keeps the wire vibrating and under its maximum
+    temperature; computed once, then cached).  Should the model be unavailable,
+    the pen's :class:`~tactilize.mapping.ActuatorLimits` (1..300 Hz,
+    20 us..2 ms, duty 10 %) bound the same risk more coarsely.
     """
     try:
-        from . import sma
+        from .sma import build_envelope
     except ImportError:
         return ActuatorLimits()
-    for name in ("default_envelope", "SafetyEnvelope"):
-        obj = getattr(sma, name, None)
-        if obj is None:
-            continue
-        try:
-            env = obj() if callable(obj) else obj
-        except TypeError:
-            continue
-        if hasattr(env, "apply"):
-            return env
-    return ActuatorLimits()
+    return build_envelope()
 
 
 def _command_name(command: int) -> str:
