@@ -14,7 +14,6 @@ synthetic participants (:mod:`.simulate`) both go through this class.
 
 from __future__ import annotations
 
-import collections
 import json
 import math
 import re
@@ -25,7 +24,7 @@ from ..errors import TactilizeError
 from .protocols import Protocol
 from .store import ExperimentSession, Store, iso, utcnow
 
-__all__ = ["Flow", "FlowError", "SpeedEstimator", "CODE_PATTERN"]
+__all__ = ["Flow", "FlowError", "StrokeHandler", "CODE_PATTERN"]
 
 CODE_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,31}$")
 # Plausible screen scales: 0.05 mm/px (a 500 DPI panel) .. 1 mm/px (a projector).
@@ -42,40 +41,6 @@ class FlowError(TactilizeError):
 
     def to_dict(self) -> dict[str, Any]:
         return {"error": self.fault, "source": self.source, **self.detail}
-
-
-class SpeedEstimator:
-    """Pen speed from timestamped positions: path length over a short window.
-
-    A window (default 40 ms, about 8 samples of a 200 Hz tablet) rather than one
-    sample pair, because single differences of tablet coordinates are noisy and
-    coalesced browser events arrive in bursts with near-equal timestamps.
-    """
-
-    def __init__(self, window_s: float = 0.04):
-        self.window_s = window_s
-        self.samples: collections.deque[tuple[float, float, float]] = collections.deque()
-        self.gap_s = 0.2  # a pause this long starts a new stroke
-
-    def add(self, t_s: float, x_m: float, y_m: float) -> float:
-        """Add one sample; returns the speed [m/s] at it."""
-        if self.samples and (t_s - self.samples[-1][0] > self.gap_s or t_s < self.samples[-1][0]):
-            self.samples.clear()
-        self.samples.append((t_s, x_m, y_m))
-        while len(self.samples) > 2 and t_s - self.samples[1][0] >= self.window_s:
-            self.samples.popleft()
-        if len(self.samples) < 2:
-            return 0.0
-        dt = self.samples[-1][0] - self.samples[0][0]
-        if dt <= 0:
-            return 0.0
-        path = 0.0
-        it = iter(self.samples)
-        t0, x0, y0 = next(it)
-        for _t, x, y in it:
-            path += math.hypot(x - x0, y - y0)
-            x0, y0 = x, y
-        return path / dt
 
 
 @dataclass
@@ -168,7 +133,10 @@ class Flow:
         if consent is not True:
             raise FlowError("consent", "the participant must give consent before the session starts", 422)
         try:
-            sess = self.store.create_session(self.protocol, code, simulated=simulated, extra_provenance=extra_provenance)
+            # Synthetic participants (see simulate.py) are flagged by their code prefix,
+            # so that they travel the same HTTP path as people and stay separable.
+            sess = self.store.create_session(self.protocol, code, simulated=simulated or code.startswith("SIM-"),
+                                             extra_provenance=extra_provenance)
         except KeyError:
             existing = self.store.session_by_code(self.protocol.name, code)
             done = existing is not None and existing.completed_at is not None
@@ -355,8 +323,9 @@ class Flow:
 
     # ------------------------------------------------------------ strokes
 
-    def stroke_handler(self, token: str) -> "StrokeHandler":
-        return StrokeHandler(self, self._session(token))
+    def stroke_handler(self, token: str, output: Any = None) -> "StrokeHandler":
+        """A handler for one page's pen WebSocket; drives go to ``output`` too when given."""
+        return StrokeHandler(self, self._session(token), output)
 
 
 @dataclass
@@ -367,21 +336,40 @@ class StrokeHandler:
 
         {"trial": 3, "image": "image2",
          "samples": [[t_ms, x_mm, y_mm, pressure or null], ...]}
+        {"type": "lift"}
 
     Positions are millimetres on the displayed image (the page converts CSS
     pixels with the calibrated scale); the answer carries the drive at the last
-    sample.  Samples for a trial other than the open one are refused: a stale
-    page must not write into another trial's log.
+    sample.  Speed and direction come from the pen page's
+    :class:`~tactilize.pen.StrokeTracker` (one per image, so switching pictures
+    starts a new stroke).  Samples for a trial other than the open one are
+    refused: a stale page must not write into another trial's log.
+
+    When the app has an actuator output (``tactilize serve``'s), the condition's
+    drive is applied to it, the same on every channel as in the paper's pen,
+    and stopped on a lift, an error or the end of the connection.
     """
 
     flow: Flow
     session: Any
-    estimators: dict[str, SpeedEstimator] = field(default_factory=dict)
+    output: Any = None
+    trackers: dict[str, Any] = field(default_factory=dict)
     trial_cache: dict[int, Any] = field(default_factory=dict)
 
+    def stop(self) -> None:
+        for tr in self.trackers.values():
+            tr.reset()
+        if self.output is not None:
+            self.output.stop()
+
     def handle(self, msg: Any) -> dict[str, Any]:
+        from ..pen import StrokeTracker, sample_error, samples_from_css
+
         if not isinstance(msg, dict):
             raise FlowError("stroke", "expected a JSON object", 422)
+        if msg.get("type") == "lift":
+            self.stop()
+            return {"type": "lifted"}
         idx = msg.get("trial")
         image_id = msg.get("image")
         samples = msg.get("samples")
@@ -394,32 +382,33 @@ class StrokeHandler:
             raise FlowError("stroke", f"image {image_id!r} is not part of trial {idx + 1}", 422)
         if not isinstance(samples, list) or not samples or len(samples) > 1000:
             raise FlowError("stroke", "samples must be a list of 1 .. 1000 [t_ms, x_mm, y_mm, pressure]", 422)
+        for row in samples:
+            err = sample_error(row)
+            if err:
+                raise FlowError("stroke", err, 422)
         current = self.flow._first_open(self.session)
         if current != idx:
+            self.stop()
             raise FlowError("stroke", f"trial {idx + 1} is not open (a stale page?)", 409, current_trial=current)
         profile = self.flow.profile(trial.condition_id)
         feats = self.flow.image_features(image_id)
-        est = self.estimators.setdefault(image_id, SpeedEstimator())
+        tracker = self.trackers.setdefault(image_id, StrokeTracker())
         rows = []
         drive = None
         speed = 0.0
-        for s in samples:
-            if not isinstance(s, (list, tuple)) or len(s) < 3:
-                raise FlowError("stroke", "each sample is [t_ms, x_mm, y_mm, pressure]", 422)
-            vals = list(s[:4]) + [None] * (4 - len(s[:4]))
-            t_ms, x_mm, y_mm, p = vals
-            for v in (t_ms, x_mm, y_mm):
-                if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                    raise FlowError("stroke", "sample values must be finite numbers", 422)
-            if p is not None and (isinstance(p, bool) or not isinstance(p, (int, float)) or not math.isfinite(p)):
-                p = None
-            t_s, x_m, y_m = t_ms / 1e3, x_mm / 1e3, y_mm / 1e3
-            speed = est.add(t_s, x_m, y_m)
-            drive = profile.drive(feats, speed_m_s=speed, pressure=p)
-            rows.append({"image_id": image_id, "t_s": t_s, "x_m": x_m, "y_m": y_m, "pressure": p,
+        # Millimetres are "pixels" of 1 mm for the pen module's converter.
+        for ps in samples_from_css(samples, 1e-3):
+            tracker.add(ps)
+            st = tracker.state
+            speed = st.speed_m_s if st else 0.0
+            drive = profile.drive(feats, speed_m_s=speed, direction_rad=st.direction_rad if st else None,
+                                  pressure=ps.pressure)
+            rows.append({"image_id": image_id, "t_s": ps.t_s, "x_m": ps.x_m, "y_m": ps.y_m, "pressure": ps.pressure,
                          "speed_m_s": speed, "pulse_frequency_hz": drive.pulse_frequency_hz,
                          "pulse_width_s": drive.pulse_width_s, "amplitude": drive.amplitude})
         self.flow.store.log_samples(trial.id, rows)
+        if self.output is not None:
+            n = int(getattr(self.output, "channels", 2) or 2)
+            self.output.apply([drive] * n)
         return {"type": "drive", "trial": idx, "image": image_id, "speed_mm_s": speed * 1e3,
                 "logged": len(rows), "drive": drive.to_dict()}
-

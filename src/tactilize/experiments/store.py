@@ -260,6 +260,20 @@ class Store:
                 s.add(Meta(key="created_with", value=json.dumps(provenance())))
         # Insert races on the Meta rows are harmless: both writers write the same.
 
+    def set_meta(self, key: str, value: str) -> None:
+        """Record a provenance note (first writer wins: notes are never overwritten)."""
+        with self.Session() as s:
+            if s.get(Meta, key) is None:
+                s.add(Meta(key=key, value=value))
+                try:
+                    s.commit()
+                except IntegrityError:
+                    s.rollback()
+
+    def meta(self) -> dict[str, str]:
+        with self.Session() as s:
+            return {m.key: m.value for m in s.scalars(select(Meta))}
+
     def close(self) -> None:
         self.engine.dispose()
 

@@ -72,8 +72,8 @@ async def _json_body(request: Request) -> Any:
 
 
 def experiment_router(flow: Flow) -> APIRouter:
-    """The routes of one protocol's flow (include with ``prefix="/experiment"``)."""
-    router = APIRouter()
+    """The routes of one protocol's flow, under ``/experiment`` (include as it is)."""
+    router = APIRouter(prefix=PREFIX)
 
     def admin_ok(request: Request) -> bool:
         if not flow.admin_token:
@@ -184,8 +184,11 @@ def experiment_router(flow: Flow) -> APIRouter:
     @router.websocket("/ws/{token}")
     async def pen(ws: WebSocket, token: str) -> None:
         await ws.accept()
+        # Inside ``tactilize serve``'s app the pen's actuators are its output.
+        server_state = getattr(ws.app.state, "tactilize", None)
+        output = getattr(server_state, "output", None)
         try:
-            handler = await run_in_threadpool(flow.stroke_handler, token)
+            handler = await run_in_threadpool(flow.stroke_handler, token, output)
         except FlowError as exc:
             await ws.send_json({"type": "error", **exc.to_dict()})
             await ws.close(code=4404)
@@ -203,6 +206,8 @@ def experiment_router(flow: Flow) -> APIRouter:
                 await ws.send_json(reply)
         except WebSocketDisconnect:
             return
+        finally:
+            await run_in_threadpool(handler.stop)
 
     # ------------------------------------------------------------ experimenter API
 
@@ -271,7 +276,7 @@ def create_experiment_app(protocol, db_url: str | None = None, admin_token: str 
     flow = Flow(protocol, Store(db_url), admin_token=admin_token)
     app = FastAPI(title=f"tactilize experiment: {protocol.name}", docs_url=None, redoc_url=None)
     app.state.experiment_flow = flow
-    app.include_router(experiment_router(flow), prefix=PREFIX)
+    app.include_router(experiment_router(flow))
 
     @app.get("/", include_in_schema=False)
     def root() -> Response:
@@ -280,28 +285,44 @@ def create_experiment_app(protocol, db_url: str | None = None, admin_token: str 
     return app
 
 
-def mount_experiment(app: FastAPI, flow: Flow) -> None:
-    """Add a flow's routes to an existing app (``tactilize serve``'s)."""
-    app.state.experiment_flow = flow
-    app.include_router(experiment_router(flow), prefix=PREFIX)
-
-
 def serve_flow(protocol, db_url: str | None, host: str = "127.0.0.1", port: int = 8765,
-               admin_token: str | None = None, echo=print) -> None:
-    """Run the flow with uvicorn (the CLI's ``experiment run``).
+               admin_token: str | None = None, output: str = "simulated", profile: str | None = None,
+               echo=print, warn=None) -> None:
+    """Run the flow inside ``tactilize serve``'s app (the CLI's ``experiment run``).
 
-    Beyond loopback an experimenter token is mandatory: one is generated and
-    printed when none is given, so the data are never open to the network.
+    The participant pages live at ``/experiment/``, beside the pen page, and the
+    condition's drives go to the same actuator output (``--output``).  Beyond
+    loopback an experimenter token is mandatory: one is generated and printed
+    when none is given, so the data are never open to the network.
     """
-    import uvicorn
+    import re
+    import sys
 
+    from .protocols import Protocol, load_protocol
+    from .store import Store
+
+    if not isinstance(protocol, Protocol):
+        protocol = load_protocol(protocol)
     if not is_loopback(host) and not admin_token:
         admin_token = secrets.token_urlsafe(16)
-    app = create_experiment_app(protocol, db_url, admin_token)
-    flow = app.state.experiment_flow
-    shown = "localhost" if is_loopback(host) else host
-    echo(f"tactilize experiment: {flow.protocol.name} v{flow.protocol.version} ({flow.protocol.sha256[:12]})")
-    echo(f"  database     {flow.store.url}")
-    echo(f"  participant  http://{shown}:{port}{PREFIX}/")
-    echo(f"  experimenter http://{shown}:{port}{PREFIX}/admin" + (f"?token={admin_token}" if admin_token else ""))
-    uvicorn.run(app, host=host, port=port, log_level="warning")
+    flow = Flow(protocol, Store(db_url), admin_token=admin_token)
+    echo(f"tactilize experiment: {protocol.name} v{protocol.version} ({protocol.sha256[:12]}), database {flow.store.url}")
+
+    def relay(line: str) -> None:
+        echo(line)
+        m = re.search(r"(https?://\S+?:\d+)/", line)
+        if m:  # the pen app printed its real address (port 0 picks one)
+            echo(f"  participant  {m.group(1)}{PREFIX}/")
+            echo(f"  experimenter {m.group(1)}{PREFIX}/admin" + (f"?token={admin_token}" if admin_token else ""))
+
+    try:
+        from ..web.serve import serve as web_serve
+    except ImportError:  # a build without the pen app: serve the flow alone
+        import uvicorn
+
+        app = create_experiment_app(protocol, db_url, admin_token)
+        relay(f"serving at http://{host}:{port}/")
+        uvicorn.run(app, host=host, port=port, log_level="warning")
+        return
+    web_serve(host, port, output, profile, False, extra_routers=[experiment_router(flow)], echo=relay,
+              warn=warn or (lambda s: print(s, file=sys.stderr)))

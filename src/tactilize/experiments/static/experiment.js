@@ -222,6 +222,7 @@ function openSocket() {
     const msg = JSON.parse(ev.data);
     if (msg.type === "drive") { audio.set(msg.drive); document.body.dataset.lastDriveHz = msg.drive.pulse_frequency_hz; }
     else if (msg.type === "error") message(msg.error);
+    document.body.dataset.wsMessages = String(Number(document.body.dataset.wsMessages || 0) + 1);
   };
   ws.onclose = () => { ws = null; };
 }
@@ -238,7 +239,12 @@ setInterval(flush, 30);
 const surface = $("surface");
 surface.addEventListener("pointerdown", (ev) => { surface.setPointerCapture(ev.pointerId); lastT = ev.timeStamp; points = []; onMove(ev); });
 surface.addEventListener("pointermove", (ev) => { if (ev.buttons || ev.pointerType === "touch") onMove(ev); });
-const up = () => { lastT = null; audio.set(null); };
+const up = () => {
+  lastT = null; audio.set(null);
+  flush();
+  // The actuator stops the moment the pen leaves the surface.
+  if (ws && ws.readyState === 1) ws.send(JSON.stringify({ type: "lift" }));
+};
 surface.addEventListener("pointerup", up);
 surface.addEventListener("pointercancel", up);
 

@@ -1,0 +1,155 @@
+"""Personal calibration: one participant's own laws, fitted from their ratings.
+
+The paper ends by noting that the image-to-touch relation "should be
+established individually".  Each of the preliminary protocols varies one law
+(g, h or alpha) across conditions; from one participant's ratings in any of
+them this module picks that person's law and coefficient:
+
+1. per condition, the participant's mean rating (over questions, images and
+   repetitions, or over the questions given);
+2. the law family (e.g. linear vs log g) whose best condition is rated highest
+   (ties: the higher family mean);
+3. within the family, a quadratic in log(coefficient) fitted to the ratings
+   (the coefficients are spaced roughly geometrically and perception is
+   roughly logarithmic); its vertex when the fit is concave, clamped to the
+   tested range so nothing is extrapolated; otherwise the best-rated
+   coefficient (several tied: their geometric mean).
+
+The fitted laws replace those of a base profile (the paper preset by default)
+and the result is an ordinary profile TOML, usable with ``tactilize serve
+--profile FILE``.  Its description records where every number came from.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..errors import TactilizeError
+
+__all__ = ["fit_personal_profile", "fit_law", "PRIMARY"]
+
+# The coefficient each law family is calibrated on.
+PRIMARY = {
+    ("frequency", "linear"): "k1",
+    ("frequency", "log"): "k2",
+    ("width", "linear"): "k3",
+    ("width", "inverse"): "k4",
+    ("speed", "sigmoid"): "slope_per_mm_s",
+    ("speed", "proportional"): "gain_per_m_s",
+    ("speed", "constant"): "value",
+}
+
+
+def fit_law(points: list[tuple[dict[str, Any], float]], role: str) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Pick a law table from (law table, mean rating) pairs of one role.
+
+    Returns the fitted law table and a report of how it was chosen.
+    """
+    families: dict[str, list[tuple[dict[str, Any], float]]] = {}
+    for table, rating in points:
+        families.setdefault(table["law"], []).append((table, rating))
+    best_kind = max(families, key=lambda k: (max(r for _, r in families[k]), np.mean([r for _, r in families[k]])))
+    fam = families[best_kind]
+    key = PRIMARY.get((role, best_kind))
+    report: dict[str, Any] = {"role": role, "law": best_kind, "families": {
+        k: [{**{kk: vv for kk, vv in t.items() if kk != "law"}, "rating": r} for t, r in v] for k, v in families.items()}}
+    best_table, best_rating = max(fam, key=lambda tr: tr[1])
+    if key is None:
+        report["method"] = "best-rated condition (no calibrated coefficient for this law)"
+        return dict(best_table), report
+    coefs = np.array([float(t[key]) for t, _ in fam])
+    ratings = np.array([r for _, r in fam], dtype=float)
+    table = dict(best_table)
+    if len(set(coefs.tolist())) >= 3 and np.all(coefs > 0):
+        x = np.log(coefs)
+        a, b, _c = np.polyfit(x, ratings, 2)
+        if a < 0:
+            vertex = -b / (2 * a)
+            value = float(np.exp(np.clip(vertex, x.min(), x.max())))
+            report["method"] = "vertex of a quadratic in log(coefficient), clamped to the tested range"
+            report["quadratic"] = {"a": float(a), "b": float(b)}
+            table[key] = value
+            report["coefficient"] = {key: value}
+            return table, report
+    top = coefs[ratings == ratings.max()]
+    value = float(np.exp(np.mean(np.log(top)))) if np.all(top > 0) else float(top.mean())
+    table[key] = value
+    report["method"] = "best-rated coefficient" + (" (geometric mean of ties)" if len(top) > 1 else "")
+    report["coefficient"] = {key: value}
+    return table, report
+
+
+def fit_personal_profile(store, participant: str, base: str | None = None, questions: list[str] | None = None):
+    """Fit one participant's profile from every protocol they rated in ``store``.
+
+    Parameters
+    ----------
+    store : Store
+    participant : str
+        Their participant ID (the same ID across the g, h and alpha protocols).
+    base : str, optional
+        Preset name or profile TOML the fitted laws replace (default "paper").
+    questions : list of str, optional
+        Only these questions count (default: all).
+
+    Returns
+    -------
+    (Profile, dict)
+        The profile and a JSON-ready report (per role: the law, coefficient,
+        method, and the ratings it came from).
+    """
+    from ..mapping import Profile
+    from .analysis import tidy_answers
+    from .protocols import PROFILE_ROLES, protocol_from_toml
+
+    base_profile = Profile.resolve(base)
+    df = tidy_answers(store)
+    df = df[df["participant"] == participant]
+    if questions:
+        df = df[df["question"].isin(questions)]
+    if df.empty:
+        raise TactilizeError(participant, "no answers from this participant in the store")
+    texts = {}
+    with store.Session() as s:
+        from .store import ProtocolVersion
+
+        for pv in s.query(ProtocolVersion):
+            texts[pv.sha256[:12]] = pv.text
+    data = base_profile.to_dict()
+    reports = []
+    for (pname, sha), pdf in df.groupby(["protocol", "protocol_sha256"]):
+        proto = protocol_from_toml(texts[sha], source=f"protocol {pname}")
+        means = pdf.groupby("condition")["rating"].mean()
+        for role in PROFILE_ROLES:
+            tables = {c.id: c.overrides.get(role) for c in proto.conditions}
+            varying = {cid: t for cid, t in tables.items() if t is not None}
+            distinct = {tuple(sorted(t.items())) for t in varying.values()}
+            if len(distinct) < 2:
+                continue
+            points = [(varying[cid], float(means[cid])) for cid in varying if cid in means.index]
+            if len(points) < 2:
+                continue
+            table, rep = fit_law(points, role)
+            rep.update({"protocol": pname, "protocol_sha256": sha, "n_answers": int(len(pdf))})
+            data[role] = table
+            reports.append(rep)
+    if not reports:
+        raise TactilizeError(participant, "their protocols vary no law across conditions; nothing to fit")
+    data["name"] = f"personal-{participant}"
+    summary = "; ".join(
+        f"{r['role']}: {r['law']} {', '.join(f'{k} = {v:.4g}' for k, v in r.get('coefficient', {}).items())} "
+        f"from {r['protocol']} ({r['protocol_sha256']})" for r in reports)
+    data["description"] = (f"Personal profile of participant {participant}, fitted by tactilize "
+                           f"{_version()} from their ratings on base {base_profile.name}: {summary}.")
+    prof = Profile.from_dict(data, source=f"personal profile {participant}")
+    return prof, {"participant": participant, "base": base_profile.name, "fits": reports,
+                  "profile": prof.to_dict()}
+
+
+def _version() -> str:
+    from .. import __version__
+
+    return __version__
+

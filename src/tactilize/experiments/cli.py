@@ -1,0 +1,206 @@
+"""``tactilize experiment ...``: the command line of the experiments package.
+
+Thin, as the main CLI: parse, call the library, print.  Registered on the main
+group by ``tactilize.cli``.  Errors are :class:`~tactilize.errors.TactilizeError`
+and become one line and exit status 2 there.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import click
+
+from ..errors import TactilizeError
+
+DB_HELP = "SQLAlchemy URL or SQLite file (default: experiments.sqlite3 in the user data directory)."
+
+
+def _emit(doc) -> None:
+    from ..cli import emit_json
+
+    emit_json(doc)
+
+
+@click.group()
+def experiment() -> None:
+    """Run the paper's user experiments: protocols, sessions, exports, analysis."""
+
+
+@experiment.command("protocols")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
+def protocols_cmd(as_json: bool) -> None:
+    """List the built-in protocols."""
+    from .protocols import builtin_protocols
+
+    protos = builtin_protocols()
+    if as_json:
+        _emit([p.to_dict() for p in protos])
+        return
+    for p in protos:
+        n = len(p.plan(1))
+        click.echo(f"{p.name:<11} v{p.version}  {len(p.conditions):>2} conditions, {len(p.images)} images, "
+                   f"{len(p.questions)} questions, {n} trial{'s' * (n != 1)}, n = {p.participants_planned}  "
+                   f"{p.title}")
+
+
+@experiment.command("run")
+@click.argument("protocol")
+@click.option("--db", "db_url", default=None, help=DB_HELP)
+@click.option("--host", default="127.0.0.1", show_default=True, help="Address to bind (beyond loopback a token is required).")
+@click.option("--port", default=8765, show_default=True, type=int)
+@click.option("--token", default=None, help="Experimenter token (generated when binding beyond loopback).")
+@click.option("--output", "output_spec", default="simulated", show_default=True, help="simulated | serial:PORT | audio[:DEVICE]")
+def run_cmd(protocol: str, db_url: str | None, host: str, port: int, token: str | None, output_spec: str) -> None:
+    """Serve the participant flow of PROTOCOL (a built-in name or a TOML file).
+
+    The pages are at /experiment/ (participant) and /experiment/admin
+    (experimenter), inside the pen app; the conditions' drives go to --output.
+    """
+    from .protocols import load_protocol
+    from .web import serve_flow
+
+    if not 0 <= port < 65536:
+        raise TactilizeError("--port", f"must be 0 .. 65535, got {port}")
+    serve_flow(load_protocol(protocol), db_url, host=host, port=port, admin_token=token, output=output_spec,
+               echo=click.echo, warn=lambda s: click.echo(s, err=True))
+
+
+@experiment.command("status")
+@click.option("--db", "db_url", default=None, help=DB_HELP)
+@click.option("--protocol", "protocol_name", default=None, help="Only this protocol.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
+def status_cmd(db_url: str | None, protocol_name: str | None, as_json: bool) -> None:
+    """Sessions and their progress."""
+    from .store import Store
+
+    store = Store(db_url)
+    rows = store.sessions_overview(protocol_name)
+    if as_json:
+        _emit({"db": _redact(store.url), "sessions": rows})
+        return
+    if not rows:
+        click.echo(f"no sessions in {_redact(store.url)}")
+        return
+    for r in rows:
+        state = "done" if r["completed_at"] else f"{r['trials_done']}/{r['trials_total']}"
+        click.echo(f"{r['protocol']:<11} {r['participant']:<16} #{r['participant_number']:<3} {state:<8} "
+                   f"{r['stroke_samples']:>6} samples  started {r['created_at']}"
+                   + ("  (simulated)" if r["simulated"] else ""))
+
+
+@experiment.command("export")
+@click.option("--db", "db_url", default=None, help=DB_HELP)
+@click.option("--format", "fmt", type=click.Choice(["csv", "json"]), default="csv", show_default=True)
+@click.option("--protocol", "protocol_name", default=None, help="Only this protocol.")
+@click.option("-o", "--output", default=None, help="Write to this file (default: stdout).")
+def export_cmd(db_url: str | None, fmt: str, protocol_name: str | None, output: str | None) -> None:
+    """Export the answers: tidy CSV (one row per answer) or JSON with provenance."""
+    from .analysis import export_answers
+    from .store import Store, provenance
+
+    text = export_answers(Store(db_url), fmt, protocol_name)
+    if output is None:
+        sys.stdout.write(text)
+        return
+    try:
+        Path(output).write_text(text, "utf-8")
+        if fmt == "csv":
+            # CSV has no place for metadata that every reader skips; the versions go beside it.
+            Path(output + ".provenance.json").write_text(json.dumps(provenance(protocol_filter=protocol_name),
+                                                                    indent=2), "utf-8")
+    except OSError as exc:
+        raise TactilizeError(output, f"cannot write ({exc.strerror or exc})") from None
+
+
+@experiment.command("analyze")
+@click.option("--db", "db_url", default=None, help=DB_HELP)
+@click.option("--protocol", "protocol_name", default=None, help="Only this protocol.")
+@click.option("--figures", "figures_dir", default=None, help="Write PNG and SVG figures into this directory.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
+def analyze_cmd(db_url: str | None, protocol_name: str | None, figures_dir: str | None, as_json: bool) -> None:
+    """Descriptives, Friedman (F) with Kendall's W, Wilcoxon with Holm; optional figures."""
+    from .analysis import analyze
+    from .store import Store
+
+    store = Store(db_url)
+    result = analyze(store, protocol_name)
+    if not result["protocols"]:
+        raise TactilizeError(_redact(store.url), "no answers to analyse" + (f" for {protocol_name}" if protocol_name else ""))
+    if figures_dir:
+        from .figures import make_figures
+
+        result["figures"] = make_figures(store, figures_dir, protocol_name)
+    if as_json:
+        _emit(result)
+        return
+    for pname, pres in result["protocols"].items():
+        click.echo(f"{pname}: {pres['n_participants']} participants, {pres['n_answers']} answers")
+        for qid, q in pres["questions"].items():
+            click.echo(f"  {qid}")
+            for cid, d in q["descriptives"].items():
+                sd = f"{d['sd']:.2f}" if d["sd"] is not None else "-"
+                click.echo(f"    {cid:<8} n={d['n']:<3} median {d['median']:.1f} (IQR {d['iqr']:.2f})  "
+                           f"mean {d['mean']:.2f} SD {sd}")
+            fr = q["friedman"]
+            if fr and fr.get("F") is not None:
+                click.echo(f"    Friedman F({fr['ddof1']:.2f}, {fr['ddof2']:.2f}) = {fr['F']:.2f}, p = {fr['p']:.3g}, "
+                           f"Kendall's W = {fr['W']:.2f} (chi2 = {fr['Q']:.2f}, p = {fr['p_chisq']:.3g}; n = {fr['n']})")
+            sig = [p for p in q["pairwise"] if p.get("significant_0_05")]
+            if q["pairwise"]:
+                click.echo(f"    Wilcoxon/Holm: {len(sig)} of {len(q['pairwise'])} pairs differ at 0.05"
+                           + ("".join(f"\n      {p['a']} vs {p['b']}: p_holm = {p['p_holm']:.3g}, "
+                                      f"r_rb = {p['rbc']:.2f}" for p in sig[:12])))
+    for pname, files in result.get("figures", {}).items():
+        click.echo(f"figure {pname}: {files['png']}, {files['svg']}")
+
+
+@experiment.command("simulate")
+@click.argument("protocol")
+@click.option("--participants", type=int, required=True, help="Number of synthetic participants.")
+@click.option("--seed", type=int, required=True, help="Seed of their random streams.")
+@click.option("--db", "db_url", default=None, help=DB_HELP)
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
+def simulate_cmd(protocol: str, participants: int, seed: int, db_url: str | None, as_json: bool) -> None:
+    """Run synthetic participants through the server (resumable; see docs/experiments.md)."""
+    from .simulate import simulate
+
+    summary = simulate(protocol, participants, seed, db_url)
+    if as_json:
+        _emit(summary)
+        return
+    click.echo(f"{summary['protocol']}: seed {seed}, {summary['started']} started, {summary['resumed']} resumed, "
+               f"{summary['skipped']} already finished, {summary['trials_submitted']} trials submitted")
+
+
+@experiment.command("calibrate")
+@click.argument("participant")
+@click.option("-o", "--output", required=True, help="Profile TOML to write (use with `tactilize serve --profile`).")
+@click.option("--db", "db_url", default=None, help=DB_HELP)
+@click.option("--base", default="paper", show_default=True, help="Preset or TOML the fitted laws replace.")
+@click.option("--question", "questions", multiple=True, help="Only these questions count (repeatable).")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
+def calibrate_cmd(participant: str, output: str, db_url: str | None, base: str, questions: tuple[str, ...],
+                  as_json: bool) -> None:
+    """Fit PARTICIPANT's own laws from their ratings and save them as a profile."""
+    from .calibration import fit_personal_profile
+    from .store import Store
+
+    prof, report = fit_personal_profile(Store(db_url), participant, base=base, questions=list(questions) or None)
+    prof.save(output)
+    report["output"] = output
+    if as_json:
+        _emit(report)
+        return
+    for f in report["fits"]:
+        coef = ", ".join(f"{k} = {v:.4g}" for k, v in f.get("coefficient", {}).items())
+        click.echo(f"{f['role']:<9} {f['law']:<8} {coef:<24} ({f['method']}; {f['protocol']})")
+    click.echo(f"wrote {output}")
+
+
+def _redact(url: str) -> str:
+    from .analysis import _redact as r
+
+    return r(url)
