@@ -1,0 +1,491 @@
+"""Pulse trains: one-shot arrays, a streaming phase-continuous synthesiser, two channels.
+
+A pulse train is the paper's drive signal (FACTS.md section 1): rectangular pulses
+of width ``p_w`` [s] repeated at ``f_p`` [Hz], height = the drive's amplitude.
+
+Sample resolution, exactly
+--------------------------
+Pulse ``k`` starts at sample ``floor((phase_s + k / f) * fs + 0.5)`` (rounded
+half up) and lasts ``max(1, floor(width * fs + 0.5))`` samples when the width is
+nonzero.  So the count of pulses in a buffer and every width are exact at sample
+resolution, and the schedule never drifts (positions are computed from the pulse
+index, not accumulated).  A width that would make two pulses touch is refused
+(:class:`~tactilize.errors.SignalError`): touching pulses would be one long pulse.
+
+Streaming rules (:class:`PulseStream`)
+--------------------------------------
+``set_drive`` may be called between any two ``render`` calls; a drive equal to
+the current one changes nothing (the schedule keeps its phase).  Otherwise:
+
+1. A pulse in progress completes with the width and amplitude it started with:
+   never truncated, never stretched.
+2. The next pulse starts at ``max(previous start + new period, now,
+   previous end + 1 sample)``: never sooner than the new period after the
+   previous start (no doubled pulse), never in the past, always with a gap.
+   When nothing has pulsed yet it starts now; after an off drive, the same rule
+   (so switching off and on quickly cannot double a pulse either).
+3. From there the new drive's schedule runs exactly as :func:`pulse_train` would.
+
+Two channels (the pen's two actuators, FACTS.md section 4)
+----------------------------------------------------------
+:func:`pen_channels` places a phantom actuator by the energy model
+``A1 = sqrt(1 - beta) Av, A2 = sqrt(beta) Av`` with ``beta`` from the stroke
+direction; :class:`PenStream` renders both channels, either as that phantom
+(continuous) or as apparent movement: bursts of ``burst_s`` on the leading
+channel, then on the other one stimulus-onset-asynchrony ``SOA = 0.32 d + 47.3 ms``
+later (:func:`soa_s`), the leading channel chosen by the stroke direction.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from .errors import SignalError
+from .mapping import Drive
+
+__all__ = [
+    "pulse_train",
+    "PulseScheduler",
+    "PulseStream",
+    "PenStream",
+    "pen_channels",
+    "pen_pulse_trains",
+    "phantom_amplitudes",
+    "phantom_beta",
+    "soa_s",
+    "DEFAULT_SAMPLE_RATE_HZ",
+]
+
+#: What sound-card haptics rigs play (FACTS.md section 6).
+DEFAULT_SAMPLE_RATE_HZ = 48_000
+#: FACTS.md section 4 (Israr and Poupyrev 2011): SOA = 0.32 d + 47.3 ms.
+SOA_SLOPE = 0.32
+SOA_OFFSET_S = 47.3e-3
+
+
+def _round(x: float) -> int:
+    """Round half up (the rule the docstring promises, unlike banker's rounding)."""
+    return int(math.floor(x + 0.5))
+
+
+def _check_rate(sample_rate_hz: float) -> float:
+    if not isinstance(sample_rate_hz, (int, float)) or not math.isfinite(sample_rate_hz) or sample_rate_hz <= 0:
+        raise SignalError("<sample rate>", f"must be a finite number > 0 Hz, got {sample_rate_hz!r}")
+    return float(sample_rate_hz)
+
+
+def _check_drive(drive: Drive) -> Drive:
+    if not isinstance(drive, Drive):
+        raise SignalError("<drive>", f"expected a Drive, got {type(drive).__name__}")
+    return drive
+
+
+def _geometry(drive: Drive, fs: float) -> tuple[float, int]:
+    """(period in samples, width in samples) of a drive that is on; refuses touching pulses."""
+    period = fs / drive.pulse_frequency_hz
+    width = max(1, _round(drive.pulse_width_s * fs))
+    if width >= math.floor(period):
+        raise SignalError(
+            "<drive>",
+            f"pulses of {drive.pulse_width_s * 1e3:g} ms at {drive.pulse_frequency_hz:g} Hz leave no gap "
+            f"at {fs:g} samples/s (width {width} samples, period {period:.2f} samples)",
+        )
+    return period, width
+
+
+def _fill(n: int, starts: np.ndarray, ends: np.ndarray, amplitude: float, out: np.ndarray | None = None) -> np.ndarray:
+    """Rectangles [start, end) of one amplitude into a float32 buffer (starts/ends clipped)."""
+    width = int(ends[0] - starts[0]) if starts.size else 0
+    if starts.size and starts.size * width <= n and bool(np.all(ends - starts == width)):
+        # Sparse pulses (the usual case: duty of a few per cent): index the on-samples.
+        idx = (starts[:, None] + np.arange(width)).ravel()
+        idx = idx[(idx >= 0) & (idx < n)]
+        if out is None:
+            out = np.zeros(n, dtype=np.float32)
+        out[idx] = amplitude
+        return out
+    s = np.clip(starts, 0, n)
+    e = np.clip(ends, 0, n)
+    edges = np.bincount(s, minlength=n + 1)[: n + 1].astype(np.int32) - np.bincount(e, minlength=n + 1)[: n + 1]
+    on = np.cumsum(edges[:n]) > 0
+    if out is None:
+        return on.astype(np.float32) * np.float32(amplitude)
+    out[on] = amplitude
+    return out
+
+
+def pulse_train(drive: Drive, duration_s: float, sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ, *, phase_s: float = 0.0) -> np.ndarray:
+    """The pulse train of a drive as a sampled signal.
+
+    Parameters
+    ----------
+    drive : Drive
+        Pulse frequency [Hz], width [s] and amplitude (the height, in [0, 1]).
+    duration_s : float
+        Length [s]; the buffer has ``round(duration_s * sample_rate_hz)`` samples.
+    sample_rate_hz : float
+        Samples per second [Hz].
+    phase_s : float
+        Pulse starts are at ``phase_s + k / f`` [s] for every integer ``k``: the
+        buffer is a window on an endless train, so a pulse that began before 0
+        shows its remaining samples.
+
+    Returns
+    -------
+    ndarray of float32, shape (N,)
+        ``amplitude`` during pulses, 0 elsewhere.
+    """
+    _check_drive(drive)
+    fs = _check_rate(sample_rate_hz)
+    if not isinstance(duration_s, (int, float)) or not math.isfinite(duration_s) or duration_s < 0:
+        raise SignalError("<duration>", f"must be a finite number >= 0 s, got {duration_s!r}")
+    if not isinstance(phase_s, (int, float)) or not math.isfinite(phase_s):
+        raise SignalError("<phase>", f"must be a finite number of seconds, got {phase_s!r}")
+    n = _round(duration_s * fs)
+    if drive.is_off or n == 0:
+        return np.zeros(n, dtype=np.float32)
+    period, width = _geometry(drive, fs)
+    offset = phase_s * fs
+    k0 = math.floor((-offset - width) / period) - 1
+    k1 = math.ceil((n - offset) / period) + 1
+    k = np.arange(k0, k1 + 1, dtype=np.float64)
+    starts = np.floor(offset + k * period + 0.5).astype(np.int64)
+    keep = (starts < n) & (starts + width > 0)
+    starts = starts[keep]
+    return _fill(n, starts, starts + width, drive.amplitude)
+
+
+# --------------------------------------------------------------------------- streaming
+
+
+class PulseScheduler:
+    """When pulses start, block by block, under drive changes (rules in the module docstring).
+
+    Time is counted in samples of ``sample_rate_hz``; :class:`PulseStream` turns
+    the schedule into audio-rate buffers, the simulated wire uses it at 1 MHz to
+    get pulse edges in microseconds.
+
+    Parameters
+    ----------
+    sample_rate_hz : float
+        Resolution of the schedule [Hz].
+    """
+
+    def __init__(self, sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ) -> None:
+        self.sample_rate_hz = _check_rate(sample_rate_hz)
+        self.position = 0  # absolute sample index of the next block
+        self._drive = Drive.off()
+        self._period = math.inf
+        self._width = 0
+        self._anchor = 0.0  # exact (fractional) sample of schedule pulse 0
+        self._k = 0  # index of the next pulse in the schedule
+        self._last_start: float | None = None  # exact position of the last pulse start
+        self._last_end = -1  # sample after the last pulse
+
+    @property
+    def drive(self) -> Drive:
+        return self._drive
+
+    def set_drive(self, drive: Drive) -> None:
+        """Change the drive from the current position on (takes effect at the next pulse start)."""
+        _check_drive(drive)
+        if drive == self._drive:
+            return
+        if drive.is_off:
+            self._drive, self._period, self._width = drive, math.inf, 0
+            return
+        period, width = _geometry(drive, self.sample_rate_hz)
+        nxt = float(self.position)
+        if self._last_start is not None:
+            nxt = max(nxt, self._last_start + period)
+        nxt = max(nxt, float(self._last_end + 1) if self._last_start is not None else nxt)
+        self._drive, self._period, self._width = drive, period, width
+        self._anchor, self._k = nxt, 0
+
+    def next_block(self, n: int) -> tuple[np.ndarray, int, float]:
+        """Pulses starting in the next ``n`` samples; advances the position.
+
+        Returns
+        -------
+        starts : ndarray of int64
+            Start samples relative to the block start.
+        width : int
+            Width of each of them [samples].
+        amplitude : float
+            Their height.
+        """
+        pos, end = self.position, self.position + n
+        self.position = end
+        if self._drive.is_off or n <= 0:
+            return np.zeros(0, dtype=np.int64), 0, 0.0
+        a, P, k = self._anchor, self._period, self._k
+        first = math.floor(a + k * P + 0.5)
+        if first >= end:
+            return np.zeros(0, dtype=np.int64), self._width, self._drive.amplitude
+        m = int((end - first) / P) + 2
+        kk = k + np.arange(m, dtype=np.float64)
+        starts = np.floor(a + kk * P + 0.5).astype(np.int64)
+        starts = starts[starts < end]
+        self._k = k + starts.size
+        self._last_start = a + (self._k - 1) * P
+        self._last_end = int(starts[-1]) + self._width
+        return starts - pos, self._width, self._drive.amplitude
+
+
+class PulseStream:
+    """A phase-continuous pulse-train synthesiser rendered block by block.
+
+    Parameters
+    ----------
+    sample_rate_hz : float
+        Samples per second [Hz].
+    drive : Drive, optional
+        The initial drive (off by default).
+
+    Examples
+    --------
+    >>> s = PulseStream(48_000, Drive(100.0, 1e-3))
+    >>> block = s.render(480)          # 10 ms: exactly one pulse of 48 samples
+    >>> s.set_drive(Drive(200.0, 5e-4))  # from the next pulse start on
+    """
+
+    def __init__(self, sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ, drive: Drive | None = None) -> None:
+        self._sched = PulseScheduler(sample_rate_hz)
+        self._carry = 0  # samples of the current pulse still to play
+        self._carry_amp = 0.0
+        if drive is not None:
+            self.set_drive(drive)
+
+    @property
+    def sample_rate_hz(self) -> float:
+        return self._sched.sample_rate_hz
+
+    @property
+    def position(self) -> int:
+        """Samples rendered so far."""
+        return self._sched.position
+
+    @property
+    def drive(self) -> Drive:
+        return self._sched.drive
+
+    def set_drive(self, drive: Drive) -> None:
+        """Change the drive; see the streaming rules in the module docstring."""
+        self._sched.set_drive(drive)
+
+    def render(self, n_samples: int, out: np.ndarray | None = None) -> np.ndarray:
+        """The next ``n_samples`` samples (float32).
+
+        ``out``, when given, is a zeroed 1-D buffer (it may be a strided column
+        of a frames array) that receives the samples and is returned.
+        """
+        n = int(n_samples)
+        if n < 0:
+            raise SignalError("<block>", f"block length must be >= 0, got {n_samples!r}")
+        if out is None:
+            out = np.zeros(n, dtype=np.float32)
+        if self._carry > 0:
+            c = min(self._carry, n)
+            out[:c] = self._carry_amp
+            self._carry -= c
+        starts, width, amp = self._sched.next_block(n)
+        if starts.size:
+            _fill(n, starts, starts + width, amp, out)
+            tail = int(starts[-1]) + width - n
+            if tail > 0:
+                self._carry, self._carry_amp = tail, amp
+        return out
+
+
+# --------------------------------------------------------------------------- two channels
+
+
+def phantom_amplitudes(beta: float, amplitude: float = 1.0) -> tuple[float, float]:
+    """Energy model of the phantom sensation (FACTS.md section 4).
+
+    Parameters
+    ----------
+    beta : float
+        Position of the virtual actuator in [0, 1] (0: on actuator 1, 1: on 2).
+    amplitude : float
+        Its intensity A_v.
+
+    Returns
+    -------
+    (A1, A2) : tuple of float
+        ``sqrt(1 - beta) A_v`` and ``sqrt(beta) A_v``, so ``A1^2 + A2^2 = A_v^2``.
+    """
+    if not math.isfinite(beta) or not 0.0 <= beta <= 1.0:
+        raise SignalError("<beta>", f"phantom position must be in [0, 1], got {beta!r}")
+    return math.sqrt(1.0 - beta) * amplitude, math.sqrt(beta) * amplitude
+
+
+def phantom_beta(direction_rad: float, axis_rad: float = 0.0) -> float:
+    """Phantom position from a stroke direction [rad]: ``(1 + cos(direction - axis)) / 2``.
+
+    ``axis_rad`` is the direction from actuator 1 to actuator 2 in the same frame
+    as the stroke; stroking along it puts the sensation on actuator 2, against
+    it on actuator 1, across it halfway.
+    """
+    if not math.isfinite(direction_rad) or not math.isfinite(axis_rad):
+        raise SignalError("<direction>", f"direction must be finite, got {direction_rad!r}")
+    return min(1.0, max(0.0, 0.5 * (1.0 + math.cos(direction_rad - axis_rad))))
+
+
+def soa_s(burst_s: float) -> float:
+    """Stimulus onset asynchrony [s] for apparent movement: 0.32 d + 47.3 ms (FACTS.md section 4).
+
+    Validated for bursts of 40 .. 160 ms; outside that range the law is extrapolated.
+    """
+    if not isinstance(burst_s, (int, float)) or not math.isfinite(burst_s) or burst_s <= 0:
+        raise SignalError("<burst>", f"burst duration must be a finite number > 0 s, got {burst_s!r}")
+    return SOA_SLOPE * burst_s + SOA_OFFSET_S
+
+
+def pen_channels(drive: Drive, direction_rad: float | None = None, *, axis_rad: float = 0.0) -> list[Drive]:
+    """The two actuators' drives for a stroke direction (phantom sensation).
+
+    Parameters
+    ----------
+    drive : Drive
+        The texture's drive; its amplitude is the phantom's intensity A_v.
+    direction_rad : float, optional
+        Stroke direction [rad].  None (no stroke direction known): both
+        actuators get the drive unchanged, as in the paper's pen.
+    axis_rad : float
+        Direction from actuator 1 to actuator 2 [rad] (see :func:`phantom_beta`).
+
+    Returns
+    -------
+    list of two Drive
+        Same frequency and width; amplitudes by the energy model.
+    """
+    _check_drive(drive)
+    if direction_rad is None:
+        return [drive, drive]
+    a1, a2 = phantom_amplitudes(phantom_beta(direction_rad, axis_rad), drive.amplitude)
+    return [drive.replace(amplitude=min(1.0, a1)), drive.replace(amplitude=min(1.0, a2))]
+
+
+class PenStream:
+    """Two phase-continuous channels for the pen's two actuators.
+
+    Parameters
+    ----------
+    sample_rate_hz : float
+        Samples per second [Hz].
+    mode : {"phantom", "movement"}
+        ``phantom``: both channels play continuously with amplitudes from
+        :func:`pen_channels`.  ``movement``: apparent movement: each channel plays
+        bursts of ``burst_s`` at the full drive; the trailing channel's burst
+        starts :func:`soa_s` after the leading one's; one cycle lasts SOA + burst.
+        The leading channel is actuator 1 when the stroke goes along ``axis_rad``
+        (cos >= 0), actuator 2 otherwise; with no direction, actuator 1 leads.
+    burst_s : float
+        Burst duration d [s] for ``movement`` (the SOA law holds for 40 .. 160 ms).
+    axis_rad : float
+        Direction from actuator 1 to actuator 2 [rad].
+    """
+
+    def __init__(
+        self,
+        sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ,
+        *,
+        mode: str = "phantom",
+        burst_s: float = 0.1,
+        axis_rad: float = 0.0,
+    ) -> None:
+        if mode not in ("phantom", "movement"):
+            raise SignalError("<mode>", f"two-channel mode must be 'phantom' or 'movement', got {mode!r}")
+        self.mode = mode
+        self.burst_s = float(burst_s)
+        self.soa_s = soa_s(self.burst_s)
+        self.axis_rad = float(axis_rad)
+        self.streams = [PulseStream(sample_rate_hz), PulseStream(sample_rate_hz)]
+        fs = self.streams[0].sample_rate_hz
+        self._burst = max(1, _round(self.burst_s * fs))
+        self._soa = _round(self.soa_s * fs)
+        self._cycle = self._soa + self._burst
+        self._drive = Drive.off()
+        self._lead = 0
+
+    @property
+    def sample_rate_hz(self) -> float:
+        return self.streams[0].sample_rate_hz
+
+    @property
+    def position(self) -> int:
+        return self.streams[0].position
+
+    def set_drive(self, drive: Drive, direction_rad: float | None = None) -> list[Drive]:
+        """Set the texture drive and stroke direction; returns the per-channel drives
+        (for ``movement``: the drive each channel plays during its bursts)."""
+        _check_drive(drive)
+        if self.mode == "phantom":
+            chans = pen_channels(drive, direction_rad, axis_rad=self.axis_rad)
+            for s, d in zip(self.streams, chans):
+                s.set_drive(d)
+            return chans
+        self._drive = drive
+        if direction_rad is not None:
+            self._lead = 0 if math.cos(direction_rad - self.axis_rad) >= 0 else 1
+        self._apply_gates(self.position)
+        return [drive, drive]
+
+    def _gate(self, channel: int, pos: int) -> bool:
+        offset = 0 if channel == self._lead else self._soa
+        return (pos - offset) % self._cycle < self._burst
+
+    def _apply_gates(self, pos: int) -> None:
+        for c, s in enumerate(self.streams):
+            s.set_drive(self._drive if self._gate(c, pos) else Drive.off())
+
+    def render(self, n_samples: int) -> np.ndarray:
+        """The next ``n_samples`` frames, shape (n, 2), float32."""
+        n = int(n_samples)
+        if n < 0:
+            raise SignalError("<block>", f"block length must be >= 0, got {n_samples!r}")
+        out = np.zeros((n, 2), dtype=np.float32)
+        if self.mode == "phantom":
+            # Write each channel straight into its column: no interleaving copy.
+            self.streams[0].render(n, out[:, 0])
+            self.streams[1].render(n, out[:, 1])
+            return out
+        done = 0
+        while done < n:
+            pos = self.position
+            # Split the block at the next gate edge of either channel.
+            step = n - done
+            for c in (0, 1):
+                offset = 0 if c == self._lead else self._soa
+                phase = (pos - offset) % self._cycle
+                to_edge = self._burst - phase if phase < self._burst else self._cycle - phase
+                step = min(step, to_edge)
+            self._apply_gates(pos)
+            self.streams[0].render(step, out[done : done + step, 0])
+            self.streams[1].render(step, out[done : done + step, 1])
+            done += step
+        return out
+
+
+def pen_pulse_trains(
+    drive: Drive,
+    duration_s: float,
+    sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ,
+    direction_rad: float | None = None,
+    *,
+    mode: str = "phantom",
+    burst_s: float = 0.1,
+    axis_rad: float = 0.0,
+) -> np.ndarray:
+    """Both channels of the pen for a steady drive, shape (N, 2) float32 (see :class:`PenStream`)."""
+    fs = _check_rate(sample_rate_hz)
+    if not isinstance(duration_s, (int, float)) or not math.isfinite(duration_s) or duration_s < 0:
+        raise SignalError("<duration>", f"must be a finite number >= 0 s, got {duration_s!r}")
+    s = PenStream(fs, mode=mode, burst_s=burst_s, axis_rad=axis_rad)
+    s.set_drive(drive, direction_rad)
+    return s.render(_round(duration_s * fs))
