@@ -379,13 +379,15 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
     except WebSocketDisconnect:
         pass
     finally:
+        # Stop the actuators first, synchronously: awaiting anything here may be
+        # cut short by a cancellation when the connection is torn down.
+        session.close()
+        state.sessions -= 1
         closed.set()
         session.wake.set()
         for t in tasks:
             t.cancel()
         await asyncio.gather(*tasks, return_exceptions=True)
-        session.close()
-        state.sessions -= 1
 
 
 def _wire_source(output: Any):

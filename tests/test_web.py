@@ -1,0 +1,437 @@
+"""The web app in-process: routes, uploads, the WebSocket protocol and its bad cases, the CLI."""
+
+from __future__ import annotations
+
+import io
+import json
+import re
+import socket
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from fastapi import APIRouter
+from fastapi.testclient import TestClient
+
+from tactilize.mapping import Drive, Profile
+from tactilize.pen import DEFAULT_M_PER_CSS_PX
+from tactilize.textures import png_bytes
+from tactilize.web import create_app
+from tactilize.web import session as session_mod
+from tactilize.web.serve import is_loopback
+
+
+class FakeOutput:
+    """Records what the server applies; halves nothing, clamps nothing."""
+
+    channels = 2
+
+    def __init__(self):
+        self.applied: list[list[Drive]] = []
+        self.stops = 0
+        self.closed = False
+
+    def apply(self, channels):
+        drives = list(channels)
+        self.applied.append(drives)
+        return drives
+
+    def stop(self):
+        self.stops += 1
+
+    def close(self):
+        self.closed = True
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+@pytest.fixture(scope="module")
+def output():
+    return FakeOutput()
+
+
+@pytest.fixture(scope="module")
+def client(output):
+    router = APIRouter()
+
+    @router.get("/api/extra-ping")
+    def extra():
+        return {"ok": True}
+
+    app = create_app(output, "paper", output_name="fake", extra_routers=[router])
+    with TestClient(app) as c:
+        yield c
+
+
+def stroke_rows(v_mm_s, n=20, dt_ms=5.0, x0=20.0, y0=30.0, t0=1000.0, mm_per_px=DEFAULT_M_PER_CSS_PX * 1e3):
+    v_px_ms = v_mm_s / mm_per_px / 1e3
+    return [[t0 + i * dt_ms, x0 + v_px_ms * i * dt_ms, y0, 0.5, 0.0, 0.0] for i in range(n)]
+
+
+def recv_type(ws, kind, limit=50):
+    for _ in range(limit):
+        m = ws.receive_json()
+        if m["type"] == kind:
+            return m
+    raise AssertionError(f"no {kind} message")
+
+
+def hello(ws, texture="corduroy", **kw):
+    ws.send_text(json.dumps({"type": "hello", "texture": texture, **kw}))
+    return recv_type(ws, "ready")
+
+
+# ------------------------------------------------------------------- routes
+
+
+def test_page_has_test_ids_and_modules(client):
+    r = client.get("/")
+    assert r.status_code == 200 and "text/html" in r.headers["content-type"]
+    for tid in ("surface", "drive-frequency", "drive-pulse-width", "drive-duty", "drive-amplitude", "drive-speed", "audio-toggle"):
+        assert f'data-testid="{tid}"' in r.text
+    assert 'type="module"' in r.text
+    for mod in ("app.js", "pen-input.js", "plot.js", "audio.js", "pulse-worklet.js", "calibrate.js", "style.css"):
+        s = client.get(f"/static/{mod}")
+        assert s.status_code == 200, mod
+    assert "javascript" in client.get("/static/app.js").headers["content-type"]
+    js = client.get("/static/pen-input.js").text
+    assert "getCoalescedEvents" in js
+    assert "touch-action: none" in client.get("/static/style.css").text
+    assert client.get("/static/nope.js").status_code == 404
+
+
+def test_textures_listing_png_and_features(client):
+    lst = client.get("/api/textures").json()
+    assert len(lst) >= 6
+    ids = [t["id"] for t in lst]
+    assert "patchwork" in ids
+    t = lst[0]
+    assert t["width_mm"] > 30 and t["features"]["spatial_frequency_per_m"] > 0
+    png = client.get(t["url"])
+    assert png.status_code == 200 and png.headers["content-type"] == "image/png" and png.content[:8] == b"\x89PNG\r\n\x1a\n"
+    f = client.get("/api/textures/patchwork/features").json()
+    grid = np.array(f["map"]["spatial_frequency_per_m"])
+    assert grid.max() > 3 * grid.min()
+    assert client.get("/api/textures/velvet.png").status_code == 404
+    assert "velvet" in client.get("/api/textures/velvet/features").json()["error"]
+
+
+def test_profiles_config_and_extra_router(client):
+    p = client.get("/api/profiles").json()
+    names = [x["name"] for x in p["profiles"]]
+    assert p["default"] == "paper" and "physical" in names
+    c = client.get("/api/config").json()
+    assert c["default_mm_per_px"] == pytest.approx(25.4 / 96)
+    assert c["output"] == "fake" and c["channels"] == 2
+    assert client.get("/api/extra-ping").json() == {"ok": True}
+
+
+def test_upload_ok_and_usable(client):
+    rng = np.random.default_rng(0)
+    x = np.arange(200)
+    grating = (127 + 100 * np.cos(2 * np.pi * x / 10)[None, :] + rng.normal(0, 2, (150, 200))).clip(0, 255).astype(np.uint8)
+    data = png_bytes(grating, 96.0)
+    r = client.post("/api/textures", files={"file": ("stripes.png", data, "image/png")}, data={"width_mm": "100"})
+    assert r.status_code == 201, r.text
+    body = r.json()
+    assert body["width_mm"] == pytest.approx(100.0)
+    # 20 periods across 100 mm: 200 cycles/m
+    assert body["features"]["spatial_frequency_per_m"] == pytest.approx(200.0, rel=0.02)
+    assert any(t["id"] == body["id"] for t in client.get("/api/textures").json())
+    assert client.get(body["url"]).status_code == 200
+    with client.websocket_connect("/ws") as ws:
+        ready = hello(ws, body["id"])
+        assert ready["texture_width_mm"] == pytest.approx(100.0)
+
+
+def test_upload_refusals(client):
+    r = client.post("/api/textures", files={"file": ("notes.txt", b"hello, not an image", "text/plain")})
+    assert r.status_code == 415 and "notes.txt" in r.json()["error"] and "not an image" in r.json()["error"]
+    big = b"\x89PNG" + b"\0" * (12 * 1024 * 1024)
+    r = client.post("/api/textures", files={"file": ("huge.png", big, "image/png")})
+    assert r.status_code == 413 and "too large" in r.json()["error"]
+    r = client.post("/api/textures", files={"file": ("empty.png", b"", "image/png")})
+    assert r.status_code == 422 and "empty" in r.json()["error"]
+    good = png_bytes(np.zeros((8, 8), np.uint8), 96)
+    r = client.post("/api/textures", files={"file": ("a.png", good, "image/png")}, data={"width_mm": "-3"})
+    assert r.status_code == 422 and "width_mm" in r.json()["error"]
+    r = client.post("/api/textures", files={"file": ("a.png", good[:30], "image/png")})
+    assert r.status_code in (415, 422) and "a.png" in r.json()["error"]
+    # a decompression bomb: a header claiming 20000 x 20000 pixels
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.new("1", (20000, 20000)).save(buf, format="PNG")
+    r = client.post("/api/textures", files={"file": ("bomb.png", buf.getvalue(), "image/png")})
+    assert r.status_code == 422 and "too large" in r.json()["error"]
+
+
+# ------------------------------------------------------------------- websocket
+
+
+def test_ws_stroke_speeds_and_lift(client, output):
+    with client.websocket_connect("/ws") as ws:
+        ready = hello(ws)
+        assert ready["profile"] == "paper" and ready["limits"]["max_frequency_hz"] == 300.0
+        freqs, speeds = [], []
+        for i, v in enumerate((10.0, 40.0)):
+            ws.send_text(json.dumps({"type": "samples", "seq": 2 * i, "samples": stroke_rows(v)}))
+            d = recv_type(ws, "drive")
+            assert d["seq"] == 2 * i and d["on"] and d["inside"]
+            freqs.append(d["channels"][0]["pulse_frequency_hz"])
+            speeds.append(d["speed_mm_s"])
+            stops = output.stops
+            ws.send_text(json.dumps({"type": "lift", "seq": 2 * i + 1}))
+            off = recv_type(ws, "drive")
+            assert not off["on"] and not off["down"] and off["channels"][0]["pulse_frequency_hz"] == 0
+            assert output.stops == stops + 1
+        assert speeds[0] == pytest.approx(10.0, rel=1e-3) and speeds[1] == pytest.approx(40.0, rel=1e-3)
+        assert freqs[1] > 2 * freqs[0]
+        assert len(output.applied[-1]) == 2
+
+
+def test_ws_calibration_changes_speed(client):
+    with client.websocket_connect("/ws") as ws:
+        hello(ws)
+        rows = stroke_rows(20.0)
+        ws.send_text(json.dumps({"type": "samples", "samples": rows}))
+        a = recv_type(ws, "drive")["speed_mm_s"]
+        ws.send_text(json.dumps({"type": "calibrate", "mm_per_px": 2 * 25.4 / 96}))
+        st = recv_type(ws, "state")
+        assert st["mm_per_px"] == pytest.approx(2 * 25.4 / 96)
+        ws.send_text(json.dumps({"type": "samples", "samples": [[r[0] + 1000, *r[1:]] for r in rows]}))
+        b = recv_type(ws, "drive")["speed_mm_s"]
+        assert b == pytest.approx(2 * a, rel=1e-6)
+
+
+def test_ws_profile_switch(client):
+    with client.websocket_connect("/ws") as ws:
+        hello(ws)
+        ws.send_text(json.dumps({"type": "profile", "name": "physical"}))
+        assert recv_type(ws, "state")["profile"] == "physical"
+        ws.send_text(json.dumps({"type": "samples", "samples": stroke_rows(20.0)}))
+        d = recv_type(ws, "drive")
+        # physical: f = v * f_s (vertical ribs, horizontal stroke: cos = 1)
+        assert d["channels"][0]["pulse_frequency_hz"] == pytest.approx(0.020 * d["spatial_frequency_per_m"], rel=1e-3)
+        ws.send_text(json.dumps({"type": "profile", "name": "../../etc/passwd"}))
+        assert "unknown profile" in recv_type(ws, "error")["message"]
+
+
+def test_ws_leaving_picture_stops(client, output):
+    with client.websocket_connect("/ws") as ws:
+        hello(ws)
+        ws.send_text(json.dumps({"type": "samples", "samples": stroke_rows(20.0)}))
+        assert recv_type(ws, "drive")["on"]
+        stops = output.stops
+        ws.send_text(json.dumps({"type": "samples", "samples": stroke_rows(20.0, x0=-50.0, t0=1100.0)}))
+        d = recv_type(ws, "drive")
+        assert not d["on"] and not d["inside"] and d["down"]
+        assert output.stops == stops + 1
+
+
+BAD_MESSAGES = [
+    ("not json at all", "not JSON"),
+    ("[1, 2, 3]", "JSON object"),
+    ('{"no": "type"}', "unknown message type"),
+    ('{"type": "dance"}', "unknown message type"),
+    ('{"type": "samples"}', "'samples' must be an array"),
+    ('{"type": "samples", "samples": [[1, 2]]}', "sample 0"),
+    ('{"type": "samples", "samples": [[1, "x", 3]]}', "finite number"),
+    ('{"type": "samples", "samples": [[1, 2, 3, 7]]}', "pressure"),
+    ('{"type": "samples", "samples": [[1e400, 2, 3]]}', "finite"),
+    ('{"type": "samples", "samples": [{"t": 1}]}', "array"),
+    ('{"type": "texture"}', "needs an 'id'"),
+    ('{"type": "texture", "id": "velvet"}', "no texture"),
+    ('{"type": "texture", "id": 7}', "must be a string"),
+    ('{"type": "calibrate", "mm_per_px": 0}', "mm_per_px"),
+    ('{"type": "calibrate", "mm_per_px": "big"}', "mm_per_px"),
+    ('{"type": "calibrate"}', "needs 'mm_per_px'"),
+    ('{"type": "profile", "name": 3}', "must be a string"),
+    ("[" * 5000 + "]" * 5000, "JSON"),
+]
+
+
+def test_ws_malformed_messages_get_errors_and_connection_lives(client):
+    with client.websocket_connect("/ws") as ws:
+        hello(ws)
+        for text, expect in BAD_MESSAGES:
+            ws.send_text(text)
+            m = ws.receive_json()
+            assert m["type"] == "error" and expect in m["message"], (text[:40], m)
+        ws.send_bytes(b"\x00\x01binary")
+        assert "binary" in ws.receive_json()["message"]
+        ws.send_text(json.dumps({"type": "samples", "samples": [[0, 0, 0]] * (session_mod.MAX_BATCH + 1)}))
+        assert "too many samples" in ws.receive_json()["message"]
+        ws.send_text("x" * (session_mod.MAX_MESSAGE_CHARS + 1))
+        assert "too long" in ws.receive_json()["message"]
+        # still alive and working
+        ws.send_text(json.dumps({"type": "ping", "id": 42}))
+        assert ws.receive_json() == {"type": "pong", "id": 42, "server_time_s": pytest.approx(time.time(), abs=60)}
+        ws.send_text(json.dumps({"type": "samples", "samples": stroke_rows(20.0)}))
+        assert recv_type(ws, "drive")["on"]
+
+
+def test_ws_samples_before_texture_are_refused(client):
+    with client.websocket_connect("/ws") as ws:
+        ws.send_text(json.dumps({"type": "samples", "samples": stroke_rows(20.0)}))
+        assert "no texture selected" in ws.receive_json()["message"]
+
+
+def test_ws_flood_is_bounded_and_latest_wins(client):
+    app = client.app
+    state = app.state.tactilize
+    dropped_before = state.counters.get("samples_dropped", 0)
+    n_msgs, per = 400, 50
+    with client.websocket_connect("/ws") as ws:
+        hello(ws)
+        t = 1000.0
+        x = 10.0
+        for k in range(n_msgs):
+            rows = []
+            for _ in range(per):
+                t += 1.0
+                x = 10.0 + (t - 1000.0) * 0.0075  # 2 mm/s in px/ms at 96 dpi
+                rows.append([t, x, 30.0, 0.5])
+            ws.send_text(json.dumps({"type": "samples", "seq": k, "samples": rows}))
+        ws.send_text(json.dumps({"type": "ping", "id": "end"}))
+        drives = []
+        while True:
+            m = ws.receive_json()
+            if m["type"] == "drive":
+                drives.append(m)
+            if m["type"] == "pong":
+                break
+        # The renderer may lag the pong by one batch; collect what is left.
+        deadline = time.time() + 2
+        while (not drives or drives[-1]["seq"] != n_msgs - 1) and time.time() < deadline:
+            m = ws.receive_json()
+            if m["type"] == "drive":
+                drives.append(m)
+    assert drives and drives[-1]["seq"] == n_msgs - 1  # the newest batch was rendered
+    assert drives[-1]["x_m"] == pytest.approx(x * DEFAULT_M_PER_CSS_PX)
+    assert len(drives) <= n_msgs  # never more drives than batches
+    # 20,000 samples went in; whatever was dropped on the way was counted, not queued.
+    received = state.counters["samples_received"]
+    assert received >= n_msgs * per
+    assert state.counters.get("samples_dropped", 0) - dropped_before <= n_msgs * per
+
+
+def test_pending_queue_bound_directly(client):
+    s = session_mod.PenSession(client.app.state.tactilize)
+    s.handle(json.dumps({"type": "texture", "id": "corduroy"}))
+    for k in range(100):
+        rows = [[k * 100.0 + i, 10.0 + i * 0.01, 30.0] for i in range(100)]
+        s.handle(json.dumps({"type": "samples", "seq": k, "samples": rows}))
+        assert len(s.pending) <= session_mod.MAX_PENDING
+    assert list(s.pending)[-1] == [9999.0, 10.0 + 99 * 0.01, 30.0]  # newest kept
+    s.handle(json.dumps({"type": "lift"}))
+    assert not s.pending and s.pending_lift
+    msg = s.render_pending()
+    assert msg["type"] == "drive" and not msg["on"]
+    s.close()
+
+
+def test_resting_pen_falls_to_zero_speed(client, monkeypatch):
+    monkeypatch.setattr(session_mod, "IDLE_S", 0.03)
+    with client.websocket_connect("/ws") as ws:
+        hello(ws)
+        ws.send_text(json.dumps({"type": "samples", "samples": stroke_rows(30.0)}))
+        moving = recv_type(ws, "drive")
+        rest = recv_type(ws, "drive")  # sent by the server on its own after IDLE_S
+        assert moving["speed_mm_s"] > 20 and rest["speed_mm_s"] == 0.0 and rest["down"]
+        assert rest["channels"][0]["pulse_frequency_hz"] < moving["channels"][0]["pulse_frequency_hz"]
+
+
+def test_disconnect_stops_output(output):
+    out = FakeOutput()
+    app = create_app(out, Profile.preset("paper"), warm=False)
+    with TestClient(app) as c:
+        with c.websocket_connect("/ws") as ws:
+            hello(ws)
+            ws.send_text(json.dumps({"type": "samples", "samples": stroke_rows(20.0)}))
+            recv_type(ws, "drive")
+            assert out.stops == 0
+        deadline = time.time() + 2
+        while out.stops == 0 and time.time() < deadline:
+            time.sleep(0.01)
+        assert out.stops >= 1
+        stats = c.get("/api/stats").json()
+        assert stats["batches"] >= 1 and stats["server_latency_us"]["p50"] > 0
+    assert not out.closed  # the app did not open it, so it does not close it
+
+
+# ------------------------------------------------------------------- CLI and binding
+
+
+def test_is_loopback():
+    assert is_loopback("127.0.0.1") and is_loopback("localhost") and is_loopback("::1") and is_loopback("127.5.0.1")
+    assert not is_loopback("0.0.0.0") and not is_loopback("192.168.1.5") and not is_loopback("example.org")
+
+
+def _serve(*args):
+    return subprocess.Popen(
+        [sys.executable, "-m", "tactilize.cli", "serve", "--no-open", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def test_cli_serve_prints_address_on_loopback():
+    import httpx
+
+    proc = _serve("--port", "0")
+    try:
+        line = proc.stdout.readline()
+        m = re.search(r"http://127\.0\.0\.1:(\d+)/", line)
+        assert m, line
+        r = httpx.get(m.group(0) + "api/config", timeout=10)
+        assert r.status_code == 200 and r.json()["profile"] == "paper"
+    finally:
+        proc.terminate()
+        _, err = proc.communicate(timeout=10)
+    assert "reachable from other machines" not in err
+
+
+def test_cli_serve_warns_when_asked_for_all_interfaces():
+    proc = _serve("--host", "0.0.0.0", "--port", "0")
+    try:
+        line = proc.stdout.readline()
+        assert "serving" in line
+    finally:
+        proc.terminate()
+        _, err = proc.communicate(timeout=10)
+    assert "warning" in err and "0.0.0.0" in err
+
+
+def test_cli_serve_bad_input_is_one_line_exit_2():
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    s.listen()
+    try:
+        r = subprocess.run(
+            [sys.executable, "-m", "tactilize.cli", "serve", "--no-open", "--port", str(s.getsockname()[1])],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+    finally:
+        s.close()
+    assert r.returncode == 2 and "cannot listen" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    r = subprocess.run(
+        [sys.executable, "-m", "tactilize.cli", "serve", "--no-open", "--profile", "nope"], capture_output=True, text=True, timeout=60
+    )
+    assert r.returncode == 2 and "nope" in r.stderr and "Traceback" not in r.stderr
+    r = subprocess.run(
+        [sys.executable, "-m", "tactilize.cli", "serve", "--no-open", "--port", "0", "--output", "teleport"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert r.returncode == 2 and "teleport" in r.stderr
