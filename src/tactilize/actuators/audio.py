@@ -2,8 +2,11 @@
 
 Voice-coil and LRA actuators on an audio amplifier feel a pulse train played as
 sound.  :class:`AudioOutput` opens a two-channel output stream with sounddevice
-(PortAudio) and fills every block from a streaming synthesiser, so a drive
-change takes effect at the next block without a click or a broken pulse.
+(PortAudio) and fills every block from one :class:`~tactilize.synthesis.PulseStream`
+per channel, so a drive change takes effect at the next pulse start without a
+truncated or doubled pulse (the synthesiser's streaming rules).  The pen's
+two-channel effects (phantom, apparent movement) are computed upstream, by
+:func:`~tactilize.synthesis.pen_channels`, into one drive per channel.
 
 sounddevice is an optional extra (``pip install 'tactilize[audio]'``) and needs
 the PortAudio library; both are imported only when an AudioOutput is made, and
@@ -14,13 +17,13 @@ install them.
 from __future__ import annotations
 
 import importlib
-import threading
 from typing import Any, Sequence
 
 import numpy as np
 
 from ..errors import OutputError
 from ..mapping import Drive
+from ..synthesis import PulseScheduler, PulseStream
 from .base import OutputBase
 
 __all__ = ["AudioOutput", "import_sounddevice"]
@@ -38,59 +41,6 @@ def import_sounddevice() -> Any:
     except OSError as exc:
         # sounddevice raises OSError("PortAudio library not found") on import.
         raise OutputError("audio", f"the PortAudio library is missing: {exc}; {PORTAUDIO_HINT}") from None
-
-
-def _make_stream_synth(channels: int, sample_rate_hz: float) -> Any:
-    """The project's streaming synthesiser when present, else the local one."""
-    try:
-        from .. import synthesis
-    except ImportError:
-        return _LocalPulseStream(channels, sample_rate_hz)
-    return _SynthesisAdapter.wrap(synthesis, channels, sample_rate_hz) or _LocalPulseStream(channels, sample_rate_hz)
-
-
-class _SynthesisAdapter:
-    """Adapts synthesis.py's streaming synthesiser to ``update(drives)`` / ``render(frames)``."""
-
-    @staticmethod
-    def wrap(synthesis: Any, channels: int, sample_rate_hz: float) -> Any:
-        return None
-
-
-class _LocalPulseStream:
-    """A minimal phase-continuous pulse-train generator (fallback only).
-
-    Each channel keeps its phase in cycles; a drive change keeps the phase, so a
-    new frequency starts from where the old one was (no restarted or doubled
-    pulse at a block boundary).
-    """
-
-    def __init__(self, channels: int, sample_rate_hz: float):
-        self.sample_rate_hz = float(sample_rate_hz)
-        self._phase = np.zeros(channels)
-        self._drives = [Drive.off()] * channels
-        self._lock = threading.Lock()
-
-    def update(self, drives: Sequence[Drive]) -> None:
-        with self._lock:
-            self._drives = list(drives)
-
-    def render(self, frames: int) -> np.ndarray:
-        """The next ``frames`` samples, shape (frames, channels), float32 in [0, 1]."""
-        with self._lock:
-            drives = list(self._drives)
-        out = np.zeros((frames, len(drives)), dtype=np.float32)
-        n = np.arange(1, frames + 1)
-        for c, d in enumerate(drives):
-            if d.is_off:
-                continue
-            step = d.pulse_frequency_hz / self.sample_rate_hz  # cycles per sample
-            # Phase at each sample's start; the sample is high while the phase
-            # is inside the pulse's share of the period.
-            phase = (self._phase[c] + step * (n - 1)) % 1.0
-            out[:, c] = np.where(phase < d.duty_ratio, d.amplitude, 0.0)
-            self._phase[c] = (self._phase[c] + step * frames) % 1.0
-        return out
 
 
 class AudioOutput(OutputBase):
@@ -140,7 +90,12 @@ class AudioOutput(OutputBase):
         self.gain = float(gain)
         #: callback blocks PortAudio reported as under- or overflowing
         self.xruns = 0
-        self._synth = _make_stream_synth(self.channels, self.sample_rate_hz)
+        self._streams = [PulseStream(self.sample_rate_hz) for _ in range(self.channels)]
+        # Drives cross to the audio thread as one (version, drives) tuple:
+        # assigning it is atomic, so the callback never sees half an update
+        # and never blocks on a lock the caller holds.
+        self._wanted: tuple[int, tuple[Drive, ...]] = (0, (Drive.off(),) * self.channels)
+        self._playing_version = 0
         self._closed = False
         try:
             self._stream = sd.OutputStream(
@@ -162,18 +117,33 @@ class AudioOutput(OutputBase):
         # PortAudio's thread: no allocation-heavy work, no exceptions escaping.
         if status:
             self.xruns += 1
-        block = self._synth.render(frames)
-        outdata[:] = block * self.gain
+        version, drives = self._wanted
+        if version != self._playing_version:
+            for stream, d in zip(self._streams, drives):
+                stream.set_drive(d)
+            self._playing_version = version
+        outdata.fill(0.0)
+        for c, stream in enumerate(self._streams):
+            stream.render(frames, outdata[:, c])
+        if self.gain != 1.0:
+            outdata *= self.gain
 
     def apply(self, channels: Sequence[Drive]) -> list[Drive]:
         """Play one drive per channel from the next block on; returns them after the envelope."""
         drives = [d if d.is_off else self.envelope.apply(d) for d in self._check(channels)]
-        self._synth.update(drives)
+        for d in drives:
+            # Refuse here, in the caller's thread, what the synthesiser would
+            # refuse in the audio thread (e.g. pulses so wide they touch).
+            PulseScheduler(self.sample_rate_hz).set_drive(d)
+        self._publish(drives)
         return drives
 
     def stop(self) -> None:
         """Silence every channel (the stream keeps running, playing zeros)."""
-        self._synth.update([Drive.off()] * self.channels)
+        self._publish([Drive.off()] * self.channels)
+
+    def _publish(self, drives: Sequence[Drive]) -> None:
+        self._wanted = (self._wanted[0] + 1, tuple(drives))
 
     def close(self) -> None:
         if self._closed:
