@@ -1,0 +1,229 @@
+"""The participant flow through its HTTP and WebSocket interface (in-process ASGI client)."""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import warnings
+
+import pytest
+
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    from fastapi.testclient import TestClient
+
+from tactilize.experiments.protocols import load_protocol
+from tactilize.experiments.store import Store
+from tactilize.experiments.web import create_experiment_app
+
+API = "/experiment/api"
+
+
+def _client(tmp_path, protocol="assessment", token=None):
+    db = tmp_path / "exp.sqlite3"
+    app = create_experiment_app(protocol, str(db), admin_token=token)
+    return TestClient(app), db
+
+
+def _rows(db, sql):
+    with sqlite3.connect(db) as con:
+        return con.execute(sql).fetchall()
+
+
+def test_scripted_participant_completes_the_assessment(tmp_path):
+    client, db = _client(tmp_path)
+    with client:
+        page = client.get("/experiment/")
+        assert page.status_code == 200 and "experiment.js" in page.text
+        assert client.get("/experiment/static/experiment.js").status_code == 200
+        info = client.get(f"{API}/protocol").json()
+        assert [q["id"] for q in info["questions"]] == ["accordance", "difference", "velocity", "comfort"]
+        assert "conditions" not in info  # the participant is blind to the condition
+
+        st = client.post(f"{API}/sessions", json={"participant_id": "P01", "consent": True}).json()
+        assert st["state"] == "calibration" and st["progress"] == {"done": 0, "total": 1}
+        token = st["session"]
+        st = client.post(f"{API}/sessions/{token}/calibration", json={"card_width_px": 323.5, "felt": True}).json()
+        assert st["state"] == "trial"
+        assert st["calibration"]["mm_per_px"] == pytest.approx(85.60 / 323.5)
+        trial = st["trial"]
+        assert sorted(im["id"] for im in trial["images"]) == [f"image{i}" for i in range(1, 7)]
+        png = client.get(f"{API}/{trial['images'][0]['url']}")
+        assert png.status_code == 200 and png.content[:8] == b"\x89PNG\r\n\x1a\n"
+
+        drives = {}
+        with client.websocket_connect(f"/experiment/ws/{token}") as ws:
+            for im in trial["images"]:
+                # 60 mm/s along x, 5 ms apart: the sigmoid's centre.
+                ws.send_text(json.dumps({"trial": 0, "image": im["id"],
+                                         "samples": [[k * 5.0, k * 0.3, 10.0, 0.5] for k in range(20)]}))
+                msg = ws.receive_json()
+                assert msg["type"] == "drive" and msg["logged"] == 20
+                assert msg["speed_mm_s"] == pytest.approx(60.0, rel=0.02)
+                drives[im["id"]] = msg["drive"]
+            ws.send_text(json.dumps({"trial": 5, "image": "image1", "samples": [[0, 0, 0]]}))
+            assert ws.receive_json()["type"] == "error"
+        # The paper's laws: image 6 (finest, weakest) gets the narrowest pulses.
+        assert min(drives, key=lambda i: drives[i]["pulse_width_s"]) == "image6"
+        assert all(d["pulse_frequency_hz"] <= 300.0 for d in drives.values())
+
+        ratings = {"accordance": 5, "difference": 6, "velocity": 4, "comfort": 7}
+        done = client.post(f"{API}/sessions/{token}/answers",
+                           json={"trial": 0, "ratings": ratings, "response_time_s": 12.5}).json()
+        assert done["state"] == "done" and done["recorded"] == "recorded"
+        assert done["progress"] == {"done": 1, "total": 1}
+
+        csv = client.get(f"{API}/admin/export.csv").text.strip().splitlines()
+        header = csv[0].split(",")
+        for col in ("participant", "session", "trial", "condition", "image", "question", "rating",
+                    "answered_at", "trial_started_at", "seed", "protocol_sha256", "tactilize_version"):
+            assert col in header
+        assert len(csv) == 1 + 4
+        got = {r.split(",")[header.index("question")]: int(r.split(",")[header.index("rating")]) for r in csv[1:]}
+        assert got == ratings
+    assert _rows(db, "select count(*) from stroke_samples")[0][0] == 6 * 20
+    assert _rows(db, "select count(*) from answers")[0][0] == 4
+    assert _rows(db, "select completed_at is not null from sessions")[0][0] == 1
+
+
+def test_bad_input_is_refused_and_leaves_the_data_intact(tmp_path):
+    client, db = _client(tmp_path, "alpha-law")
+    with client:
+        assert client.post(f"{API}/sessions", json={"participant_id": "P01", "consent": False}).status_code == 422
+        bad_id = client.post(f"{API}/sessions", json={"participant_id": "../etc", "consent": True})
+        assert bad_id.status_code == 422 and "participant_id" == bad_id.json()["source"]
+        assert client.post(f"{API}/sessions", content=b"{not json", headers={"content-type": "application/json"}
+                           ).status_code == 400
+        unknown = client.post(f"{API}/resume", json={"participant_id": "P99"})
+        assert unknown.status_code == 404 and "not registered" in unknown.json()["error"]
+        assert client.get(f"{API}/sessions/nonsense").status_code == 404
+
+        token = client.post(f"{API}/sessions", json={"participant_id": "P01", "consent": True}).json()["session"]
+        reused = client.post(f"{API}/sessions", json={"participant_id": "P01", "consent": True})
+        assert reused.status_code == 409 and "already registered" in reused.json()["error"]
+
+        good = {"speed_match": 5, "speed_difference": 3}
+        # Answers before the calibration check: refused.
+        assert client.post(f"{API}/sessions/{token}/answers", json={"trial": 0, "ratings": good}).status_code == 409
+        for bad in ({"card_width_px": 3, "felt": True}, {"card_width_px": 320, "felt": False}, {"mm_per_px": "x"}):
+            assert client.post(f"{API}/sessions/{token}/calibration", json=bad).status_code == 422
+        client.post(f"{API}/sessions/{token}/calibration", json={"mm_per_px": 0.25, "felt": True})
+
+        for ratings in ({"speed_match": 8, "speed_difference": 3}, {"speed_match": 0, "speed_difference": 3},
+                        {"speed_match": 4.5, "speed_difference": 3}, {"speed_match": True, "speed_difference": 3},
+                        {"speed_match": 4}, {"speed_match": 4, "speed_difference": 3, "extra": 1}, [4, 3]):
+            r = client.post(f"{API}/sessions/{token}/answers", json={"trial": 0, "ratings": ratings})
+            assert r.status_code == 422, ratings
+        # A stale page submitting a trial that is not open.
+        stale = client.post(f"{API}/sessions/{token}/answers", json={"trial": 2, "ratings": good})
+        assert stale.status_code == 409 and stale.json()["current_trial"] == 0
+        assert _rows(db, "select count(*) from answers")[0][0] == 0
+
+        first = client.post(f"{API}/sessions/{token}/answers", json={"trial": 0, "ratings": good})
+        assert first.json()["recorded"] == "recorded"
+        # A double click: same answers again, acknowledged, stored once.
+        again = client.post(f"{API}/sessions/{token}/answers", json={"trial": 0, "ratings": good})
+        assert again.status_code == 200 and again.json()["recorded"] == "duplicate"
+        # A stale page trying to change an answer: refused, never overwritten.
+        change = client.post(f"{API}/sessions/{token}/answers",
+                             json={"trial": 0, "ratings": {"speed_match": 1, "speed_difference": 1}})
+        assert change.status_code == 409 and "never overwritten" in change.json()["error"]
+        # Strokes sent by a stale page for the finished trial are not logged into it.
+        with client.websocket_connect(f"/experiment/ws/{token}") as ws:
+            ws.send_json({"trial": 0, "image": "image1", "samples": [[0, 1, 1, None], [5, 2, 1, None]]})
+            err = ws.receive_json()
+            assert err["type"] == "error" and err["current_trial"] == 1
+    assert _rows(db, "select question_id, rating from answers order by question_id") == [
+        ("speed_difference", 3), ("speed_match", 5)]
+    assert _rows(db, "select count(*) from stroke_samples")[0][0] == 0
+
+
+def test_breaks_and_resume_by_participant_id(tmp_path):
+    client, db = _client(tmp_path, "h-law")  # 8 trials, a break every 4
+    with client:
+        token = client.post(f"{API}/sessions", json={"participant_id": "R1", "consent": True}).json()["session"]
+        client.post(f"{API}/sessions/{token}/calibration", json={"mm_per_px": 0.25, "felt": True})
+        for i in range(4):
+            st = client.post(f"{API}/sessions/{token}/answers", json={"trial": i, "ratings": {"comfort": 1 + i}}).json()
+        assert st["state"] == "break" and st["next_trial"] == 4
+        # A break must be taken: answering through it is refused.
+        assert client.post(f"{API}/sessions/{token}/answers", json={"trial": 4, "ratings": {"comfort": 2}}
+                           ).status_code == 409
+        resumed = client.post(f"{API}/resume", json={"participant_id": "R1"}).json()
+        assert resumed["session"] == token and resumed["state"] == "break"
+        st = client.post(f"{API}/sessions/{token}/break", json={"trial": 4}).json()
+        assert st["state"] == "trial" and st["trial"]["index"] == 4
+        assert st["progress"] == {"done": 4, "total": 8}
+    order = [r[0] for r in _rows(db, "select condition_id from trials order by \"index\"")]
+    assert order == load_protocol("h-law").condition_order(1)
+
+
+def test_experimenter_endpoints_need_the_token_when_set(tmp_path):
+    client, _ = _client(tmp_path, "alpha-law", token="s3cret")
+    with client:
+        assert client.get(f"{API}/admin/sessions").status_code == 401
+        assert client.get(f"{API}/admin/export.csv?token=wrong").status_code == 401
+        assert client.get(f"{API}/admin/export.csv?token=s3cret").status_code == 200
+        ok = client.get(f"{API}/admin/sessions", headers={"Authorization": "Bearer s3cret"})
+        assert ok.status_code == 200 and ok.json()["protocol"]["name"] == "alpha-law"
+        # The participant side needs none.
+        assert client.get(f"{API}/protocol").status_code == 200
+    (tmp_path / "open").mkdir()
+    open_client, _ = _client(tmp_path / "open", "alpha-law")  # no token set: a loopback lab machine
+    with open_client:
+        assert open_client.get(f"{API}/admin/sessions").status_code == 200
+
+
+def test_loopback_detection_decides_whether_a_token_is_forced():
+    from tactilize.experiments import web
+
+    assert web.is_loopback("127.0.0.1") and web.is_loopback("::1") and web.is_loopback("localhost")
+    assert not web.is_loopback("0.0.0.0") and not web.is_loopback("192.168.1.4")
+
+
+def test_simulation_is_resumable_and_never_duplicates(tmp_path):
+    from tactilize.experiments.simulate import simulate
+
+    db = str(tmp_path / "sim.sqlite3")
+    first = simulate("alpha-law", 3, seed=11, db_url=db, max_trials=6)
+    assert first["trials_submitted"] == 6 and first["started"] == 2
+    second = simulate("alpha-law", 3, seed=11, db_url=db)
+    assert second["resumed"] == 1 and second["skipped"] == 1 and second["started"] == 1
+    assert second["trials_submitted"] == 12 - 6
+    rows = Store(db).answer_rows()
+    assert len(rows) == 3 * 4 * 2
+    assert len({(r["participant"], r["trial"], r["question"]) for r in rows}) == len(rows)
+    assert all(r["simulated"] for r in rows) and {r["seed"] for r in rows} == {1003}
+    # Same seed from scratch gives the same ratings: the interruption changed nothing.
+    fresh = str(tmp_path / "fresh.sqlite3")
+    simulate("alpha-law", 3, seed=11, db_url=fresh)
+    key = lambda r: (r["participant"], r["trial"], r["question"], r["rating"])  # noqa: E731
+    assert sorted(map(key, Store(fresh).answer_rows())) == sorted(map(key, rows))
+    assert "simulation:alpha-law:11" in Store(db).meta()
+
+
+def test_personal_calibration_profile_is_usable(tmp_path):
+    from tactilize.experiments.calibration import fit_personal_profile
+    from tactilize.mapping import Profile
+
+    db = str(tmp_path / "cal.sqlite3")
+    client = TestClient(create_experiment_app("alpha-law", db))
+    proto = load_protocol("alpha-law")
+    # This person likes the steep sigmoid (k5 = 0.1) best, gentler and steeper less.
+    liking = {0.02: 2, 0.05: 4, 0.1: 7, 0.2: 5}
+    with client:
+        token = client.post(f"{API}/sessions", json={"participant_id": "ME", "consent": True}).json()["session"]
+        client.post(f"{API}/sessions/{token}/calibration", json={"mm_per_px": 0.25, "felt": True})
+        for i, cid in enumerate(proto.condition_order(1)):
+            r = liking[proto.profile(cid).speed.slope_per_mm_s]
+            client.post(f"{API}/sessions/{token}/answers",
+                        json={"trial": i, "ratings": {"speed_match": r, "speed_difference": r}})
+    prof, report = fit_personal_profile(Store(db), "ME")
+    slope = prof.speed.slope_per_mm_s
+    assert 0.05 < slope < 0.2 and report["fits"][0]["role"] == "speed"
+    out = tmp_path / "me.toml"
+    prof.save(out)
+    again = Profile.load(out)
+    assert again.speed.slope_per_mm_s == pytest.approx(slope)
+    assert again.frequency == Profile.preset("paper").frequency  # untouched laws stay the paper's
+    assert "ME" in again.description and "alpha-law" in again.description
