@@ -1,0 +1,141 @@
+"""Analysis and figures checked against independent computations on a small fixed dataset."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats
+
+from tactilize.experiments.analysis import analyze
+from tactilize.experiments.figures import make_figures, protocol_figure
+
+# Six participants rate three conditions on two questions (1..7).  Rows have no
+# ties within a participant for "q1", so every textbook formula applies unchanged.
+Q1 = {  # participant: (A, B, C)
+    "p1": (2, 5, 6), "p2": (3, 6, 4), "p3": (1, 4, 7), "p4": (2, 3, 5), "p5": (4, 7, 6), "p6": (3, 5, 7),
+}
+Q2 = {
+    "p1": (4, 4, 5), "p2": (5, 3, 4), "p3": (2, 6, 6), "p4": (6, 5, 7), "p5": (3, 4, 7), "p6": (4, 4, 4),
+}
+CONDS = ("A", "B", "C")
+
+
+def _tidy():
+    rows = []
+    for q, table in (("q1", Q1), ("q2", Q2)):
+        for p, vals in table.items():
+            for c, r in zip(CONDS, vals):
+                rows.append({"protocol": "toy", "protocol_sha256": "abc", "seed": 5, "participant": p,
+                             "condition": c, "question": q, "rating": r, "image": "img", "trial": CONDS.index(c)})
+    return pd.DataFrame(rows)
+
+
+def _holm(p):
+    p = np.asarray(p, float)
+    order = np.argsort(p)
+    m = len(p)
+    adj = np.empty(m)
+    running = 0.0
+    for rank, i in enumerate(order):
+        running = max(running, (m - rank) * p[i])
+        adj[i] = min(1.0, running)
+    return adj
+
+
+def _rank_biserial(x, y):
+    d = np.asarray(x, float) - np.asarray(y, float)
+    d = d[d != 0]
+    ranks = stats.rankdata(np.abs(d))
+    rp, rm = ranks[d > 0].sum(), ranks[d < 0].sum()
+    return (rp - rm) / (rp + rm)
+
+
+@pytest.fixture(scope="module")
+def result():
+    return analyze(_tidy())["protocols"]["toy"]
+
+
+@pytest.mark.parametrize("q, table", [("q1", Q1), ("q2", Q2)])
+def test_descriptives_match_numpy(result, q, table):
+    desc = result["questions"][q]["descriptives"]
+    for j, c in enumerate(CONDS):
+        v = np.array([vals[j] for vals in table.values()], float)
+        d = desc[c]
+        assert d["n"] == 6
+        assert d["median"] == pytest.approx(np.median(v))
+        assert d["mean"] == pytest.approx(v.mean())
+        assert d["sd"] == pytest.approx(np.sqrt(((v - v.mean()) ** 2).sum() / 5))
+        lo, hi = np.quantile(v, [0.25, 0.75])
+        assert d["iqr"] == pytest.approx(hi - lo)
+
+
+@pytest.mark.parametrize("q, table", [("q1", Q1), ("q2", Q2)])
+def test_friedman_and_kendalls_w_match_scipy_and_hand_ranks(result, q, table):
+    fr = result["questions"][q]["friedman"]
+    cols = [np.array([vals[j] for vals in table.values()], float) for j in range(3)]
+    chi2, p = stats.friedmanchisquare(*cols)
+    n, k = 6, 3
+    assert fr["n"] == n and fr["k"] == k
+    assert fr["Q"] == pytest.approx(chi2)
+    assert fr["p_chisq"] == pytest.approx(p)
+    if q == "q1":
+        # No ties: Kendall's W from the rank sums by hand, W = 12 S / (n^2 (k^3 - k)).
+        ranks = np.array([stats.rankdata(row) for row in np.column_stack(cols)])
+        r = ranks.sum(axis=0)
+        s = ((r - r.mean()) ** 2).sum()
+        w = 12 * s / (n**2 * (k**3 - k))
+        assert fr["W"] == pytest.approx(w)
+        assert chi2 == pytest.approx(n * (k - 1) * w)
+    w = fr["W"]
+    # The F variant: F = (n - 1) W / (1 - W), df1 = k - 1 - 2/n, df2 = (n - 1) df1.
+    df1 = k - 1 - 2 / n
+    f = (n - 1) * w / (1 - w)
+    assert fr["F"] == pytest.approx(f)
+    assert fr["ddof1"] == pytest.approx(df1) and fr["ddof2"] == pytest.approx((n - 1) * df1)
+    assert fr["p"] == pytest.approx(stats.f.sf(f, df1, (n - 1) * df1))
+
+
+def test_pairwise_wilcoxon_holm_and_effect_sizes(result):
+    pw = result["questions"]["q1"]["pairwise"]
+    assert [(r["a"], r["b"]) for r in pw] == list(itertools.combinations(CONDS, 2))
+    raw = []
+    for r in pw:
+        i, j = CONDS.index(r["a"]), CONDS.index(r["b"])
+        x = [v[i] for v in Q1.values()]
+        y = [v[j] for v in Q1.values()]
+        ref = stats.wilcoxon(x, y)
+        assert r["p"] == pytest.approx(ref.pvalue)
+        assert r["W"] == pytest.approx(ref.statistic)
+        assert r["rbc"] == pytest.approx(_rank_biserial(x, y))
+        raw.append(ref.pvalue)
+    assert [r["p_holm"] for r in pw] == pytest.approx(list(_holm(raw)))
+    # With n = 6 the smallest exact two-sided p is 2 / 2^6 (FACTS.md section 7).
+    assert min(r["p"] for r in pw) == pytest.approx(2 / 2**6)
+
+
+def test_figures_plot_the_independently_computed_means(tmp_path):
+    df = _tidy()
+    fig, data = protocol_figure(df, "toy")
+    ax = fig.axes[0]
+    heights = [[bar.get_height() for bar in cont] for cont in ax.containers if hasattr(cont, "patches")]
+    expected = [[np.mean([v[CONDS.index(c)] for v in table.values()]) for c in CONDS] for table in (Q1, Q2)]
+    assert heights == [pytest.approx(e) for e in expected]
+    assert [t.get_text() for t in ax.get_xticklabels()] == list(CONDS)
+    written = make_figures(df, tmp_path)
+    png, svg = written["toy"]["png"], written["toy"]["svg"]
+    assert open(png, "rb").read(8) == b"\x89PNG\r\n\x1a\n"
+    text = open(svg, encoding="utf-8").read()
+    assert "<svg" in text and "tactilize" in text  # provenance in the metadata
+
+
+def test_assessment_figure_is_per_item(tmp_path):
+    df = _tidy()
+    df = df[df["condition"] == "A"].assign(protocol="assessment")
+    _fig, data = protocol_figure(df, "assessment")
+    assert data["by_item"] and data["x"] == ["q1", "q2"]
+    assert data["mean"]["A"]["q2"] == pytest.approx(np.mean([v[0] for v in Q2.values()]))
+    res = analyze(df)["protocols"]["assessment"]["questions"]["q1"]
+    assert res["friedman"] is None and res["pairwise"] == []  # one condition: nothing to compare
