@@ -288,6 +288,12 @@ def test_open_output_specs(emu):
         assert isinstance(out, SerialOutput) and out.connected
     finally:
         out.close()
+    sim = open_output("simulated")
+    try:
+        sent = sim.apply([Drive(120.0, 400e-6)])
+        assert len(sent) == 2 and sent[1].is_off
+    finally:
+        sim.close()
     with pytest.raises(OutputError, match="give the port"):
         open_output("serial:")
     with pytest.raises(OutputError, match="unknown output"):
