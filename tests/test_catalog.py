@@ -356,7 +356,11 @@ def test_draft_decode_reduces_jpeg_resolution_within_the_target_pitch(tmp_path):
     assert reduced["spatial_frequency_per_m"] == pytest.approx(full["spatial_frequency_per_m"], rel=0.01)
     assert reduced["spectral_intensity"] < full["spectral_intensity"]
     # a target finer than twice the pitch, and non-JPEGs, decode in full
-    assert analyse_item(item, AnalysisSettings(analysis_pitch_m=0.0254 / 400))["decode_scale"] == 1
+    luma = analyse_item(item, AnalysisSettings(analysis_pitch_m=0.0254 / 400))
+    assert luma["decode_scale"] == 1 and luma["width_px"] == 512
+    # full size, luma only: the stored Y channel is within a grey level of RGB -> L
+    assert luma["spatial_frequency_per_m"] == pytest.approx(full["spatial_frequency_per_m"], rel=1e-4)
+    assert luma["contrast"] == pytest.approx(full["contrast"], rel=0.01)
     png = analyse_item(CatalogItem("p", str(tmp_path / "big.png")), AnalysisSettings(analysis_pitch_m=0.0254 / 150))
     assert png["decode_scale"] == 1 and png["width_px"] == 512
     # a corrupt JPEG still gets the loader's own reason with draft mode on
