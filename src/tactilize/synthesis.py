@@ -26,6 +26,10 @@ the current one changes nothing (the schedule keeps its phase).  Otherwise:
    (so switching off and on quickly cannot double a pulse either).
 3. From there the new drive's schedule runs exactly as :func:`pulse_train` would.
 
+Positions are exact (fractional) and rounded half up when a pulse starts, so at
+sample resolution two starts are at least ``floor(period * fs)`` samples apart,
+the same spacing a steady train has.
+
 Two channels (the pen's two actuators, FACTS.md section 4)
 ----------------------------------------------------------
 :func:`pen_channels` places a phantom actuator by the energy model
