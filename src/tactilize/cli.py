@@ -269,6 +269,228 @@ def serve(host: str, port: int, output_spec: str, profile_name: str | None, open
     run(host, port, output_spec, profile_name, open_browser, extra_routers=routers, echo=click.echo, warn=lambda s: click.echo(s, err=True))
 
 
+# ----------------------------------------------------------------- simulate / envelope / export
+
+
+def _pyplot(option: str):
+    """matplotlib.pyplot on a file backend, or a one-line error naming the option."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        raise TactilizeError(option, "needs matplotlib (pip install 'tactilize[plot]')") from None
+    return plt
+
+
+def _save_plot(fig: Any, path: str) -> None:
+    try:
+        fig.savefig(path, dpi=120, bbox_inches="tight")
+    except (OSError, ValueError) as exc:
+        raise TactilizeError(path, f"cannot write the plot ({exc})") from None
+
+
+@main.command("simulate")
+@click.option("--frequency", "frequency_hz", type=float, required=True, help="Pulse frequency [Hz].")
+@click.option("--pulse-width-ms", type=float, required=True, help="Pulse width [ms].")
+@click.option("--current-ma", type=float, required=True, help="Peak pulse current into the relaxed wire [mA].")
+@click.option("--duration", "duration_s", type=float, default=5.0, show_default=True, help="Simulated time [s].")
+@click.option("--wire", default="75um", show_default=True, help="Wire preset: 50um, 75um (the paper's) or 100um.")
+@click.option("--length-mm", type=float, default=None, help="Wire length [mm] (default 3).")
+@click.option("--plot", "plot_path", default=None, help="Draw temperature, martensite and displacement to this image file.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
+def simulate_cmd(
+    frequency_hz: float,
+    pulse_width_ms: float,
+    current_ma: float,
+    duration_s: float,
+    wire: str,
+    length_mm: float | None,
+    plot_path: str | None,
+    as_json: bool,
+) -> None:
+    """Simulate the SMA wire under a pulse drive, exactly as asked (no envelope)."""
+    from .actuators.sma import WireSpec, build_envelope, simulate_drive
+    from .mapping import Drive
+
+    for name, value in (("frequency", frequency_hz), ("pulse-width-ms", pulse_width_ms), ("duration", duration_s)):
+        if not math.isfinite(value) or value <= 0:
+            raise TactilizeError(f"--{name}", f"must be a positive number, got {value}")
+    if not math.isfinite(current_ma) or current_ma < 0:
+        raise TactilizeError("--current-ma", f"must be a number >= 0 mA, got {current_ma}")
+    if duration_s > 600:
+        raise TactilizeError("--duration", f"at most 600 s, got {duration_s}")
+    if length_mm is not None and (not math.isfinite(length_mm) or length_mm <= 0):
+        raise TactilizeError("--length-mm", f"must be a positive number, got {length_mm}")
+    width_s = pulse_width_ms / 1e3
+    if width_s * frequency_hz >= 1:
+        raise TactilizeError("--pulse-width-ms", f"{pulse_width_ms} ms does not fit in a {1e3 / frequency_hz:g} ms period")
+    spec = WireSpec.preset(wire, length_m=None if length_mm is None else length_mm / 1e3)
+    current_a = current_ma / 1e3
+    drv = Drive(frequency_hz, width_s)
+    result = simulate_drive(drv, duration_s, spec, current_a=current_a)
+    summary = result.summary()
+    env = build_envelope(spec)
+    lo, hi = env.follow_band_s(frequency_hz, current_a)
+    doc = {
+        "wire": spec.name,
+        "length_mm": spec.length_m * 1e3,
+        "frequency_hz": frequency_hz,
+        "pulse_width_ms": pulse_width_ms,
+        "current_ma": current_ma,
+        "duty_ratio": drv.duty_ratio,
+        "duration_s": duration_s,
+        "displacement_pp_um": summary["displacement_pp_um"],
+        "follows": summary["follows"],
+        "mean_temperature_c": summary["mean_temperature_c"],
+        "peak_temperature_c": summary["peak_temperature_c"],
+        "allowed": env.allows(drv, current_a=current_a),
+        "max_allowed_pulse_width_ms": hi * 1e3,
+        "follow_onset_pulse_width_ms": lo * 1e3,
+        "max_temperature_c": spec.max_temperature_c,
+        "pulses_followed": summary["pulses_followed"],
+        "pulses_in_window": summary["pulses_in_window"],
+        "settled_from_s": duration_s * 2 / 3,
+        "electrical_j": result.electrical_j,
+        "stored_j": result.stored_j,
+        "convected_j": result.convected_j,
+        "latent_j": result.latent_j,
+    }
+    if plot_path:
+        plt = _pyplot("--plot")
+        step = max(1, result.time_s.size // 20000)
+        t = result.time_s[::step]
+        fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 7))
+        axes[0].plot(t, result.temperature_c[::step], lw=0.8)
+        for y, label in ((spec.austenite_start_c, "A_s"), (spec.austenite_finish_c, "A_f")):
+            axes[0].axhline(y, color="grey", lw=0.5, ls="--")
+        axes[0].set_ylabel("temperature [°C]")
+        axes[1].plot(t, result.martensite_fraction[::step], lw=0.8)
+        axes[1].set_ylabel("martensite fraction")
+        axes[2].plot(t, result.displacement_m[::step] * 1e6, lw=0.8)
+        axes[2].set_ylabel("displacement [µm]")
+        axes[2].set_xlabel("time [s]")
+        axes[0].set_title(
+            f"{spec.name} wire, {frequency_hz:g} Hz, {pulse_width_ms:g} ms, {current_ma:g} mA: "
+            f"{'follows' if doc['follows'] else 'does not follow'}, {doc['displacement_pp_um']:.2f} µm p-p"
+        )
+        _save_plot(fig, plot_path)
+        plt.close(fig)
+        doc["plot"] = plot_path
+    if as_json:
+        emit_json(doc)
+        return
+    click.echo(
+        f"{spec.name} wire ({spec.length_m * 1e3:g} mm), {frequency_hz:g} Hz, {pulse_width_ms:g} ms, {current_ma:g} mA "
+        f"(duty {drv.duty_ratio * 100:.2f} %), {duration_s:g} s\n"
+        f"  displacement p-p    {doc['displacement_pp_um']:.3f} um (settled, per pulse)\n"
+        f"  follows             {'yes' if doc['follows'] else 'no'} ({doc['pulses_followed']}/{doc['pulses_in_window']} pulses)\n"
+        f"  mean temperature    {doc['mean_temperature_c']:.2f} C\n"
+        f"  peak temperature    {doc['peak_temperature_c']:.2f} C (limit {spec.max_temperature_c:g} C)\n"
+        f"  allowed             {'yes' if doc['allowed'] else 'no'} (envelope: width up to {hi * 1e3:.3f} ms)"
+    )
+
+
+@main.command("envelope")
+@click.option("--wire", default="75um", show_default=True, help="Wire preset: 50um, 75um (the paper's) or 100um.")
+@click.option("--length-mm", type=float, default=None, help="Wire length [mm] (default 3).")
+@click.option("--plot", "plot_path", default=None, help="Draw the safe region to this image file.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
+def envelope_cmd(wire: str, length_mm: float | None, plot_path: str | None, as_json: bool) -> None:
+    """The wire's safety envelope: the largest pulse width per frequency and current."""
+    from .actuators.sma import WireSpec, build_envelope
+
+    if length_mm is not None and (not math.isfinite(length_mm) or length_mm <= 0):
+        raise TactilizeError("--length-mm", f"must be a positive number, got {length_mm}")
+    spec = WireSpec.preset(wire, length_m=None if length_mm is None else length_mm / 1e3)
+    env = build_envelope(spec)
+    doc = env.to_dict()
+    if plot_path:
+        plt = _pyplot("--plot")
+        fig, ax = plt.subplots(figsize=(7, 5))
+        for j, cur in enumerate(env.currents_a):
+            hi = [row[j] * 1e3 for row in env.max_width_s]
+            lo = [row[j] * 1e3 for row in env.min_follow_width_s]
+            line = ax.loglog(env.frequencies_hz, hi, marker="o", ms=3, label=f"{cur * 1e3:.0f} mA: largest allowed")[0]
+            ax.fill_between(env.frequencies_hz, lo, hi, color=line.get_color(), alpha=0.15)
+        ax.set_xlabel("pulse frequency [Hz]")
+        ax.set_ylabel("pulse width [ms]")
+        ax.set_title(f"{spec.name} wire: vibrating band (shaded) and the envelope")
+        ax.legend(fontsize=8)
+        _save_plot(fig, plot_path)
+        plt.close(fig)
+        doc["plot"] = plot_path
+    if as_json:
+        emit_json(doc)
+        return
+    head = "  f [Hz] " + "".join(f"{c * 1e3:>20.0f} mA" for c in env.currents_a)
+    lines = [f"{spec.name} wire ({spec.length_m * 1e3:g} mm): vibrating band .. largest allowed pulse width [ms]", head]
+    for f, hi_row, lo_row in zip(env.frequencies_hz, env.max_width_s, env.min_follow_width_s):
+        cells = "".join(
+            f"{(f'{lo * 1e3:.3f}' if math.isfinite(lo) else '-'):>11} .. {hi * 1e3:<8.3f}" for hi, lo in zip(hi_row, lo_row)
+        )
+        lines.append(f"  {f:>6g} " + cells)
+    click.echo("\n".join(lines))
+
+
+@main.command("export")
+@click.argument("image")
+@click.option("--speed", "speed_mm_s", type=float, required=True, help="Stroking speed [mm/s].")
+@click.option("--format", "fmt", type=str, required=True, help="wav | csv | json | ahap | android")
+@click.option("--duration", "duration_s", type=float, default=2.0, show_default=True, help="Length [s].")
+@click.option("--profile", "profile_name", default="paper", show_default=True, help="Preset name or TOML file.")
+@click.option("--dpi", type=float, callback=_positive("dpi"), help="Pixels per inch of the displayed image.")
+@click.option("--width-mm", type=float, callback=_positive("width-mm"), help="Displayed width of the image [mm].")
+@click.option("-o", "--output", "out_path", required=True, help="File to write.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document describing what was written.")
+def export_cmd(
+    image: str,
+    speed_mm_s: float,
+    fmt: str,
+    duration_s: float,
+    profile_name: str,
+    dpi: float | None,
+    width_mm: float | None,
+    out_path: str,
+    as_json: bool,
+) -> None:
+    """Write the drive for IMAGE stroked at a speed as a file (WAV, CSV, JSON, AHAP, Android)."""
+    from .export import FORMATS, export
+    from .features import extract_features
+    from .image import load_image
+    from .mapping import Profile
+
+    if fmt.lower() not in FORMATS:
+        raise TactilizeError("--format", f"unknown format {fmt!r} (use one of: {', '.join(FORMATS)})")
+    if not math.isfinite(speed_mm_s) or speed_mm_s < 0:
+        raise TactilizeError("--speed", f"must be a number >= 0 mm/s, got {speed_mm_s}")
+    if not math.isfinite(duration_s) or duration_s <= 0 or duration_s > 600:
+        raise TactilizeError("--duration", f"must be a number in (0, 600] s, got {duration_s}")
+    if dpi is not None and width_mm is not None:
+        raise TactilizeError("--dpi/--width-mm", "give one of them, not both")
+    profile = Profile.resolve(profile_name)
+    img = load_image(image, dpi=dpi, width_mm=width_mm)
+    feat = extract_features(img)
+    drv = profile.drive(feat, speed_m_s=speed_mm_s / 1e3)
+    extra = {
+        "image": image,
+        "profile": profile.name,
+        "speed_mm_s": speed_mm_s,
+        "spatial_frequency_per_m": feat.spatial_frequency_per_m,
+        "spectral_intensity": feat.spectral_intensity,
+    }
+    path = export(drv, out_path, fmt.lower(), duration_s, **extra)
+    doc = {"path": str(path), "format": fmt.lower(), "duration_s": duration_s, **extra, **drv.to_dict()}
+    if as_json:
+        emit_json(doc)
+        return
+    click.echo(
+        f"wrote {path} ({fmt.lower()}, {duration_s:g} s): {drv.pulse_frequency_hz:.1f} Hz, "
+        f"{drv.pulse_width_s * 1e3:.3f} ms, amplitude {drv.amplitude:.2f}"
+    )
+
+
 # ----------------------------------------------------------------- experiment (experiments/)
 
 from .experiments.cli import experiment as _experiment  # noqa: E402  (click only; the package loads lazily)
