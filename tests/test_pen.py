@@ -335,3 +335,17 @@ def test_set_texture_stops(corduroy):
     r.feed(line_stroke(0.03, duration_s=0.1))
     res = r.set_texture(builtin_map("linen"))
     assert out.stops == 1 and not res.on and r.tracker.state is None
+
+
+def test_slow_stroke_on_whole_pixels():
+    # 10 mm/s reported in whole CSS pixels at 200 Hz: a new pixel every 26 ms.
+    px = DEFAULT_M_PER_CSS_PX
+    rows = [[i * 5.0, float(math.floor(20 + 0.01 * i * 5.0 / (px * 1e3))), 40.0] for i in range(100)]
+    tr = StrokeTracker()
+    speeds = [tr.extend([s]).speed_m_s for s in samples_from_css(rows, px)][30:]
+    assert min(speeds) > 0.006 and max(speeds) < 0.014
+    assert np.median(speeds) == pytest.approx(0.010, rel=0.1)
+    # A pure 30 ms window would see zero speed between pixel steps.
+    short = StrokeTracker(max_window_s=0.03)
+    speeds_short = [short.extend([s]).speed_m_s for s in samples_from_css(rows, px)][30:]
+    assert min(speeds_short) == 0.0

@@ -172,6 +172,12 @@ class StrokeTracker:
     position jitter of a pixel or two while lagging the hand by only ~15 ms
     (published texture renderers budget ~40 ms end to end, FACTS.md section 3).
 
+    Slow strokes on devices that report whole pixels (mice, touch screens,
+    many tablets through some browsers) move less than a pixel between samples;
+    over 30 ms the fit would see a staircase.  So the window grows, up to
+    ``max_window_s``, until the pen has travelled ``min_travel_m`` across it:
+    fast strokes keep the short window, slow ones average over enough pixels.
+
     Bad input, and what happens to it (each is counted in :attr:`counts`):
 
     ``invalid``
@@ -201,6 +207,11 @@ class StrokeTracker:
     min_samples : int
         Fit at least this many of the latest samples even if they span more
         than ``window_s`` (sparse devices), never reaching across a new stroke.
+    min_travel_m : float
+        Grow the window until the pen moved this far across it [m] (about four
+        CSS pixels, so one pixel of quantisation is under ~25 % of it)...
+    max_window_s : float
+        ...but never beyond this [s].
     max_gap_s : float
         Longest silence within one stroke [s].
     max_speed_m_s : float
@@ -216,6 +227,8 @@ class StrokeTracker:
         window_s: float = 0.030,
         *,
         min_samples: int = 3,
+        min_travel_m: float = 1.0e-3,
+        max_window_s: float = 0.100,
         max_gap_s: float = 0.100,
         max_speed_m_s: float = 4.0,
         still_speed_m_s: float = 1e-4,
@@ -227,6 +240,8 @@ class StrokeTracker:
             raise ValueError("need 2 <= min_samples <= max_samples")
         self.window_s = float(window_s)
         self.min_samples = int(min_samples)
+        self.min_travel_m = float(min_travel_m)
+        self.max_window_s = max(float(max_window_s), self.window_s)
         self.max_gap_s = float(max_gap_s)
         self.max_speed_m_s = float(max_speed_m_s)
         self.still_speed_m_s = float(still_speed_m_s)
@@ -328,6 +343,13 @@ class StrokeTracker:
         while start > 0 and buf[start - 1].t_s >= t_from:
             start -= 1
         start = max(0, min(start, n - self.min_samples))
+        # Slow stroke: widen the window until it spans enough travel.
+        t_limit = sample.t_s - self.max_window_s
+        while start > 0 and buf[start - 1].t_s >= t_limit:
+            p = buf[start]
+            if abs(sample.x_m - p.x_m) + abs(sample.y_m - p.y_m) >= self.min_travel_m:
+                break
+            start -= 1
         pts = [buf[i] for i in range(start, n)]
         m = len(pts)
         tm = sum(p.t_s for p in pts) / m

@@ -30,9 +30,10 @@ Server to page
     width [s] and [ms], duty ratio, amplitude, the limits that clamped), the
     speed [m/s] and [mm/s], direction [deg, y up], whether the pen is down and
     over the picture.  ``seq`` echoes the newest batch it covers.
-``{"type": "wire", "t_s": [...], "displacement_um": [...]}``
-    The simulated wire's displacement since the previous message, when the
-    output records one (about 20 messages per second while anything moves).
+``{"type": "wire", "t_s": [...], "displacement_um": [[...], [...]]}``
+    The simulated wires' displacement per channel since the previous message
+    (simulated time [s], displacement [um]), when the output keeps a trace;
+    :data:`WIRE_PERIOD_S` apart.
 ``{"type": "error", "message": TEXT}``
     A malformed message was ignored; the connection stays open.
 
@@ -391,47 +392,39 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
 
 
 def _wire_source(output: Any):
-    """A callable returning the newest wire trace message, or None if the output has no trace.
+    """A callable returning the newest wire trace message, or None when the
+    output keeps no trace (serial, audio).
 
-    The simulated output exposes its recent traces; this adapts whatever it
-    offers to ``{"type": "wire", "t_s": [...], "displacement_um": [...]}``.
+    The simulated output's ``traces(seconds)`` gives ``time_s`` and, per channel,
+    ``displacement_um``; this sends what is new since the previous call,
+    thinned to about 1 kHz (the wire is a low-pass filter; the page's plot is
+    720 px wide for 0.5 s).
     """
     fn = getattr(output, "traces", None)
-    if fn is None:
+    if not callable(fn):
         return None
     last_t = [-math.inf]
+    span_s = 4 * WIRE_PERIOD_S
 
     def pull() -> dict[str, Any] | None:
-        tr = fn() if callable(fn) else fn
-        if tr is None:
+        tr = fn(span_s)
+        t = tr.get("time_s") or []
+        chans = tr.get("channels") or []
+        if not t or not chans:
             return None
-        t = _field(tr, ("t_s", "time_s", "times_s"))
-        disp = _field(tr, ("displacement_m", "contraction_m", "stroke_m"))
-        if t is None or disp is None:
+        first = 0
+        while first < len(t) and t[first] <= last_t[0]:
+            first += 1
+        if first >= len(t):
             return None
-        t = list(map(float, t))
-        if disp and hasattr(disp[0], "__len__"):
-            disp = [float(row[0]) if len(row) else 0.0 for row in disp]  # channel 0 per sample
-        disp = list(map(float, disp))
-        new = [i for i, ti in enumerate(t) if ti > last_t[0]]
-        if not new:
-            return None
-        last_t[0] = t[new[-1]]
-        step = max(1, len(new) // 200)  # the plot needs ~200 points per message
-        idx = new[::step]
+        last_t[0] = t[-1]
+        rate = (len(t) - 1) / (t[-1] - t[0]) if t[-1] > t[0] else 1000.0
+        step = max(1, int(rate // 1000))
+        idx = range(first, len(t), step)
         return {
             "type": "wire",
             "t_s": [t[i] for i in idx],
-            "displacement_um": [disp[i] * 1e6 for i in idx],
+            "displacement_um": [[c["displacement_um"][i] for i in idx] for c in chans],
         }
 
     return pull
-
-
-def _field(tr: Any, names: tuple[str, ...]) -> Any:
-    for n in names:
-        if isinstance(tr, dict) and n in tr:
-            return tr[n]
-        if hasattr(tr, n):
-            return getattr(tr, n)
-    return None

@@ -12,11 +12,12 @@ const HISTORY = 1000;
 
 // Scripting handle (for users' scripts and the browser tests).
 const T = (window.tactilize = {
-  ws: null, texture: null, settings: null, lastDrive: null, drives: [], sent: 0, errors: [], mmPerPx: calibration.mmPerPx(),
+  ws: null, texture: null, settings: null, lastDrive: null, drives: [], sent: 0, samplesSent: 0, seq: 0, errors: [],
+  mmPerPx: calibration.mmPerPx(),
 });
 
 const plot = new Plot($("#plot"), 2);
-const audio = new AudioPulses();
+const audio = (T.audio = new AudioPulses());
 let textures = new Map();
 let seq = 0;
 let queue = [];     // messages to send once the socket is open
@@ -200,12 +201,15 @@ async function setup() {
     onDown: () => drawTrail([], true),
     onBatch: (rows) => {
       if (!T.texture) return;
-      send({ type: "samples", seq: ++seq, samples: rows });
+      T.seq = ++seq;
+      T.samplesSent += rows.length;
+      send({ type: "samples", seq, samples: rows });
       drawTrail(rows, false);
     },
     onLift: () => {
       audio.setDrives([{}, {}]);  // silence now, not after the round trip
-      send({ type: "lift", seq: ++seq });
+      T.seq = ++seq;
+      send({ type: "lift", seq });
     },
   });
 

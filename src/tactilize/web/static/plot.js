@@ -25,12 +25,13 @@ export class Plot {
     });
   }
 
-  /** Wire samples from the server's clock; aligned so the newest is "now". */
+  /** Wire samples on the server's simulated clock, one array per channel;
+   *  aligned so that the newest is "now". */
   addWire(tS, dispUm) {
     if (!tS.length) return;
     const now = performance.now() / 1e3;
     this.wireOffset = now - tS[tS.length - 1];
-    for (let i = 0; i < tS.length; i++) this.wire.push([tS[i] + this.wireOffset, dispUm[i]]);
+    for (let i = 0; i < tS.length; i++) this.wire.push([tS[i] + this.wireOffset, dispUm.map((ch) => ch[i])]);
     const from = now - WINDOW_S;
     while (this.wire.length && this.wire[0][0] < from) this.wire.shift();
   }
@@ -71,15 +72,21 @@ export class Plot {
       }
     });
     const top = (lanes - 1) * lh, base = top + lh - 4;
-    let max = 0.05;
-    for (const [, d] of this.wire) max = Math.max(max, Math.abs(d));
+    // Autoscale to the window's range: the ripple of each pulse is a small
+    // fraction of a micrometre on top of a slowly drifting mean.
+    let lo = Infinity, hi = -Infinity;
+    for (const [, ds] of this.wire) for (const d of ds) { lo = Math.min(lo, d); hi = Math.max(hi, d); }
+    if (!(hi - lo > 0.01)) { const m = Number.isFinite(lo) ? (lo + hi) / 2 : 0; lo = m - 0.005; hi = m + 0.005; }
     ctx.fillStyle = "#888";
-    ctx.fillText(this.wire.length ? `wire displacement (max ${max.toFixed(2)} µm)` : "wire displacement (no simulated wire data)", 4, top + 12);
-    ctx.strokeStyle = "#2a9d4b"; ctx.beginPath();
-    this.wire.forEach(([t, d], k) => {
-      const px = x(t), py = base - d / max * (lh - 18);
-      k ? ctx.lineTo(px, py) : ctx.moveTo(px, py);
-    });
-    ctx.stroke();
+    ctx.fillText(this.wire.length ? `simulated wire displacement ${lo.toFixed(3)} .. ${hi.toFixed(3)} µm` : "wire displacement (no simulated wire on this output)", 4, top + 12);
+    const nch = this.wire.length ? this.wire[0][1].length : 0;
+    for (let c = 0; c < nch; c++) {
+      ctx.strokeStyle = c ? "#c46a00" : "#1f6feb"; ctx.beginPath();
+      this.wire.forEach(([t, ds], k) => {
+        const px = x(t), py = base - (ds[c] - lo) / (hi - lo) * (lh - 18);
+        k ? ctx.lineTo(px, py) : ctx.moveTo(px, py);
+      });
+      ctx.stroke();
+    }
   }
 }

@@ -1,0 +1,360 @@
+"""End to end in a real headless Chromium: the page, a pen stroke at two speeds, lift, calibration.
+
+The server is ``tactilize serve`` itself, started as a subprocess on a free
+loopback port.  Pen input is real: Chrome DevTools Protocol
+``Input.dispatchMouseEvent`` with ``pointerType: "pen"`` makes the browser
+produce trusted pen Pointer Events (pressure, coalescing, timestamps), exactly
+the path a tablet takes.
+
+These tests need Debian's ``chromium`` (``apt-get install chromium``) and the
+``playwright`` Python package; without them they FAIL with a message saying so
+(they are never skipped: CI must run them).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.browser
+
+CHROMIUM = os.environ.get("TACTILIZE_CHROMIUM", "/usr/bin/chromium")
+CHROMIUM_ARGS = [
+    "--headless=new",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+    "--autoplay-policy=no-user-gesture-required",
+]
+DEFAULT_MM_PER_PX = 25.4 / 96
+
+
+@pytest.fixture(scope="module")
+def server():
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "tactilize.cli", "serve", "--no-open", "--port", "0"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    line = proc.stdout.readline()
+    m = re.search(r"http://127\.0\.0\.1:\d+/", line)
+    if not m:
+        proc.kill()
+        pytest.fail(f"tactilize serve did not print its address: {line!r} {proc.stderr.read()[-2000:]}")
+    yield m.group(0)
+    proc.terminate()
+    try:
+        proc.communicate(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+
+
+@pytest.fixture(scope="module")
+def browser():
+    if not (os.path.exists(CHROMIUM) or shutil.which(CHROMIUM)):
+        pytest.fail(
+            f"Chromium not found at {CHROMIUM}: the browser tests need it "
+            "(Debian: apt-get install -y chromium; or set TACTILIZE_CHROMIUM)"
+        )
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        pytest.fail("the browser tests need the playwright Python package (pip install playwright)")
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield b
+        b.close()
+
+
+@pytest.fixture()
+def page(browser, server):
+    ctx = browser.new_context(viewport={"width": 1400, "height": 900})
+    pg = ctx.new_page()
+    errors: list[str] = []
+    pg.on("pageerror", lambda e: errors.append(str(e)))
+    pg.goto(server)
+    pg.wait_for_selector("body[data-ready=true]", timeout=30_000)
+    pg.wait_for_function("window.tactilize.settings !== null", timeout=30_000)
+    yield pg
+    ctx.close()
+    assert not errors, errors
+
+
+def pick(page, texture_id):
+    page.locator(f'[data-testid=texture][data-id="{texture_id}"]').click()
+    page.wait_for_function(f"window.tactilize.settings && window.tactilize.settings.texture === '{texture_id}'")
+    page.wait_for_function("document.querySelector('#picture').complete")
+
+
+class Pen:
+    """A pen driven through the DevTools protocol: trusted pen pointer events."""
+
+    def __init__(self, page):
+        self.page = page
+        self.cdp = page.context.new_cdp_session(page)
+
+    def _send(self, kind, x, y, buttons, force=0.6):
+        self.cdp.send(
+            "Input.dispatchMouseEvent",
+            {
+                "type": kind,
+                "x": x,
+                "y": y,
+                "button": "left",
+                "buttons": buttons,
+                "clickCount": 1 if kind != "mouseMoved" else 0,
+                "pointerType": "pen",
+                "force": force,
+                "tiltX": 10,
+                "tiltY": -5,
+            },
+        )
+
+    def stroke(self, x0, y0, v_px_s, duration_s=0.5, interval_s=0.004):
+        """Press, move right at v_px_s [CSS px/s] in real time; returns the drive
+        shown while the pen is still down (read from the data-testid elements)."""
+        self._send("mousePressed", x0, y0, 1)
+        t0 = time.perf_counter()
+        x = x0
+        while (t := time.perf_counter() - t0) < duration_s:
+            # Position from the real clock, so the speed is exact whatever the pacing.
+            x = x0 + v_px_s * t
+            self._send("mouseMoved", x, y0, 1)
+            time.sleep(interval_s)
+        shown = self.page.wait_for_function(
+            """() => {
+                const T = window.tactilize, d = T.lastDrive;
+                if (!d || d.seq < T.seq || !d.on) return null;
+                const v = (id) => Number(document.querySelector(`[data-testid="${id}"]`).textContent);
+                return {frequency: v('drive-frequency'), width: v('drive-pulse-width'), duty: v('drive-duty'),
+                        amplitude: v('drive-amplitude'), speed: v('drive-speed'), seq: d.seq};
+            }""",
+            timeout=10_000,
+        ).json_value()
+        self.last_x = x
+        return shown
+
+    def lift(self, x, y):
+        self._send("mouseReleased", x, y, 0, force=0.0)
+
+
+def surface_box(page):
+    return page.locator("#picture").bounding_box()
+
+
+def steady_drives(page, seq_from):
+    """Drives received for one stroke, without its first 100 ms (speed estimate settling)."""
+    # speed > 0: leave out the "pen resting" drive the server sends after a silence.
+    drives = page.evaluate(f"window.tactilize.drives.filter(d => d.seq > {seq_from} && d.on && d.speed_mm_s > 0)")
+    t0 = drives[0]["t_s"]
+    return [d for d in drives if d["t_s"] - t0 > 0.1]
+
+
+def expected_frequency(texture_id, speed_mm_s, profile="paper"):
+    from tactilize.mapping import Profile
+    from tactilize.textures import builtin_map
+
+    feat = builtin_map(texture_id).whole
+    return Profile.preset(profile).drive(feat, speed_mm_s / 1e3).pulse_frequency_hz
+
+
+def test_page_gallery_and_surface(page):
+    items = page.locator("[data-testid=texture]")
+    assert items.count() >= 6
+    surface = page.get_by_test_id("surface")
+    assert surface.evaluate("e => getComputedStyle(e).touchAction") == "none"
+    pick(page, "linen")
+    box = surface_box(page)
+    # shown at its physical size: 67.7 mm at 1/96 inch per CSS px = 256 px
+    assert box["width"] == pytest.approx(67.7333 / DEFAULT_MM_PER_PX, abs=1.0)
+    assert page.get_by_test_id("texture-name").text_content() == "Linen"
+    for tid in ("drive-frequency", "drive-pulse-width", "drive-duty", "drive-amplitude", "drive-speed"):
+        el = page.get_by_test_id(tid)
+        assert float(el.text_content()) == 0.0
+        assert el.get_attribute("title")  # says the unit
+
+
+def test_pen_stroke_two_speeds_then_lift(page):
+    pick(page, "corduroy")
+    pen = Pen(page)
+    box = surface_box(page)
+    x0, y0 = box["x"] + 15, box["y"] + 40
+    results = {}
+    for v_mm_s in (10.0, 40.0):
+        seq_before = page.evaluate("window.tactilize.seq")
+        shown = pen.stroke(x0, y0, v_mm_s / DEFAULT_MM_PER_PX)
+        pen.lift(pen.last_x, y0)
+        # Lift: everything stops, at once, on the server's word.
+        page.wait_for_function(
+            """() => document.querySelector('[data-testid=drive-frequency]').textContent === '0.0'
+                 && document.querySelector('[data-testid=surface]').dataset.state === 'off'
+                 && window.tactilize.lastDrive && !window.tactilize.lastDrive.down""",
+            timeout=5_000,
+        )
+        assert float(page.get_by_test_id("drive-duty").text_content()) == 0.0
+        steady = steady_drives(page, seq_before)
+        assert len(steady) >= 10, "the page should report a drive per pointer event"
+        results[v_mm_s] = (shown, steady)
+    (slow, slow_steady), (fast, fast_steady) = results[10.0], results[40.0]
+    # What the data-testid elements showed while the pen was down.
+    assert fast["frequency"] > 1.5 * slow["frequency"]
+    assert fast["speed"] > 2.5 * slow["speed"]
+    assert 0 < slow["width"] < 1.0 and 0 < slow["duty"] <= 10.0
+    assert 0.0 <= slow["amplitude"] <= 1.0
+    # As the profile says, within the jitter of a real-time stroke.
+    for v, steady in ((10.0, slow_steady), (40.0, fast_steady)):
+        speed = np.median([d["speed_mm_s"] for d in steady])
+        freq = np.median([d["channels"][0]["pulse_frequency_hz"] for d in steady])
+        assert speed == pytest.approx(v, rel=0.15)
+        assert freq == pytest.approx(expected_frequency("corduroy", v), rel=0.15)
+        # Real pen events: pressure came through, and both channels are driven.
+        assert steady[-1]["pressure"] == pytest.approx(0.6, abs=0.01)
+        chans = steady[-1]["channels"]
+        assert len(chans) == 2 and chans[0]["pulse_frequency_hz"] == chans[1]["pulse_frequency_hz"]
+        # Two actuators share the texture's intensity by the phantom energy model
+        # (A1^2 + A2^2 = A^2); a stroke to the right puts it on actuator 2.
+        assert steady[-1]["direction_deg"] == pytest.approx(0.0, abs=10.0)
+        assert chans[0]["amplitude"] ** 2 + chans[1]["amplitude"] ** 2 == pytest.approx(1.0, abs=0.05)
+        assert chans[1]["amplitude"] > chans[0]["amplitude"]
+
+
+def test_leaving_the_picture_stops(page):
+    pick(page, "corduroy")
+    pen = Pen(page)
+    box = surface_box(page)
+    y = box["y"] + 40
+    x = box["x"] + box["width"] - 30
+    seq0 = page.evaluate("window.tactilize.seq")
+    pen._send("mousePressed", x, y, 1)
+    # 2 px every 4 ms (about 130 mm/s): 30 px inside, then 60 px beyond the edge.
+    while x < box["x"] + box["width"] + 60:
+        x += 2
+        pen._send("mouseMoved", x, y, 1)
+        time.sleep(0.004)
+    page.wait_for_function(
+        f"() => {{ const d = window.tactilize.lastDrive; return d && d.seq >= window.tactilize.seq && d.down && !d.inside && !d.on; }}",
+        timeout=5_000,
+    )
+    drives = page.evaluate(f"window.tactilize.drives.filter(d => d.seq > {seq0})")
+    assert any(d["on"] and d["inside"] for d in drives)  # it was driven while over the picture
+    assert page.get_by_test_id("drive-frequency").text_content() == "0.0"
+    assert page.get_by_test_id("surface").get_attribute("data-state") == "off"
+    pen.lift(x, y)
+
+
+def test_calibration_changes_reported_speed(page):
+    pick(page, "corduroy")
+    pen = Pen(page)
+    v_px_s = 10.0 / DEFAULT_MM_PER_PX  # 10 mm/s before calibration
+    box = surface_box(page)
+    before = pen.stroke(box["x"] + 10, box["y"] + 30, v_px_s, duration_s=0.4)
+    pen.lift(pen.last_x, box["y"] + 30)
+
+    # The user matches the card: 162 CSS px for 85.60 mm (0.528 mm per px, about twice 1/96 inch).
+    page.get_by_test_id("calibrate").click()
+    page.get_by_test_id("calibration-card-px").fill("162")
+    mm_per_px = float(page.get_by_test_id("calibration-mm-per-px").input_value())
+    assert mm_per_px == pytest.approx(85.60 / 162, rel=1e-4)
+    page.get_by_test_id("calibration-save").click()
+    page.wait_for_function(
+        f"window.tactilize.settings && Math.abs(window.tactilize.settings.mm_per_px - {mm_per_px}) < 1e-4", timeout=5_000
+    )
+    # The picture keeps its physical size: fewer CSS px now.
+    box2 = surface_box(page)
+    assert box2["width"] == pytest.approx(67.7333 / mm_per_px, abs=1.0)
+
+    seq0 = page.evaluate("window.tactilize.seq")
+    after = pen.stroke(box2["x"] + 10, box2["y"] + 30, v_px_s, duration_s=0.4)
+    pen.lift(pen.last_x, box2["y"] + 30)
+    ratio = mm_per_px / DEFAULT_MM_PER_PX
+    assert after["speed"] > 1.5 * before["speed"]
+    speed = np.median([d["speed_mm_s"] for d in steady_drives(page, seq0)])
+    assert speed == pytest.approx(10.0 * ratio, rel=0.15)
+
+    # Kept per browser: a reload still uses it.
+    page.reload()
+    page.wait_for_function("window.tactilize && window.tactilize.settings !== null", timeout=30_000)
+    assert page.evaluate("window.tactilize.mmPerPx") == pytest.approx(mm_per_px, rel=1e-6)
+    assert "calibrated" in page.get_by_test_id("calibration-note").text_content()
+    page.get_by_test_id("calibrate").click()
+    page.get_by_test_id("calibration-reset").click()
+    assert page.evaluate("window.tactilize.mmPerPx") == pytest.approx(DEFAULT_MM_PER_PX)
+
+
+def test_coalesced_samples_all_reach_the_server(page):
+    pick(page, "linen")
+    sent = page.evaluate(
+        """async () => {
+            const s = document.querySelector('[data-testid=surface]');
+            const r = document.querySelector('#picture').getBoundingClientRect();
+            const init = (x, t) => ({pointerId: 7, pointerType: 'pen', isPrimary: true, bubbles: true, buttons: 1,
+                                     clientX: r.left + x, clientY: r.top + 30, pressure: 0.4});
+            const before = window.tactilize.samplesSent;
+            s.dispatchEvent(new PointerEvent('pointerdown', init(10)));
+            const co = [11, 12, 13, 14].map((x) => new PointerEvent('pointermove', init(x)));
+            const ev = new PointerEvent('pointermove', {...init(14), coalescedEvents: co});
+            const n = ev.getCoalescedEvents().length;
+            s.dispatchEvent(ev);
+            s.dispatchEvent(new PointerEvent('pointerup', {...init(14), buttons: 0}));
+            return {n, samples: window.tactilize.samplesSent - before};
+        }"""
+    )
+    # 1 for pointerdown + every coalesced sample of the move (or the event itself
+    # where the browser hands an empty list).
+    assert sent["samples"] == 1 + max(1, sent["n"])
+    assert sent["n"] in (0, 4)
+
+
+def test_profile_picker_and_audio(page):
+    pick(page, "corduroy")
+    page.get_by_test_id("profile").select_option("physical")
+    page.wait_for_function("window.tactilize.settings.profile === 'physical'")
+    pen = Pen(page)
+    box = surface_box(page)
+    shown = pen.stroke(box["x"] + 10, box["y"] + 30, 30 / DEFAULT_MM_PER_PX, duration_s=0.3)
+    pen.lift(pen.last_x, box["y"] + 30)
+    # physical profile: f = v * f_s (~278 cycles/m at 30 mm/s: ~8.3 Hz)
+    assert shown["frequency"] == pytest.approx(0.030 * 277.8, rel=0.25)
+    # Audio is off until asked for, then the worklet runs.
+    toggle = page.get_by_test_id("audio-toggle")
+    assert toggle.get_attribute("aria-pressed") == "false"
+    assert page.evaluate("window.tactilize.audio.ctx") is None
+    toggle.click()
+    page.wait_for_function("document.querySelector('[data-testid=audio-toggle]').getAttribute('aria-pressed') === 'true'", timeout=10_000)
+    assert page.evaluate("window.tactilize.audio.ctx.state") == "running"
+    assert page.evaluate("window.tactilize.audio.node !== null")
+    toggle.click()
+    page.wait_for_function("document.querySelector('[data-testid=audio-toggle]').getAttribute('aria-pressed') === 'false'")
+
+
+def test_upload_through_the_page(page, tmp_path):
+    from tactilize.textures import png_bytes
+
+    x = np.arange(300)
+    stripes = (127 + 100 * np.cos(2 * np.pi * x / 12))[None, :].repeat(200, axis=0).astype(np.uint8)
+    good = tmp_path / "stripes.png"
+    good.write_bytes(png_bytes(stripes, 96.0))
+    page.get_by_test_id("upload").set_input_files(str(good))
+    page.locator("#upload-width").fill("60")
+    page.locator("#upload-form button[type=submit]").click()
+    page.wait_for_function("window.tactilize.texture && window.tactilize.texture.startsWith('upload-')", timeout=20_000)
+    assert "60.0" in page.get_by_test_id("upload-status").text_content()
+    assert page.get_by_test_id("texture-name").text_content() == "stripes.png"
+    bad = tmp_path / "notes.png"
+    bad.write_bytes(b"this is not a picture")
+    page.get_by_test_id("upload").set_input_files(str(bad))
+    page.locator("#upload-form button[type=submit]").click()
+    page.wait_for_function("document.querySelector('[data-testid=upload-status]').className === 'bad'", timeout=20_000)
+    assert "not an image" in page.get_by_test_id("upload-status").text_content()
