@@ -170,3 +170,18 @@ def test_serve_has_a_catalog_option():
     assert res.exit_code == 0 and "--catalog" in res.output
     res = CliRunner().invoke(main, ["serve", "--catalog", "/nonexistent/catalog", "--port", "0", "--no-open"])
     assert res.exit_code == 2 and "not a catalog" in res.stderr
+
+
+def test_exports_are_those_of_the_export_module(client, shop, tmp_path):
+    from tactilize.export import ahap_pattern, android_waveform, export_wav
+
+    feat = extract_features(load_image(shop / "shirts" / "denim.png"))
+    drv = Profile.preset("paper").drive(feat, speed_m_s=0.045)
+    q = {"speed_mm_s": 45, "duration_s": 0.3}
+    base = "/api/catalog/products/shirts/denim.png/export"
+    assert client.get(f"{base}/ahap", params=q).json() == ahap_pattern(drv, 0.3)
+    android = client.get(f"{base}/android", params=q).json()
+    reference = android_waveform(drv, 0.3)
+    assert android["timings_ms"] == reference["timings_ms"] and android["amplitudes"] == reference["amplitudes"]
+    wav = client.get(f"{base}/wav", params={**q, "sample_rate_hz": 8000}).content
+    assert wav == export_wav(drv, tmp_path / "d.wav", 0.3, 8000).read_bytes()

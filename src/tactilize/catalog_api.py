@@ -21,8 +21,9 @@ its reason; its drive and exports answer 409.
 
 from __future__ import annotations
 
-import io
 import os
+import tempfile
+from pathlib import Path
 from typing import Any, Literal
 
 from fastapi import APIRouter, FastAPI, Query
@@ -30,6 +31,7 @@ from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, Field
 
 from .catalog import Catalog
+from .errors import TactilizeError
 from .mapping import Drive
 
 __all__ = ["catalog_router", "create_catalog_app", "PREFIX"]
@@ -92,6 +94,10 @@ class AndroidWaveform(BaseModel):
     timings_ms: list[int]
     amplitudes: list[int] = Field(description="0..255 per segment.")
     repeat: int = Field(-1, description="Index to repeat from; -1 plays once.")
+    envelope: list[dict[str, float]] = Field(
+        default_factory=list, description="API 36 envelope control points: amplitude 0..1, frequency_hz, duration_ms."
+    )
+    drive: dict[str, Any] = Field(default_factory=dict, description="The drive the waveform renders.")
 
 
 class ErrorMessage(BaseModel):
@@ -132,92 +138,27 @@ def _error(status: int, message: str) -> JSONResponse:
 
 
 # ----------------------------------------------------------------- exports
+# The formats are tactilize.export's; this module only serves them.
 
 
 def _export_ahap(drv: Drive, duration_s: float) -> dict[str, Any]:
-    """AHAP pattern of a steady drive (tactilize.export when present)."""
-    try:
-        from . import export as ex  # helper module of the actuator issue; optional here
+    from .export import ahap_pattern
 
-        fn = getattr(ex, "to_ahap", None) or getattr(ex, "ahap_pattern", None)
-        if fn is not None:
-            return fn(drv, duration_s=duration_s)
-    except ImportError:
-        pass
-    # Sharpness 0..1 is commonly mapped to 65 .. 300 Hz (FACTS.md section 6).
-    sharpness = min(1.0, max(0.0, (drv.pulse_frequency_hz - 65.0) / (300.0 - 65.0)))
-    events = []
-    if not drv.is_off:
-        events.append(
-            {
-                "Event": {
-                    "Time": 0.0,
-                    "EventType": "HapticContinuous",
-                    "EventDuration": duration_s,
-                    "EventParameters": [
-                        {"ParameterID": "HapticIntensity", "ParameterValue": drv.amplitude},
-                        {"ParameterID": "HapticSharpness", "ParameterValue": sharpness},
-                    ],
-                }
-            }
-        )
-    return {"Version": 1.0, "Metadata": {"Project": "tactilize"}, "Pattern": events}
+    return ahap_pattern(drv, duration_s)
 
 
 def _export_android(drv: Drive, duration_s: float) -> dict[str, Any]:
-    """Android waveform of a steady drive (tactilize.export when present)."""
-    try:
-        from . import export as ex
+    from .export import android_waveform
 
-        fn = getattr(ex, "to_android", None) or getattr(ex, "android_waveform", None)
-        if fn is not None:
-            return fn(drv, duration_s=duration_s)
-    except ImportError:
-        pass
-    total_ms = max(1, int(round(duration_s * 1e3)))
-    if drv.is_off:
-        return {"timings_ms": [total_ms], "amplitudes": [0], "repeat": -1}
-    # Android timings are whole milliseconds: pulse trains faster than ~100 Hz cannot
-    # be spelled out, so they become one segment whose strength is the amplitude.
-    period_ms = 1e3 / drv.pulse_frequency_hz
-    level = max(1, min(255, int(round(255 * drv.amplitude))))
-    if period_ms >= 10:
-        on = max(1, int(round(drv.pulse_width_s * 1e3)))
-        off = max(1, int(round(period_ms)) - on)
-        n = max(1, int(total_ms // (on + off)))
-        return {"timings_ms": [on, off] * n, "amplitudes": [level, 0] * n, "repeat": -1}
-    return {"timings_ms": [total_ms], "amplitudes": [level], "repeat": -1}
+    return android_waveform(drv, duration_s)
 
 
 def _export_wav(drv: Drive, duration_s: float, sample_rate_hz: int) -> bytes:
-    """16-bit mono WAV of the pulse train (tactilize.export when present)."""
-    try:
-        from . import export as ex
+    from .export import export_wav
 
-        fn = getattr(ex, "to_wav_bytes", None) or getattr(ex, "wav_bytes", None)
-        if fn is not None:
-            return fn(drv, duration_s=duration_s, sample_rate_hz=sample_rate_hz)
-    except ImportError:
-        pass
-    import wave
-
-    import numpy as np
-
-    n = int(round(duration_s * sample_rate_hz))
-    t = np.arange(n) / sample_rate_hz
-    if drv.is_off:
-        signal = np.zeros(n)
-    else:
-        phase = (t * drv.pulse_frequency_hz) % 1.0
-        signal = np.where(phase < drv.duty_ratio, drv.amplitude, 0.0)
-    pcm = (np.clip(signal, 0, 1) * 32767).astype("<i2")
-    buf = io.BytesIO()
-    with wave.open(buf, "wb") as w:
-        w.setnchannels(1)
-        w.setsampwidth(2)
-        w.setframerate(int(sample_rate_hz))
-        w.writeframes(pcm.tobytes())
-    return buf.getvalue()
+    # export_wav writes files; a scratch file keeps the bytes identical to `tactilize export`'s.
+    with tempfile.TemporaryDirectory(prefix="tz-wav-") as tmp:
+        return export_wav(drv, Path(tmp) / "drive.wav", duration_s, int(sample_rate_hz)).read_bytes()
 
 
 # ----------------------------------------------------------------- the router
@@ -293,7 +234,10 @@ def catalog_router(catalog: Catalog | str | os.PathLike, *, prefix: str = PREFIX
         row, err = ok_row(product_id)
         if err is not None:
             return err
-        doc = _export_ahap(cat.drive(row, speed_mm_s * 1e-3), duration_s)
+        try:
+            doc = _export_ahap(cat.drive(row, speed_mm_s * 1e-3), duration_s)
+        except TactilizeError as exc:
+            return _error(422, f"{exc.source}: {exc.fault}")
         return JSONResponse(doc, headers={"Content-Disposition": f'attachment; filename="{_file_stem(product_id)}.ahap"'})
 
     @r.get(
@@ -306,7 +250,10 @@ def catalog_router(catalog: Catalog | str | os.PathLike, *, prefix: str = PREFIX
         row, err = ok_row(product_id)
         if err is not None:
             return err
-        return _export_android(cat.drive(row, speed_mm_s * 1e-3), duration_s)
+        try:
+            return _export_android(cat.drive(row, speed_mm_s * 1e-3), duration_s)
+        except TactilizeError as exc:
+            return _error(422, f"{exc.source}: {exc.fault}")
 
     @r.get(
         "/products/{product_id:path}/export/wav",
@@ -327,7 +274,10 @@ def catalog_router(catalog: Catalog | str | os.PathLike, *, prefix: str = PREFIX
         row, err = ok_row(product_id)
         if err is not None:
             return err
-        data = _export_wav(cat.drive(row, speed_mm_s * 1e-3), duration_s, sample_rate_hz)
+        try:
+            data = _export_wav(cat.drive(row, speed_mm_s * 1e-3), duration_s, sample_rate_hz)
+        except TactilizeError as exc:
+            return _error(422, f"{exc.source}: {exc.fault}")
         return Response(
             data,
             media_type="audio/wav",
