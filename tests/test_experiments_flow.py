@@ -227,3 +227,20 @@ def test_personal_calibration_profile_is_usable(tmp_path):
     assert again.speed.slope_per_mm_s == pytest.approx(slope)
     assert again.frequency == Profile.preset("paper").frequency  # untouched laws stay the paper's
     assert "ME" in again.description and "alpha-law" in again.description
+
+
+@pytest.mark.skipif(not __import__("os").environ.get("TACTILIZE_TEST_POSTGRES_URL"),
+                    reason="set TACTILIZE_TEST_POSTGRES_URL to a scratch PostgreSQL database")
+def test_postgresql_store_takes_each_answer_once():
+    import os
+    import uuid
+
+    from tactilize.experiments.simulate import simulate
+
+    url = os.environ["TACTILIZE_TEST_POSTGRES_URL"]
+    seed = uuid.uuid4().int % 10**6  # fresh participant IDs in a shared scratch database
+    simulate("alpha-law", 2, seed=seed, db_url=url, max_trials=3)
+    simulate("alpha-law", 2, seed=seed, db_url=url)
+    rows = [r for r in Store(url).answer_rows("alpha-law") if r["participant"].startswith(f"SIM-{seed}-")]
+    assert len(rows) == 2 * 4 * 2
+    assert len({(r["participant"], r["trial"], r["question"]) for r in rows}) == len(rows)

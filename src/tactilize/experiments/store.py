@@ -346,7 +346,7 @@ class Store:
 
     def session_by_token(self, token: str) -> ExperimentSession | None:
         with self.Session() as s:
-            return s.scalar(select(ExperimentSession).where(ExperimentSession.token == token).execution_options())
+            return s.scalar(select(ExperimentSession).where(ExperimentSession.token == token))
 
     def session_by_code(self, protocol_name: str, code: str) -> ExperimentSession | None:
         with self.Session() as s:
