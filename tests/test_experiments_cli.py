@@ -42,6 +42,10 @@ def test_simulate_export_analyze_calibrate(tmp_path):
     prov = json.loads((tmp_path / "answers.csv.provenance.json").read_text())
     assert prov["tactilize"] and prov["schema_version"] == 1
 
+    strokes = list(csv.DictReader(io.StringIO(_run("export", "--db", db, "--strokes").output)))
+    assert len(strokes) == 4 * 4 * 3 * 12  # participants x trials x images x samples per stroke
+    assert all(float(s["pulse_frequency_hz"]) <= 300 for s in strokes)
+
     doc = json.loads(_run("export", "--db", db, "--format", "json").output)
     assert doc["provenance"]["python"] and len(doc["answers"]) == 32
     assert doc["protocol_versions"][0]["name"] == "alpha-law"

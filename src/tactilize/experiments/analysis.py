@@ -24,7 +24,8 @@ import math
 from itertools import combinations
 from typing import Any
 
-__all__ = ["tidy_answers", "analyze", "describe", "friedman", "pairwise_wilcoxon", "export_answers", "CSV_COLUMNS"]
+__all__ = ["tidy_answers", "analyze", "describe", "friedman", "pairwise_wilcoxon", "export_answers", "export_strokes",
+           "CSV_COLUMNS"]
 
 CSV_COLUMNS = [
     "protocol", "protocol_version", "protocol_sha256", "seed", "participant", "participant_number", "simulated",
@@ -62,6 +63,30 @@ def export_answers(store, fmt: str = "csv", protocol_name: str | None = None) ->
             "answers": json.loads(df.to_json(orient="records")),
         }
         return json.dumps(doc, indent=2)
+    from ..errors import TactilizeError
+
+    raise TactilizeError("--format", f"must be csv or json, got {fmt!r}")
+
+
+def export_strokes(store, fmt: str = "csv", protocol_name: str | None = None) -> str:
+    """The stroke log: one row per pen sample with the drive it produced (SI units)."""
+    import pandas as pd
+
+    from .store import provenance
+
+    sessions = {s["session"]: s for s in store.sessions_overview(protocol_name)}
+    rows = [dict(r, participant=sessions[r["session"]]["participant"], protocol=sessions[r["session"]]["protocol"])
+            for r in store.stroke_rows() if r["session"] in sessions]
+    cols = ["protocol", "participant", "session", "trial", "image", "t_s", "x_m", "y_m", "pressure", "speed_m_s",
+            "pulse_frequency_hz", "pulse_width_s", "amplitude", "received_at"]
+    df = pd.DataFrame(rows, columns=cols)
+    if fmt == "csv":
+        buf = io.StringIO()
+        df.to_csv(buf, index=False, lineterminator="\n")
+        return buf.getvalue()
+    if fmt == "json":
+        return json.dumps({"provenance": provenance(db=_redact(store.url)), "strokes": json.loads(df.to_json(orient="records"))},
+                          indent=2)
     from ..errors import TactilizeError
 
     raise TactilizeError("--format", f"must be csv or json, got {fmt!r}")

@@ -96,12 +96,14 @@ def status_cmd(db_url: str | None, protocol_name: str | None, as_json: bool) -> 
 @click.option("--format", "fmt", type=click.Choice(["csv", "json"]), default="csv", show_default=True)
 @click.option("--protocol", "protocol_name", default=None, help="Only this protocol.")
 @click.option("-o", "--output", default=None, help="Write to this file (default: stdout).")
-def export_cmd(db_url: str | None, fmt: str, protocol_name: str | None, output: str | None) -> None:
+@click.option("--strokes", is_flag=True, help="Export the stroke log (pen samples and drives) instead of the answers.")
+def export_cmd(db_url: str | None, fmt: str, protocol_name: str | None, output: str | None, strokes: bool) -> None:
     """Export the answers: tidy CSV (one row per answer) or JSON with provenance."""
-    from .analysis import export_answers
+    from .analysis import export_answers, export_strokes
     from .store import Store, provenance
 
-    text = export_answers(Store(db_url), fmt, protocol_name)
+    store = Store(db_url)
+    text = export_strokes(store, fmt, protocol_name) if strokes else export_answers(store, fmt, protocol_name)
     if output is None:
         sys.stdout.write(text)
         return
