@@ -274,6 +274,31 @@ def test_retry_failed_replaces_error_rows(tmp_path):
         (tmp_path / "src" / "b.png").write_bytes(b"garbage")
 
 
+def test_a_worker_that_dies_costs_error_rows_not_the_batch(shop, tmp_path, monkeypatch):
+    import os
+
+    import tactilize.catalog as catalog
+
+    root, bad = shop
+    items = [it for it in discover(root) if it.id not in bad][:24]
+    victim = items[5].id
+    real = catalog.analyse_item
+
+    def fragile(item, settings):
+        if item.id == victim:
+            os._exit(3)  # what the OOM killer does to a worker decoding a huge image
+        return real(item, settings)
+
+    # The pool forks after this, so its workers inherit the patched function.
+    monkeypatch.setattr(catalog, "analyse_item", fragile)
+    summary = run_batch(items, tmp_path / "die.parquet", workers=2, chunk_size=2)
+    df = read_catalog(tmp_path / "die.parquet")
+    assert len(df) == len(items) == summary.ok + summary.failed
+    dead = df[df["status"] == "error"]
+    assert victim in set(dead["id"]) and all("worker process died" in e for e in dead["error"])
+    assert summary.ok >= len(items) // 2  # the pool was replaced and the rest went on
+
+
 def test_other_settings_on_the_same_output_are_refused(shop, pooled):
     root, _ = shop
     with pytest.raises(CatalogError, match="profile"):

@@ -546,12 +546,27 @@ class _ParquetStore:
         import pyarrow.parquet as pq
 
         table = pa.Table.from_pylist(rows, schema=self.schema)
-        final = self.path / f"{_PART_PREFIX}{self._next:05d}.parquet"
-        # Dot-prefixed temporaries are ignored by Parquet readers; rename is atomic.
-        tmp = self.path / f".{final.name}.tmp"
+        # Dot-prefixed temporaries are ignored by Parquet readers.
+        tmp = self.path / f".{_PART_PREFIX}{os.getpid()}-{self._next:05d}.parquet.tmp"
         pq.write_table(table, tmp)
-        os.replace(tmp, final)
-        self._next += 1
+        try:
+            while True:
+                final = self.path / f"{_PART_PREFIX}{self._next:05d}.parquet"
+                self._next += 1
+                try:
+                    # link, unlike rename, refuses to replace: a second batch writing
+                    # into the same folder takes the next number instead of a part.
+                    os.link(tmp, final)
+                    break
+                except FileExistsError:
+                    continue
+                except OSError:  # a file system without hard links
+                    if final.exists():
+                        continue
+                    os.replace(tmp, final)
+                    break
+        finally:
+            tmp.unlink(missing_ok=True)
 
     def close(self) -> None:
         pass
@@ -735,25 +750,60 @@ def _run_serial(chunks: list[list[CatalogItem]], settings: AnalysisSettings) -> 
         yield analyse_chunk(chunk, settings)
 
 
+def _error_rows(chunk: Sequence[CatalogItem], settings: AnalysisSettings, reason: str) -> list[dict[str, Any]]:
+    """Error rows for a task whose worker died: the batch goes on, --retry-failed redoes them."""
+    return [
+        {"id": it.id, "path": it.path, "status": "error", "error": reason, "profile": settings.profile.name, "seconds": None}
+        for it in chunk
+    ]
+
+
+_WORKER_DIED = (
+    "the worker process died during this task (out of memory, or a crash in a decoder); "
+    "innocent images of the same task are marked too: rerun with --retry-failed"
+)
+
+
 def _run_processes(chunks: list[list[CatalogItem]], settings: AnalysisSettings, workers: int) -> Iterator[list[dict[str, Any]]]:
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
 
-    pending: set = set()
+    def new_pool() -> ProcessPoolExecutor:
+        return ProcessPoolExecutor(max_workers=workers, initializer=_init_worker)
+
+    pool = new_pool()
+    chunk_of: dict[Any, list[CatalogItem]] = {}
+
+    def submit(chunk: list[CatalogItem]) -> None:
+        nonlocal pool
+        try:
+            fut = pool.submit(analyse_chunk, chunk, settings)
+        except BrokenProcessPool:
+            # A worker was killed (say by the OOM killer): the pool is unusable, start another.
+            pool.shutdown(wait=False, cancel_futures=True)
+            pool = new_pool()
+            fut = pool.submit(analyse_chunk, chunk, settings)
+        chunk_of[fut] = chunk
+
     todo = iter(chunks)
-    pool = ProcessPoolExecutor(max_workers=workers, initializer=_init_worker)
     try:
         # A bounded number in flight keeps memory flat for a catalog of any size.
         for chunk in todo:
-            pending.add(pool.submit(analyse_chunk, chunk, settings))
-            if len(pending) >= 3 * workers:
+            submit(chunk)
+            if len(chunk_of) >= 3 * workers:
                 break
-        while pending:
-            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+        while chunk_of:
+            done, _ = wait(list(chunk_of), return_when=FIRST_COMPLETED)
             for fut in done:
+                chunk = chunk_of.pop(fut)
+                try:
+                    rows = fut.result()
+                except BrokenProcessPool:
+                    rows = _error_rows(chunk, settings, _WORKER_DIED)
                 nxt = next(todo, None)
                 if nxt is not None:
-                    pending.add(pool.submit(analyse_chunk, nxt, settings))
-                yield fut.result()
+                    submit(nxt)
+                yield rows
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
 
@@ -763,6 +813,7 @@ def _run_dask(
 ) -> Iterator[list[dict[str, Any]]]:
     try:
         from distributed import Client, as_completed
+        from distributed.scheduler import KilledWorker
     except ImportError:  # pragma: no cover - the batch extra is not installed
         raise CatalogError("--scheduler", "needs dask[distributed] (pip install 'tactilize[batch]')") from None
 
@@ -780,11 +831,20 @@ def _run_dask(
         # range first: zip must not pull (and drop) a chunk once the window is full.
         first = [client.submit(analyse_chunk, c, settings, pure=False) for _, c in zip(range(3 * n_slots), todo)]
         queue = as_completed(first, loop=client.loop)  # this client need not be the default one
+        chunk_of = dict(zip(first, chunks))
         for fut in queue:
             nxt = next(todo, None)
             if nxt is not None:
-                queue.add(client.submit(analyse_chunk, nxt, settings, pure=False))
-            yield fut.result()
+                f = client.submit(analyse_chunk, nxt, settings, pure=False)
+                chunk_of[f] = nxt
+                queue.add(f)
+            chunk = chunk_of.pop(fut)
+            try:
+                rows = fut.result()
+            except KilledWorker:
+                # Dask already retried the task on other workers; each of them died.
+                rows = _error_rows(chunk, settings, _WORKER_DIED)
+            yield rows
             fut.release()
     finally:
         if own:
