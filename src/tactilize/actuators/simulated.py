@@ -79,8 +79,10 @@ class SimulatedOutput(OutputBase):
         self.channels = channels
         self.envelope = envelope if envelope is not None else build_envelope(self.spec)
         self.tick_s = float(tick_s)
-        self.trace_rate_hz = float(trace_rate_hz)
-        self._bin_s = 1.0 / self.trace_rate_hz
+        # Trace steps are whole microseconds so bin edges are exact integers.
+        self._bin_us = max(1, int(round(_SCHEDULE_RATE_HZ / trace_rate_hz)))
+        self.trace_rate_hz = _SCHEDULE_RATE_HZ / self._bin_us
+        self._bin_s = self._bin_us * 1e-6
         self._models = [WireModel(self.spec, max_step_s=self._bin_s) for _ in range(channels)]
         self._scheds = [PulseScheduler(_SCHEDULE_RATE_HZ) for _ in range(channels)]
         self._carry_us = [0] * channels
@@ -157,10 +159,8 @@ class SimulatedOutput(OutputBase):
             return
         with self._lock:
             t0_us = self._t_us
-            t0 = t0_us * 1e-6
-            t1 = (t0_us + n) * 1e-6
-            first = math.floor(t0 / self._bin_s) + 1
-            last = math.floor(t1 / self._bin_s + 1e-9)
+            first = t0_us // self._bin_us + 1
+            last = (t0_us + n) // self._bin_us
             bins_t = np.arange(first, last + 1) * self._bin_s
             cols = []
             for c in range(self.channels):
@@ -175,8 +175,8 @@ class SimulatedOutput(OutputBase):
                     cur = np.zeros(bins_t.size)
                     for s_us, e_us, amp in intervals:
                         # Mark every trace step the pulse overlaps.
-                        b0 = max(0, int(math.floor((t0 + s_us * 1e-6) / self._bin_s)) + 1 - first)
-                        b1 = min(bins_t.size - 1, int(math.floor((t0 + e_us * 1e-6) / self._bin_s)) + 1 - first)
+                        b0 = max(0, (t0_us + s_us) // self._bin_us + 1 - first)
+                        b1 = min(bins_t.size - 1, (t0_us + e_us) // self._bin_us + 1 - first)
                         if b1 >= b0:
                             cur[b0 : b1 + 1] = np.maximum(cur[b0 : b1 + 1], amp)
                     cols.append((cur, T, self.spec.displacement_m(xi)))

@@ -1,0 +1,110 @@
+"""The simulated output: envelope in apply, real-time thread, traces for the page."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+
+from tactilize.actuators.base import Output
+from tactilize.actuators.sma import WireSpec, build_envelope
+from tactilize.actuators.simulated import SimulatedOutput
+from tactilize.mapping import Drive
+
+SPEC = WireSpec.preset("75um")
+
+
+@pytest.fixture(scope="module")
+def envelope():
+    return build_envelope(SPEC)
+
+
+def rising_edges(x) -> int:
+    on = np.asarray(x) > 0
+    return int(np.count_nonzero(on[1:] & ~on[:-1]))
+
+
+def test_apply_passes_every_drive_through_the_envelope(envelope):
+    with SimulatedOutput(SPEC, envelope=envelope, start=False) as out:
+        assert isinstance(out, Output)
+        hot = Drive(50.0, 3e-3)  # 15 % duty
+        applied = out.apply([hot, Drive(50.0, 1e-3)])
+        assert "envelope" in applied[0].clamped
+        assert applied[0].pulse_width_s == pytest.approx(envelope.max_pulse_width_s(50.0, SPEC.rated_current_a))
+        assert applied[1] == Drive(50.0, 1e-3)
+        # a shorter list turns the other channel off
+        assert out.apply([Drive(50.0, 1e-3)])[1].is_off
+
+
+def test_simulated_wire_follows_and_traces_show_it(envelope):
+    lo, hi = envelope.follow_band_s(50.0, SPEC.rated_current_a)
+    d = Drive(50.0, math.sqrt(lo * hi))
+    with SimulatedOutput(SPEC, envelope=envelope, start=False, trace_seconds=2.0, trace_rate_hz=2000) as out:
+        out.apply([d, Drive.off()])
+        for _ in range(350):  # 7 s in 20 ms ticks, as the thread would
+            out.advance(0.02)
+        assert out.time_s == pytest.approx(7.0)
+        tr = out.traces(1.0)
+        t = np.array(tr["time_s"])
+        assert t.size == 2000 and np.all(np.diff(t) > 0) and t[-1] == pytest.approx(7.0)
+        ch0, ch1 = tr["channels"]
+        # 50 pulses in the last second, each marked at the rated current
+        on = np.array(ch0["current_a"]) > 0
+        assert rising_edges(ch0["current_a"]) + int(on[0]) == 50
+        assert max(ch0["current_a"]) == pytest.approx(SPEC.rated_current_a)
+        disp = np.array(ch0["displacement_um"])
+        # one displacement peak per pulse: the trace rises 50 times by more than 0.01 um
+        rises = np.diff(disp)
+        assert disp.max() - disp.min() > 0.3
+        peaks = np.flatnonzero((rises[:-1] > 0) & (rises[1:] <= 0))
+        assert 45 <= peaks.size <= 55
+        assert SPEC.martensite_finish_c < np.mean(ch0["temperature_c"]) < SPEC.austenite_finish_c
+        # the idle channel stays at ambient and still
+        assert max(ch1["current_a"]) == 0 and np.ptp(ch1["displacement_um"]) == 0
+        assert ch1["temperature_c"][-1] == pytest.approx(SPEC.ambient_c)
+
+
+def test_reapplying_the_same_drive_keeps_the_phase(envelope):
+    d = Drive(100.0, 0.5e-3)
+    with SimulatedOutput(SPEC, envelope=envelope, start=False, trace_seconds=1.0, trace_rate_hz=5000) as out:
+        out.apply([d, d])
+        for _ in range(60):  # the page re-sends the drive every frame
+            out.advance(1 / 60)
+            out.apply([d, d])
+        tr = out.traces(0.9)
+        cur = np.array(tr["channels"][0]["current_a"]) > 0
+        t = np.array(tr["time_s"])
+        onsets = t[1:][cur[1:] & ~cur[:-1]]
+        # one pulse every 10 ms, never restarted by the repeated apply
+        assert onsets.size >= 88
+        assert np.allclose(np.diff(onsets), 0.01, atol=0.2e-3)
+
+
+def test_stop_turns_everything_off_and_the_wire_cools(envelope):
+    with SimulatedOutput(SPEC, envelope=envelope, start=False) as out:
+        out.apply([Drive(50.0, 1e-3), Drive(50.0, 1e-3)])
+        for _ in range(100):
+            out.advance(0.02)
+        warm = out.state()[0]["temperature_c"]
+        out.stop()
+        for _ in range(150):
+            out.advance(0.02)
+        st = out.state()
+        assert all(s["drive"]["pulse_frequency_hz"] == 0 for s in st)
+        assert max(out.traces(2.0)["channels"][0]["current_a"][-2000:]) == 0
+        # 3 s of cooling with tau ~ 0.53 s: within a few per cent of ambient rise
+        rise = st[0]["temperature_c"] - SPEC.ambient_c
+        assert rise < 0.05 * (warm - SPEC.ambient_c)
+
+
+def test_real_time_thread_runs_and_close_joins(envelope):
+    out = SimulatedOutput(SPEC, envelope=envelope, tick_s=0.01)
+    out.apply([Drive(200.0, 0.2e-3), Drive(200.0, 0.2e-3)])
+    time.sleep(0.6)
+    assert 0.3 < out.time_s < 1.5
+    thread = out._thread
+    out.close()
+    assert thread is not None and not thread.is_alive()
+    assert out.state()[0]["drive"]["pulse_frequency_hz"] == 0
