@@ -1,0 +1,132 @@
+"""CLI: simulate, envelope and export print parseable JSON, write files, fail in one line."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+import wave
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from PIL import Image
+
+from tactilize.actuators.sma import WireSpec, build_envelope
+from tactilize.cli import main
+
+SPEC = WireSpec.preset("75um")
+
+
+def run(*args: str):
+    return CliRunner().invoke(main, list(args), catch_exceptions=False)
+
+
+@pytest.fixture(scope="module")
+def grating_png(tmp_path_factory):
+    """A vertical-bar grating of 1000 cycles/m at 300 DPI, drawn here."""
+    dpi = 300
+    pitch_m = 0.0254 / dpi
+    x = np.arange(240) * pitch_m
+    row = 0.5 + 0.45 * np.cos(2 * math.pi * 1000.0 * x)
+    img = np.tile(row, (180, 1))
+    path = tmp_path_factory.mktemp("img") / "bars.png"
+    Image.fromarray(np.round(img * 255).astype(np.uint8)).save(path, dpi=(dpi, dpi))
+    return path
+
+
+@pytest.fixture(scope="module", autouse=True)
+def envelope_built():
+    # Build (or load) once so the commands below do not each pay for it.
+    return build_envelope(SPEC)
+
+
+def test_simulate_json_reports_a_following_wire():
+    res = run("simulate", "--frequency", "50", "--pulse-width-ms", "1", "--current-ma", "500", "--duration", "5", "--json")
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    for key in ("displacement_pp_um", "follows", "mean_temperature_c", "peak_temperature_c", "allowed"):
+        assert key in doc
+    assert doc["follows"] is True and doc["allowed"] is True
+    assert 0.3 < doc["displacement_pp_um"] < 30
+    assert SPEC.martensite_finish_c < doc["mean_temperature_c"] < SPEC.austenite_finish_c
+    assert doc["duty_ratio"] == pytest.approx(0.05)
+    # energy accounts balance (first law)
+    total = doc["stored_j"] + doc["convected_j"] + doc["latent_j"]
+    assert doc["electrical_j"] == pytest.approx(total, rel=1e-6)
+
+
+def test_simulate_high_duty_is_neither_following_nor_allowed():
+    res = run("simulate", "--frequency", "50", "--pulse-width-ms", "3", "--current-ma", "500", "--duration", "4", "--json")
+    doc = json.loads(res.output)
+    assert doc["follows"] is False and doc["allowed"] is False
+    assert doc["mean_temperature_c"] > SPEC.austenite_finish_c
+
+
+def test_simulate_text_and_plot(tmp_path):
+    pytest.importorskip("matplotlib")
+    out = tmp_path / "sim.png"
+    res = run("simulate", "--frequency", "100", "--pulse-width-ms", "0.5", "--current-ma", "500", "--duration", "2", "--plot", str(out))
+    assert res.exit_code == 0, res.output
+    assert "follows" in res.output and "peak temperature" in res.output
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_envelope_json_and_plot(tmp_path):
+    pytest.importorskip("matplotlib")
+    out = tmp_path / "env.png"
+    res = run("envelope", "--json", "--plot", str(out))
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    f, i = doc["frequencies_hz"], doc["currents_a"]
+    assert len(doc["max_width_s"]) == len(f) and all(len(r) == len(i) for r in doc["max_width_s"])
+    assert doc["wire"]["diameter_m"] == 75e-6
+    assert out.exists()
+
+
+@pytest.mark.parametrize("fmt", ["wav", "csv", "json", "ahap", "android"])
+def test_export_each_format(grating_png, tmp_path, fmt):
+    out = tmp_path / f"out.{fmt}"
+    res = run("export", str(grating_png), "--speed", "60", "--format", fmt, "--duration", "0.5", "-o", str(out), "--json")
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    assert doc["path"] == str(out) and doc["format"] == fmt
+    assert doc["spatial_frequency_per_m"] == pytest.approx(1000, rel=0.02)
+    if fmt == "wav":
+        with wave.open(str(out)) as w:
+            assert w.getframerate() == 48_000 and w.getnframes() == 24_000
+    elif fmt == "csv":
+        assert out.read_text().splitlines()[0] == "time_s,channel_0"
+    elif fmt == "json":
+        saved = json.loads(out.read_text())
+        assert saved["channels"][0]["pulse_frequency_hz"] == pytest.approx(doc["pulse_frequency_hz"])
+    elif fmt == "ahap":
+        saved = json.loads(out.read_text())
+        assert "Version" in saved and "Pattern" in saved
+    else:
+        saved = json.loads(out.read_text())
+        assert sum(saved["timings_ms"]) == 500
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["simulate", "--frequency", "-5", "--pulse-width-ms", "1", "--current-ma", "500"],
+        ["simulate", "--frequency", "50", "--pulse-width-ms", "30", "--current-ma", "500"],
+        ["simulate", "--frequency", "50", "--pulse-width-ms", "1", "--current-ma", "nan"],
+        ["simulate", "--frequency", "50", "--pulse-width-ms", "1", "--current-ma", "500", "--wire", "33um"],
+        ["envelope", "--wire", "1mm"],
+        ["export", "IMAGE", "--speed", "60", "--format", "mp3", "-o", "OUT"],
+        ["export", "/nonexistent/x.png", "--speed", "60", "--format", "wav", "-o", "OUT"],
+        ["export", "IMAGE", "--speed", "60", "--format", "wav", "-o", "/nonexistent/dir/x.wav"],
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(args, grating_png, tmp_path):
+    args = [str(grating_png) if a == "IMAGE" else str(tmp_path / "o") if a == "OUT" else a for a in args]
+    proc = subprocess.run([sys.executable, "-m", "tactilize.cli", *args], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith("tactilize: ") and "Traceback" not in proc.stderr
+    assert proc.stdout == ""
