@@ -107,7 +107,13 @@ def test_bad_input_is_refused_and_leaves_the_data_intact(tmp_path):
         assert client.post(f"{API}/sessions/{token}/answers", json={"trial": 0, "ratings": good}).status_code == 409
         for bad in ({"card_width_px": 3, "felt": True}, {"card_width_px": 320, "felt": False}, {"mm_per_px": "x"}):
             assert client.post(f"{API}/sessions/{token}/calibration", json=bad).status_code == 422
-        client.post(f"{API}/sessions/{token}/calibration", json={"mm_per_px": 0.25, "felt": True})
+        first_cal = client.post(f"{API}/sessions/{token}/calibration", json={"mm_per_px": 0.25, "felt": True})
+        assert first_cal.json()["recorded"] == "recorded"
+        again_cal = client.post(f"{API}/sessions/{token}/calibration", json={"mm_per_px": 0.25, "felt": True})
+        assert again_cal.status_code == 200 and again_cal.json()["recorded"] == "duplicate"
+        # The scale is never replaced once recorded (earlier strokes were converted with it).
+        assert client.post(f"{API}/sessions/{token}/calibration", json={"mm_per_px": 0.3, "felt": True}
+                           ).status_code == 409
 
         for ratings in ({"speed_match": 8, "speed_difference": 3}, {"speed_match": 0, "speed_difference": 3},
                         {"speed_match": 4.5, "speed_difference": 3}, {"speed_match": True, "speed_difference": 3},
@@ -133,6 +139,10 @@ def test_bad_input_is_refused_and_leaves_the_data_intact(tmp_path):
             ws.send_json({"trial": 0, "image": "image1", "samples": [[0, 1, 1, None], [5, 2, 1, None]]})
             err = ws.receive_json()
             assert err["type"] == "error" and err["current_trial"] == 1
+            ws.send_bytes(b"\xff not json")
+            assert ws.receive_json()["type"] == "error"  # a broken message does not end the connection
+            ws.send_json({"type": "lift"})
+            assert ws.receive_json()["type"] == "lifted"
     assert _rows(db, "select question_id, rating from answers order by question_id") == [
         ("speed_difference", 3), ("speed_match", 5)]
     assert _rows(db, "select count(*) from stroke_samples")[0][0] == 0

@@ -180,12 +180,22 @@ class Flow:
         if data.get("felt") is not True:
             raise FlowError("calibration", "the test vibration must be felt before the trials start; "
                             "check the pen and its connection", 422)
-        if sess.completed_at is None:
-            # Recalibration after a resume is allowed and replaces the scale; the
-            # answers already given keep the scale they were given with (logged below).
-            self.store.set_calibration(sess.id, {"mm_per_px": float(mm_per_px), "felt": True,
-                                                 "card_width_mm": card_mm, "at": iso(utcnow())})
-        return self.state(token)
+        if sess.calibrated_at is not None:
+            # Recorded once, never replaced: the stroke log of earlier trials was
+            # converted with this scale.  A repeated identical request (a double
+            # click, a retry) is fine; a different one is refused.
+            stored = json.loads(sess.calibration_json)
+            if abs(stored["mm_per_px"] - float(mm_per_px)) > 1e-9:
+                raise FlowError("calibration", "the calibration of this session is already recorded; "
+                                "reload to continue", 409)
+            out = self.state(token)
+            out["recorded"] = "duplicate"
+            return out
+        self.store.set_calibration(sess.id, {"mm_per_px": float(mm_per_px), "felt": True,
+                                             "card_width_mm": card_mm, "at": iso(utcnow())})
+        out = self.state(token)
+        out["recorded"] = "recorded"
+        return out
 
     def end_break(self, token: str, trial_index: Any) -> dict:
         sess = self._session(token)

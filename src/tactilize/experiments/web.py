@@ -195,9 +195,14 @@ def experiment_router(flow: Flow) -> APIRouter:
             return
         try:
             while True:
-                text = await ws.receive_text()
+                message = await ws.receive()
+                if message["type"] == "websocket.disconnect":
+                    return
+                text = message.get("text")
+                if text is None and message.get("bytes") is not None:
+                    text = message["bytes"].decode("utf-8", "replace")
                 try:
-                    msg = json.loads(text)
+                    msg = json.loads(text or "")
                     reply = await run_in_threadpool(handler.handle, msg)
                 except json.JSONDecodeError:
                     reply = {"type": "error", "error": "messages must be JSON", "source": "stroke"}
