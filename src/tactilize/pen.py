@@ -248,6 +248,7 @@ class StrokeTracker:
         self._buf: deque[PenSample] = deque(maxlen=int(max_samples))
         self._candidate: PenSample | None = None
         self._state: StrokeState | None = None
+        self._dirty = False
         self.counts: dict[str, int] = dict.fromkeys(
             ("accepted", "invalid", "duplicate", "out_of_order", "gap", "jump", "glitch", "clock_reset"), 0
         )
@@ -259,10 +260,18 @@ class StrokeTracker:
         self._buf.clear()
         self._candidate = None
         self._state = None
+        self._dirty = False
 
     @property
     def state(self) -> StrokeState | None:
-        """The latest estimate; None before the first sample of a stroke."""
+        """The latest estimate; None before the first sample of a stroke.
+
+        The line is fitted here, on demand, not on every sample: a batch of
+        coalesced samples costs one fit.
+        """
+        if self._dirty:
+            self._dirty = False
+            self._state = self._fit()
         return self._state
 
     def add(self, sample: PenSample) -> bool:
@@ -315,7 +324,7 @@ class StrokeTracker:
         """Add many samples; returns the latest estimate."""
         for s in samples:
             self.add(s)
-        return self._state
+        return self.state
 
     # ------------------------------------------------------------------ estimate
 
@@ -330,12 +339,18 @@ class StrokeTracker:
         self._candidate = None
         self._buf.append(sample)
         self.counts["accepted"] += 1
+        self._dirty = False
         self._state = StrokeState(sample.t_s, sample.x_m, sample.y_m, 0.0, None, sample.pressure, 1)
 
     def _append(self, sample: PenSample) -> bool:
-        buf = self._buf
-        buf.append(sample)
+        self._buf.append(sample)
         self.counts["accepted"] += 1
+        self._dirty = True
+        return True
+
+    def _fit(self) -> StrokeState:
+        buf = self._buf
+        sample = buf[-1]
         t_from = sample.t_s - self.window_s
         n = len(buf)
         # Samples in the window, but at least min_samples (all are of this stroke).
@@ -350,23 +365,32 @@ class StrokeTracker:
             if abs(sample.x_m - p.x_m) + abs(sample.y_m - p.y_m) >= self.min_travel_m:
                 break
             start -= 1
-        pts = [buf[i] for i in range(start, n)]
-        m = len(pts)
-        tm = sum(p.t_s for p in pts) / m
-        xm = sum(p.x_m for p in pts) / m
-        ym = sum(p.y_m for p in pts) / m
-        stt = sxt = syt = 0.0
-        for p in pts:
-            dt = p.t_s - tm
-            stt += dt * dt
-            sxt += dt * (p.x_m - xm)
-            syt += dt * (p.y_m - ym)
-        vx, vy = (sxt / stt, syt / stt) if stt > 0 else (0.0, 0.0)
+        # One pass of sums, relative to the newest sample (keeps the
+        # subtraction exact for timestamps of any origin).
+        t0, x0, y0 = sample.t_s, sample.x_m, sample.y_m
+        m = n - start
+        st = sx = sy = stt = stx = sty = 0.0
+        for i in range(start, n):
+            p = buf[i]
+            t = p.t_s - t0
+            x = p.x_m - x0
+            y = p.y_m - y0
+            st += t
+            sx += x
+            sy += y
+            stt += t * t
+            stx += t * x
+            sty += t * y
+        var = stt - st * st / m
+        if var > 0:
+            vx = (stx - st * sx / m) / var
+            vy = (sty - st * sy / m) / var
+        else:
+            vx = vy = 0.0
         speed = math.hypot(vx, vy)
         # y is down on screen, up in the direction frame: flip its sign.
         direction = math.atan2(-vy, vx) if speed > self.still_speed_m_s else None
-        self._state = StrokeState(sample.t_s, sample.x_m, sample.y_m, speed, direction, sample.pressure, m)
-        return True
+        return StrokeState(sample.t_s, sample.x_m, sample.y_m, speed, direction, sample.pressure, m)
 
 
 @dataclass(frozen=True)

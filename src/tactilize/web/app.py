@@ -237,9 +237,12 @@ class ServerState:
 
     # ----------------------------------------------------------- stats
 
-    def stats(self) -> dict[str, Any]:
-        """Latency percentiles [us] and counters."""
-        lat = sorted(self.latency_ns)
+    def stats(self, last: int | None = None) -> dict[str, Any]:
+        """Latency percentiles [us] (over the ``last`` batches, or all kept) and counters."""
+        lat = list(self.latency_ns)
+        if last is not None and last > 0:
+            lat = lat[-last:]
+        lat.sort()
 
         def pct(p: float) -> float | None:
             if not lat:
@@ -464,8 +467,8 @@ def _api_router() -> APIRouter:
         }
 
     @r.get("/stats")
-    async def stats(request: Request) -> dict[str, Any]:
-        return st(request).stats()
+    async def stats(request: Request, last: int | None = None) -> dict[str, Any]:
+        return st(request).stats(last)
 
     return r
 
