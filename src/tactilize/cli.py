@@ -291,6 +291,16 @@ def _save_plot(fig: Any, path: str) -> None:
         raise TactilizeError(path, f"cannot write the plot ({exc})") from None
 
 
+def _wire_option(wire: str, length_mm: float | None):
+    """The wire named by ``--wire`` (and ``--length-mm``), errors naming the option."""
+    from .actuators.sma import WireSpec
+
+    try:
+        return WireSpec.preset(wire, length_m=None if length_mm is None else length_mm / 1e3)
+    except TactilizeError as exc:
+        raise TactilizeError(f"--wire {wire}", exc.fault) from None
+
+
 @main.command("simulate")
 @click.option("--frequency", "frequency_hz", type=float, required=True, help="Pulse frequency [Hz].")
 @click.option("--pulse-width-ms", type=float, required=True, help="Pulse width [ms].")
@@ -311,7 +321,7 @@ def simulate_cmd(
     as_json: bool,
 ) -> None:
     """Simulate the SMA wire under a pulse drive, exactly as asked (no envelope)."""
-    from .actuators.sma import WireSpec, build_envelope, simulate_drive
+    from .actuators.sma import build_envelope, simulate_drive
     from .mapping import Drive
 
     for name, value in (("frequency", frequency_hz), ("pulse-width-ms", pulse_width_ms), ("duration", duration_s)):
@@ -326,7 +336,7 @@ def simulate_cmd(
     width_s = pulse_width_ms / 1e3
     if width_s * frequency_hz >= 1:
         raise TactilizeError("--pulse-width-ms", f"{pulse_width_ms} ms does not fit in a {1e3 / frequency_hz:g} ms period")
-    spec = WireSpec.preset(wire, length_m=None if length_mm is None else length_mm / 1e3)
+    spec = _wire_option(wire, length_mm)
     current_a = current_ma / 1e3
     drv = Drive(frequency_hz, width_s)
     result = simulate_drive(drv, duration_s, spec, current_a=current_a)
@@ -399,11 +409,11 @@ def simulate_cmd(
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
 def envelope_cmd(wire: str, length_mm: float | None, plot_path: str | None, as_json: bool) -> None:
     """The wire's safety envelope: the largest pulse width per frequency and current."""
-    from .actuators.sma import WireSpec, build_envelope
+    from .actuators.sma import build_envelope
 
     if length_mm is not None and (not math.isfinite(length_mm) or length_mm <= 0):
         raise TactilizeError("--length-mm", f"must be a positive number, got {length_mm}")
-    spec = WireSpec.preset(wire, length_m=None if length_mm is None else length_mm / 1e3)
+    spec = _wire_option(wire, length_mm)
     env = build_envelope(spec)
     doc = env.to_dict()
     if plot_path:
