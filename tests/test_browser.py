@@ -122,27 +122,31 @@ class Pen:
             },
         )
 
+    READ = """() => {
+        const d = window.tactilize.lastDrive;
+        if (!d || !d.on || d.resting || !(d.speed_mm_s > 0)) return null;
+        const v = (id) => Number(document.querySelector(`[data-testid="${id}"]`).textContent);
+        return {frequency: v('drive-frequency'), width: v('drive-pulse-width'), duty: v('drive-duty'),
+                amplitude: v('drive-amplitude'), speed: v('drive-speed'), seq: d.seq};
+    }"""
+
     def stroke(self, x0, y0, v_px_s, duration_s=0.5, interval_s=0.004):
         """Press, move right at v_px_s [CSS px/s] in real time; returns the drive
-        shown while the pen is still down (read from the data-testid elements)."""
+        the data-testid elements showed late in the stroke, with the pen moving."""
         self._send("mousePressed", x0, y0, 1)
         t0 = time.perf_counter()
         x = x0
-        while (t := time.perf_counter() - t0) < duration_s:
+        shown = None
+        while (t := time.perf_counter() - t0) < duration_s or shown is None:
+            if t > 3 * duration_s:
+                raise AssertionError("the page never showed a drive for the moving pen")
             # Position from the real clock, so the speed is exact whatever the pacing.
             x = x0 + v_px_s * t
             self._send("mouseMoved", x, y0, 1)
+            if t > 0.6 * duration_s and shown is None:
+                # Read while the pen still moves (a pen at rest has speed 0).
+                shown = self.page.evaluate(self.READ)
             time.sleep(interval_s)
-        shown = self.page.wait_for_function(
-            """() => {
-                const T = window.tactilize, d = T.lastDrive;
-                if (!d || d.seq < T.seq || !d.on) return null;
-                const v = (id) => Number(document.querySelector(`[data-testid="${id}"]`).textContent);
-                return {frequency: v('drive-frequency'), width: v('drive-pulse-width'), duty: v('drive-duty'),
-                        amplitude: v('drive-amplitude'), speed: v('drive-speed'), seq: d.seq};
-            }""",
-            timeout=10_000,
-        ).json_value()
         self.last_x = x
         return shown
 
@@ -157,7 +161,7 @@ def surface_box(page):
 def steady_drives(page, seq_from):
     """Drives received for one stroke, without its first 100 ms (speed estimate settling)."""
     # speed > 0: leave out the "pen resting" drive the server sends after a silence.
-    drives = page.evaluate(f"window.tactilize.drives.filter(d => d.seq > {seq_from} && d.on && d.speed_mm_s > 0)")
+    drives = page.evaluate(f"window.tactilize.drives.filter(d => d.seq > {seq_from} && d.on && !d.resting)")
     t0 = drives[0]["t_s"]
     return [d for d in drives if d["t_s"] - t0 > 0.1]
 

@@ -344,7 +344,8 @@ def test_resting_pen_falls_to_zero_speed(client, monkeypatch):
         ws.send_text(json.dumps({"type": "samples", "samples": stroke_rows(30.0)}))
         moving = recv_type(ws, "drive")
         rest = recv_type(ws, "drive")  # sent by the server on its own after IDLE_S
-        assert moving["speed_mm_s"] > 20 and rest["speed_mm_s"] == 0.0 and rest["down"]
+        assert moving["speed_mm_s"] > 20 and not moving["resting"]
+        assert rest["resting"] and rest["speed_mm_s"] == 0.0 and rest["down"]
         assert rest["channels"][0]["pulse_frequency_hz"] < moving["channels"][0]["pulse_frequency_hz"]
 
 

@@ -29,7 +29,9 @@ Server to page
     After each batch (or lift): per channel the applied drive (frequency [Hz],
     width [s] and [ms], duty ratio, amplitude, the limits that clamped), the
     speed [m/s] and [mm/s], direction [deg, y up], whether the pen is down and
-    over the picture.  ``seq`` echoes the newest batch it covers.
+    over the picture.  ``seq`` echoes the newest batch it covers; ``resting``
+    is true for the drive the server sends by itself when the pen is down but
+    no samples came for :data:`IDLE_S` (a resting pen: speed 0).
 ``{"type": "wire", "t_s": [...], "displacement_um": [[...], [...]]}``
     The simulated wires' displacement per channel since the previous message
     (simulated time [s], displacement [um]), when the output keeps a trace;
@@ -248,8 +250,9 @@ class PenSession:
         if self._idle_due:
             self._idle_due = False
             if not self.pending and not self.pending_lift:
-                res = self.renderer.still()
-                return self._drive_msg(res)
+                msg = self._drive_msg(self.renderer.still())
+                msg["resting"] = True
+                return msg
         if not self.pending and not self.pending_lift:
             return None
         res = None
@@ -266,6 +269,7 @@ class PenSession:
         d = res.to_dict()
         d["type"] = "drive"
         d["seq"] = self.seq
+        d["resting"] = False
         return d
 
     def schedule_idle(self, loop: asyncio.AbstractEventLoop) -> None:
