@@ -184,11 +184,37 @@ def test_experimenter_endpoints_need_the_token_when_set(tmp_path):
         assert open_client.get(f"{API}/admin/sessions").status_code == 200
 
 
-def test_loopback_detection_decides_whether_a_token_is_forced():
+def test_run_beyond_loopback_forces_and_prints_a_token(tmp_path, monkeypatch):
+    from fastapi import FastAPI
+
+    import tactilize.web.serve as pen_serve
     from tactilize.experiments import web
 
     assert web.is_loopback("127.0.0.1") and web.is_loopback("::1") and web.is_loopback("localhost")
     assert not web.is_loopback("0.0.0.0") and not web.is_loopback("192.168.1.4")
+    captured = {}
+
+    def fake_serve(host, port, output, profile, open_browser, *, extra_routers=(), echo=print, warn=print, **kw):
+        # Stands in for the pen app's server: no socket is opened in this test.
+        captured.update(host=host, routers=list(extra_routers))
+        echo(f"tactilize: serving the tactile pen at http://{host}:4321/ (output simulated, profile paper)")
+
+    monkeypatch.setattr(pen_serve, "serve", fake_serve)
+    lines = []
+    web.serve_flow("alpha-law", str(tmp_path / "t.sqlite3"), host="192.0.2.7", port=4321, echo=lines.append)
+    admin_line = next(line for line in lines if "experimenter" in line)
+    token = admin_line.split("token=")[1]
+    assert len(token) >= 16 and "http://192.0.2.7:4321/experiment/admin" in admin_line
+    app = FastAPI()
+    for router in captured["routers"]:
+        app.include_router(router)
+    with TestClient(app) as client:
+        assert client.get(f"{API}/admin/sessions").status_code == 401
+        assert client.get(f"{API}/admin/sessions", headers={"X-Tactilize-Token": token}).status_code == 200
+    # On loopback no token is imposed.
+    lines.clear()
+    web.serve_flow("alpha-law", str(tmp_path / "t.sqlite3"), host="127.0.0.1", port=4321, echo=lines.append)
+    assert not any("token=" in line for line in lines)
 
 
 def test_simulation_is_resumable_and_never_duplicates(tmp_path):

@@ -274,7 +274,19 @@ function draw() {
 
 // ---------------------------------------------------------------- audio actuator
 // A voice-coil or LRA actuator on the headphone output plays the pulse train.
-// An oscillator with a pulse-shaped wave is enough here: frequency and duty follow the drive.
+// Inside the pen app (`tactilize experiment run`) the pen page's AudioWorklet
+// pulse synthesiser is reused; served alone, a square oscillator whose frequency
+// follows the drive stands in for it.
+
+let pulses = null;
+import("/static/audio.js").then((m) => { pulses = new m.AudioPulses(); }).catch(() => { pulses = null; });
+// The pen page's screen calibration, when this browser has one, pre-sets the card box.
+import("/static/calibrate.js").then((m) => {
+  if (m.isCalibrated && m.isCalibrated()) $("scale").value = String(Math.round(85.6 / m.mmPerPx()));
+  $("scale").dispatchEvent(new Event("input"));
+}).catch(() => {});
+
+const OFF = { pulse_frequency_hz: 0, pulse_width_s: 0, amplitude: 0 };
 
 const audio = {
   ctx: null, osc: null, gain: null,
@@ -288,17 +300,23 @@ const audio = {
     return true;
   },
   set(drive) {
+    if (pulses) {
+      if (pulses.on) pulses.setDrives([drive || OFF, drive || OFF]);
+      return;
+    }
     if (!this.ensure()) return;
     const on = drive && drive.pulse_frequency_hz > 0 && drive.amplitude > 0;
     const now = this.ctx.currentTime;
     if (on) this.osc.frequency.setTargetAtTime(drive.pulse_frequency_hz, now, 0.005);
     this.gain.gain.setTargetAtTime(on ? 0.25 * drive.amplitude : 0, now, 0.005);
   },
-  pulse(hz, width, amp, seconds) {
+  async pulse(hz, width, amp, seconds) {
+    // A click is the user gesture browsers require before audio may start.
+    if (pulses && !pulses.on) { try { await pulses.start(); } catch { pulses = null; } }
     this.set({ pulse_frequency_hz: hz, pulse_width_s: width, amplitude: amp });
     setTimeout(() => this.set(null), seconds * 1000);
   },
-  stop() { if (this.ctx) this.set(null); },
+  stop() { this.set(null); },
 };
 
 welcome().catch((err) => message(err.message));
