@@ -210,13 +210,14 @@ class PulseScheduler:
         self._drive, self._period, self._width = drive, period, width
         self._anchor, self._k = nxt, 0
 
-    def next_block(self, n: int) -> tuple[np.ndarray, int, float]:
+    def next_block(self, n: int) -> tuple[np.ndarray | list[int], int, float]:
         """Pulses starting in the next ``n`` samples; advances the position.
 
         Returns
         -------
-        starts : ndarray of int64
-            Start samples relative to the block start.
+        starts : list of int or ndarray of int64
+            Start samples relative to the block start (a list when there are
+            only a few: small audio blocks must not pay numpy's overhead).
         width : int
             Width of each of them [samples].
         amplitude : float
@@ -224,13 +225,25 @@ class PulseScheduler:
         """
         pos, end = self.position, self.position + n
         self.position = end
-        if self._drive.is_off or n <= 0:
-            return np.zeros(0, dtype=np.int64), 0, 0.0
+        if self._width == 0 or n <= 0:
+            return [], 0, 0.0
         a, P, k = self._anchor, self._period, self._k
         first = math.floor(a + k * P + 0.5)
         if first >= end:
-            return np.zeros(0, dtype=np.int64), self._width, self._drive.amplitude
+            return [], self._width, self._drive.amplitude
         m = int((end - first) / P) + 2
+        if m <= 64:
+            few = []
+            while True:
+                st = math.floor(a + k * P + 0.5)
+                if st >= end:
+                    break
+                few.append(st - pos)
+                k += 1
+            self._k = k
+            self._last_start = a + (k - 1) * P
+            self._last_end = few[-1] + pos + self._width
+            return few, self._width, self._drive.amplitude
         kk = k + np.arange(m, dtype=np.float64)
         starts = np.floor(a + kk * P + 0.5).astype(np.int64)
         starts = starts[starts < end]
@@ -297,11 +310,16 @@ class PulseStream:
             out[:c] = self._carry_amp
             self._carry -= c
         starts, width, amp = self._sched.next_block(n)
-        if starts.size:
+        if len(starts) == 0:
+            return out
+        if isinstance(starts, list):
+            for st in starts:
+                out[st : st + width] = amp
+        else:
             _fill(n, starts, starts + width, amp, out)
-            tail = int(starts[-1]) + width - n
-            if tail > 0:
-                self._carry, self._carry_amp = tail, amp
+        tail = int(starts[-1]) + width - n
+        if tail > 0:
+            self._carry, self._carry_amp = tail, amp
         return out
 
 

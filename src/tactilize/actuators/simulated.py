@@ -199,7 +199,7 @@ class SimulatedOutput(OutputBase):
             cursor = on
         starts, width, amp = self._scheds[c].next_block(n)
         current = amp * self.spec.rated_current_a
-        for s in starts.tolist():
+        for s in (starts if isinstance(starts, list) else starts.tolist()):
             if s > cursor:
                 durations.append((s - cursor) * 1e-6)
                 currents.append(0.0)

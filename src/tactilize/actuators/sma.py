@@ -325,8 +325,9 @@ class WireModel:
     max_step_k : float
         Largest temperature change [K] of one step inside the transformation band.
     max_step_s : float
-        Largest step [s] when recording traces (linear interpolation between
-        steps must follow the exponential).  Unrecorded runs use tau / 10.
+        Largest step [s] when recording traces (5 ms: linear interpolation of
+        a 45 K exponential decay with tau = 0.53 s then errs by < 0.001 K).
+        Unrecorded runs use tau / 10.
 
     Notes
     -----
@@ -343,7 +344,7 @@ class WireModel:
         martensite_fraction: float | None = None,
         *,
         max_step_k: float = 0.2,
-        max_step_s: float = 2e-3,
+        max_step_s: float = 5e-3,
     ) -> None:
         self.spec = spec
         T = spec.ambient_c if temperature_c is None else float(temperature_c)
@@ -554,7 +555,8 @@ class WireModel:
                     gp = c1 - Lat * d1 - 0.5 * step * dP1 * dR * d1
                     delta = gval / gp
                     T1 -= delta
-                    if -1e-10 < delta < 1e-10:
+                    # 1e-8 K: the energy error per step is below 1e-12 J.
+                    if -1e-8 < delta < 1e-8:
                         break
                 if branch > 0:
                     if T1 <= As:
@@ -774,7 +776,7 @@ def simulate(
     bounds = np.concatenate(([0], change, [n]))
     lengths = np.diff(bounds)
     levels = cur[bounds[:-1]]
-    model = WireModel(spec, initial_temperature_c, initial_martensite_fraction, max_step_k=max_step_k, max_step_s=max(dt, 2e-3))
+    model = WireModel(spec, initial_temperature_c, initial_martensite_fraction, max_step_k=max_step_k, max_step_s=max(dt, 5e-3))
     rec: list[float] = []
     model.run((lengths * dt).tolist(), levels.tolist(), record=rec)
     nodes = np.asarray(rec).reshape(-1, 3)
@@ -855,18 +857,18 @@ def simulate_drive(
         durations, currents = [total], [0.0]
     else:
         period, width = drive.period_s, drive.pulse_width_s
-        k = 0
-        while True:
-            t0 = k * period
-            if t0 >= total - 1e-15:
-                break
-            on = min(width, total - t0)
-            off = min(period - width, total - t0 - on)
-            durations += [on, off]
+        full = int(math.floor(total / period + 1e-12))
+        durations = [width, period - width] * full
+        currents = [current, 0.0] * full
+        starts = [k * period for k in range(full)]
+        t_last = full * period
+        if t_last < total - 1e-15:
+            # A last, cut period.
+            on = min(width, total - t_last)
+            durations += [on, max(0.0, total - t_last - on)]
             currents += [current, 0.0]
-            starts.append(t0)
-            k += 1
-    model = WireModel(spec, initial_temperature_c, initial_martensite_fraction, max_step_s=max(dt, 2e-3))
+            starts.append(t_last)
+    model = WireModel(spec, initial_temperature_c, initial_martensite_fraction, max_step_s=max(dt, 5e-3))
     rec: list[float] = []
     edges: list[tuple[float, float]] = []
     model.run(durations, currents, record=rec, edges=edges)
