@@ -844,6 +844,11 @@ def _run_dask(
             except KilledWorker:
                 # Dask already retried the task on other workers; each of them died.
                 rows = _error_rows(chunk, settings, _WORKER_DIED)
+            except Exception as exc:  # analyse_chunk never raises: this is the cluster
+                raise CatalogError(
+                    str(scheduler) if own else "<dask client>",
+                    f"the Dask cluster failed ({exc.__class__.__name__}: {exc}); the rows finished so far are kept, rerun to resume",
+                ) from None
             yield rows
             fut.release()
     finally:
