@@ -1126,7 +1126,7 @@ class Catalog:
         df = self._frame()
         if status:
             df = df[df["status"] == status]
-        return sorted(df["id"].tolist())[offset : offset + limit]
+        return df["id"].iloc[offset : offset + limit].tolist()  # read_catalog sorts by id
 
     def get(self, product_id: str) -> dict[str, Any] | None:
         """The stored row of a product (missing values as None), or None if unknown."""
