@@ -139,3 +139,18 @@ def test_assessment_figure_is_per_item(tmp_path):
     assert data["mean"]["A"]["q2"] == pytest.approx(np.mean([v[0] for v in Q2.values()]))
     res = analyze(df)["protocols"]["assessment"]["questions"]["q1"]
     assert res["friedman"] is None and res["pairwise"] == []  # one condition: nothing to compare
+
+
+def test_incomplete_participants_leave_the_tests_not_the_descriptives():
+    df = _tidy()
+    # p6 stopped after condition A: kept in A's descriptives, dropped from the tests.
+    df = df[~((df["participant"] == "p6") & (df["condition"] != "A"))]
+    res = analyze(df)["protocols"]["toy"]["questions"]["q1"]
+    assert res["descriptives"]["A"]["n"] == 6 and res["descriptives"]["B"]["n"] == 5
+    assert res["friedman"]["n"] == 5
+    cols = [[Q1[p][j] for p in ("p1", "p2", "p3", "p4", "p5")] for j in range(3)]
+    assert res["friedman"]["Q"] == pytest.approx(stats.friedmanchisquare(*cols).statistic)
+    assert all(r["n"] == 5 for r in res["pairwise"])
+    one = analyze(df[df["participant"] == "p1"])["protocols"]["toy"]["questions"]["q1"]
+    assert one["friedman"] is None
+    assert all(r["p"] is None and r["p_holm"] is None for r in one["pairwise"])

@@ -183,18 +183,23 @@ def pairwise_wilcoxon(cell) -> list[dict[str, Any]]:
         x, y = wide[a].to_numpy(float), wide[b].to_numpy(float)
         d = x - y
         row = {"a": str(a), "b": str(b), "n": int(len(d)), "median_diff": _f(np.median(d)) if len(d) else None}
-        if len(d) < 2 or np.all(d == 0):
-            # No non-zero difference: the test is undefined; nothing differs.
+        if len(d) < 2:
+            row.update({"W": None, "p": None, "rbc": None, "cles": None, "note": "fewer than 2 complete participants"})
+        elif np.all(d == 0):
+            # Every participant rated both the same: nothing differs (scipy would refuse).
             row.update({"W": 0.0, "p": 1.0, "rbc": 0.0, "cles": 0.5, "note": "no non-zero differences"})
         else:
             r = pg.wilcoxon(x, y).iloc[0]
             row.update({"W": _f(_col(r, "W_val", "W-val")), "p": _f(_col(r, "p_val", "p-val")),
                         "rbc": _f(r["RBC"]), "cles": _f(r["CLES"])})
         out.append(row)
-    pvals = [r["p"] if r["p"] is not None else 1.0 for r in out]
-    if pvals:
-        reject, corrected = pg.multicomp(pvals, method="holm")
-        for r, pc, rej in zip(out, corrected, reject):
+    tested = [r for r in out if r["p"] is not None]
+    for r in out:
+        r["p_holm"], r["significant_0_05"] = None, False
+    if tested:
+        # Holm over the pairs that could be tested; untested pairs do not dilute it.
+        reject, corrected = pg.multicomp([r["p"] for r in tested], method="holm")
+        for r, pc, rej in zip(tested, corrected, reject):
             r["p_holm"] = _f(pc)
             r["significant_0_05"] = bool(rej)
     return out
