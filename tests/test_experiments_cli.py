@@ -65,6 +65,13 @@ def test_simulate_export_analyze_calibrate(tmp_path):
 
     assert Profile.resolve(str(prof)).speed.kind == "sigmoid"
 
+    refine = tmp_path / "refine.toml"
+    r = _run("refine", "SIM-3-001", "--db", db, "-o", str(refine), "--steps", "3")
+    assert r.exit_code == 0, r.output
+    from tactilize.experiments.protocols import load_protocol
+
+    assert [c.id for c in load_protocol(str(refine)).conditions] == ["R1", "R2", "R3"]
+
 
 def test_bad_input_is_one_line_and_exit_2(tmp_path):
     for args in (["simulate", "nope", "--participants", "1", "--seed", "1"],

@@ -265,6 +265,32 @@ def test_personal_calibration_profile_is_usable(tmp_path):
     assert "ME" in again.description and "alpha-law" in again.description
 
 
+def test_refinement_round_supersedes_the_first_fit(tmp_path):
+    from tactilize.experiments.calibration import fit_personal_profile, refinement_protocol
+    from tactilize.experiments.protocols import protocol_from_toml
+    from tactilize.experiments.simulate import simulate
+
+    db = str(tmp_path / "refine.sqlite3")
+    simulate("alpha-law", 1, seed=4, db_url=db)
+    store = Store(db)
+    first, rep1 = fit_personal_profile(store, "SIM-4-001")
+    k5 = first.speed.slope_per_mm_s
+    text = refinement_protocol(store, "SIM-4-001", "speed", span_octaves=0.5, steps=5, repetitions=2)
+    proto = protocol_from_toml(text)
+    grid = sorted(proto.profile(c.id).speed.slope_per_mm_s for c in proto.conditions)
+    assert grid == pytest.approx([k5 * 2**x for x in (-0.5, -0.25, 0, 0.25, 0.5)])
+    assert len(proto.plan(1)) == 10 and "SIM-4-001" in text
+    path = tmp_path / "refine.toml"
+    path.write_text(text)
+    # The same synthetic person (same seed and index) takes the refinement round.
+    simulate(str(path), 1, seed=4, db_url=db)
+    final, rep2 = fit_personal_profile(store, "SIM-4-001")
+    fits = {(f["protocol"], f["superseded"]) for f in rep2["fits"]}
+    assert ("alpha-law", True) in fits and (proto.name, False) in fits
+    assert grid[0] - 1e-12 <= final.speed.slope_per_mm_s <= grid[-1] + 1e-12
+    assert proto.name in final.description and "alpha-law (" not in final.description
+
+
 @pytest.mark.skipif(not __import__("os").environ.get("TACTILIZE_TEST_POSTGRES_URL"),
                     reason="set TACTILIZE_TEST_POSTGRES_URL to a scratch PostgreSQL database")
 def test_postgresql_store_takes_each_answer_once():

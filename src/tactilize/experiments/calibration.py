@@ -15,6 +15,11 @@ them this module picks that person's law and coefficient:
    tested range so nothing is extrapolated; otherwise the best-rated
    coefficient (several tied: their geometric mean).
 
+A short adaptive step refines a fit: :func:`refinement_protocol` writes a
+protocol around the person's fitted coefficient (a finer grid, half an octave
+either side, repeated), which they run like any other; calibrating again then
+uses the refinement, the latest protocol superseding the earlier fit.
+
 The fitted laws replace those of a base profile (the paper preset by default)
 and the result is an ordinary profile TOML, usable with ``tactilize serve
 --profile FILE``.  Its description records where every number came from.
@@ -28,7 +33,7 @@ import numpy as np
 
 from ..errors import TactilizeError
 
-__all__ = ["fit_personal_profile", "fit_law", "PRIMARY"]
+__all__ = ["fit_personal_profile", "fit_law", "refinement_protocol", "PRIMARY"]
 
 # The coefficient each law family is calibrated on.
 PRIMARY = {
@@ -119,7 +124,10 @@ def fit_personal_profile(store, participant: str, base: str | None = None, quest
             texts[pv.sha256[:12]] = pv.text
     data = base_profile.to_dict()
     reports = []
-    for (pname, sha), pdf in df.groupby(["protocol", "protocol_sha256"]):
+    # Oldest protocol first: a later one (a refinement round) supersedes an
+    # earlier fit of the same law.
+    groups = sorted(df.groupby(["protocol", "protocol_sha256"]), key=lambda g: g[1]["answered_at"].max())
+    for (pname, sha), pdf in groups:
         proto = protocol_from_toml(texts[sha], source=f"protocol {pname}")
         means = pdf.groupby("condition")["rating"].mean()
         for role in PROFILE_ROLES:
@@ -132,7 +140,11 @@ def fit_personal_profile(store, participant: str, base: str | None = None, quest
             if len(points) < 2:
                 continue
             table, rep = fit_law(points, role)
-            rep.update({"protocol": pname, "protocol_sha256": sha, "n_answers": int(len(pdf))})
+            rep.update({"protocol": pname, "protocol_sha256": sha, "n_answers": int(len(pdf)),
+                        "superseded": False})
+            for earlier in reports:
+                if earlier["role"] == role:
+                    earlier["superseded"] = True
             data[role] = table
             reports.append(rep)
     if not reports:
@@ -140,7 +152,7 @@ def fit_personal_profile(store, participant: str, base: str | None = None, quest
     data["name"] = f"personal-{participant}"
     summary = "; ".join(
         f"{r['role']}: {r['law']} {', '.join(f'{k} = {v:.4g}' for k, v in r.get('coefficient', {}).items())} "
-        f"from {r['protocol']} ({r['protocol_sha256']})" for r in reports)
+        f"from {r['protocol']} ({r['protocol_sha256']})" for r in reports if not r["superseded"])
     data["description"] = (f"Personal profile of participant {participant}, fitted by tactilize "
                            f"{_version()} from their ratings on base {base_profile.name}: {summary}.")
     prof = Profile.from_dict(data, source=f"personal profile {participant}")
@@ -153,3 +165,86 @@ def _version() -> str:
 
     return __version__
 
+
+
+def refinement_protocol(store, participant: str, role: str | None = None, *, span_octaves: float = 0.5,
+                        steps: int = 5, repetitions: int = 2, seed: int | None = None) -> str:
+    """A protocol (TOML text) that refines one of a participant's fitted laws.
+
+    Conditions are the fitted coefficient times ``2 ** x`` for ``steps`` values
+    of x evenly spaced in ``[-span_octaves, span_octaves]``, in the fitted law
+    family, each repeated ``repetitions`` times; the person's other fitted laws
+    are held at their fitted values in every condition.  Images, questions and
+    timing come from the protocol the fit came from.
+
+    Parameters
+    ----------
+    role : {"frequency", "width", "speed"}, optional
+        Which law; by default the one fitted last.
+
+    Returns
+    -------
+    str
+        TOML text; load it with :func:`~tactilize.experiments.protocols.protocol_from_toml`
+        or save it and ``tactilize experiment run FILE``.
+    """
+    import tomli_w
+
+    from .protocols import protocol_from_toml
+    from .store import utcnow
+
+    if steps < 3 or not 0 < span_octaves <= 3 or repetitions < 1:
+        raise TactilizeError("refinement", "needs steps >= 3, 0 < span_octaves <= 3 and repetitions >= 1")
+    prof, report = fit_personal_profile(store, participant)
+    current = [f for f in report["fits"] if not f["superseded"]]
+    fits = [f for f in current if role is None or f["role"] == role]
+    if not fits:
+        raise TactilizeError(participant, f"no fitted {role or 'law'} to refine")
+    fit = fits[-1]
+    if not fit.get("coefficient"):
+        raise TactilizeError(participant, f"the {fit['role']} law {fit['law']} has no coefficient to refine")
+    (key, centre), = fit["coefficient"].items()
+    with store.Session() as s:
+        from .store import ProtocolVersion
+
+        source = next(pv for pv in s.query(ProtocolVersion) if pv.sha256.startswith(fit["protocol_sha256"]))
+        source_text, source_sha = source.text, source.sha256
+    src = protocol_from_toml(source_text, source=f"protocol {fit['protocol']}")
+    fitted = {f["role"]: prof.to_dict()[f["role"]] for f in current}
+    law = dict(fitted[fit["role"]])
+    conditions = []
+    for i in range(steps):
+        x = -span_octaves + 2 * span_octaves * i / (steps - 1)
+        table = dict(law, **{key: float(centre * 2.0**x)})
+        cond = {"id": f"R{i + 1}", "label": f"{law['law']}, {key} = {table[key]:.4g} ({x:+.2f} octave)"}
+        for r, t in fitted.items():
+            cond[r] = table if r == fit["role"] else dict(t)
+        conditions.append(cond)
+    stamp = utcnow().strftime("%Y%m%d%H%M%S")
+    doc = {
+        # A name of its own per round: participant IDs are unique per protocol name,
+        # and the same person must be able to take a second round.
+        "name": f"refine-{fit['role']}-{stamp}",
+        "version": "1",
+        "title": f"Refinement of the {fit['role']} law",
+        "description": src.description,
+        "reference": f"refinement of {src.name} ({source_sha[:12]}) for participant {participant}",
+        "base_profile": src.base_profile,
+        "repetitions": repetitions,
+        "trial_unit": src.trial_unit,
+        "break_every": src.break_every,
+        "min_stroke_s": src.min_stroke_s,
+        "participants_planned": 1,
+        "order": {"method": "williams", "seed": seed if seed is not None else int(source_sha[:6], 16),
+                  "shuffle_images": src.shuffle_images},
+        "images": [im.to_dict() for im in src.images],
+        "conditions": conditions,
+        "questions": [{"id": q.id, "text": q.text, "scale_min": q.scale_min, "scale_max": q.scale_max,
+                       "anchors": {str(k): v for k, v in q.anchors.items()}} for q in src.questions],
+    }
+    header = (f"# Generated by tactilize {_version()} for participant {participant}: a finer grid around their\n"
+              f"# fitted {fit['role']} law ({law['law']}, {key} = {centre:.4g}), from protocol {src.name} "
+              f"({source_sha[:12]}).\n")
+    text = header + tomli_w.dumps(doc)
+    protocol_from_toml(text, source="refinement")  # fail here, not in front of the participant
+    return text

@@ -202,6 +202,30 @@ def calibrate_cmd(participant: str, output: str, db_url: str | None, base: str, 
     click.echo(f"wrote {output}")
 
 
+@experiment.command("refine")
+@click.argument("participant")
+@click.option("-o", "--output", required=True, help="Protocol TOML to write (then: experiment run FILE).")
+@click.option("--db", "db_url", default=None, help=DB_HELP)
+@click.option("--role", type=click.Choice(["frequency", "width", "speed"]), default=None,
+              help="Which fitted law to refine (default: the last fitted).")
+@click.option("--span-octaves", type=float, default=0.5, show_default=True, help="Grid half-width around the fit.")
+@click.option("--steps", type=int, default=5, show_default=True, help="Grid points.")
+@click.option("--repetitions", type=int, default=2, show_default=True)
+def refine_cmd(participant: str, output: str, db_url: str | None, role: str | None, span_octaves: float, steps: int,
+               repetitions: int) -> None:
+    """Write a short protocol refining PARTICIPANT's fitted law (the adaptive step)."""
+    from .calibration import refinement_protocol
+    from .store import Store
+
+    text = refinement_protocol(Store(db_url), participant, role, span_octaves=span_octaves, steps=steps,
+                               repetitions=repetitions)
+    try:
+        Path(output).write_text(text, "utf-8")
+    except OSError as exc:
+        raise TactilizeError(output, f"cannot write ({exc.strerror or exc})") from None
+    click.echo(f"wrote {output}; run it with: tactilize experiment run {output}")
+
+
 def _redact(url: str) -> str:
     from .analysis import _redact as r
 
