@@ -124,3 +124,12 @@ def test_bad_protocols_are_refused_with_a_reason(mutate, fault):
 def test_unknown_protocol_name():
     with pytest.raises(ProtocolError, match="neither a built-in"):
         load_protocol("no-such-protocol")
+
+
+def test_package_exports_resolve():
+    import tactilize.experiments as E
+    import tactilize.experiments.simulate  # noqa: F401  (the submodule must not shadow the function)
+
+    for name in E.__all__:
+        assert getattr(E, name) is not None
+    assert callable(E.simulate_participants) and E.simulate_participants.__module__.endswith("simulate")

@@ -43,8 +43,13 @@ _EXPORTS = {
     "analyze": "analysis",
     "make_figures": "figures",
     "fit_personal_profile": "calibration",
-    "simulate": "simulate",
+    "refinement_protocol": "calibration",
+    "simulate_participants": "simulate",
 }
+
+# Names whose function is called differently from its module (the submodule
+# ``simulate`` would otherwise shadow the function of the same name).
+_ALIASES = {"simulate_participants": "simulate"}
 
 __all__ = sorted(_EXPORTS)
 
@@ -53,7 +58,7 @@ def __getattr__(name: str) -> Any:
     module = _EXPORTS.get(name)
     if module is None:
         raise AttributeError(f"module 'tactilize.experiments' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    value = getattr(importlib.import_module(f".{module}", __name__), _ALIASES.get(name, name))
     globals()[name] = value
     return value
 
