@@ -558,20 +558,8 @@ class WireModel:
                     # 1e-8 K: the energy error per step is below 1e-12 J.
                     if -1e-8 < delta < 1e-8:
                         break
-                if branch > 0:
-                    if T1 <= As:
-                        x1 = k
-                    elif T1 >= Af:
-                        x1 = 0.0
-                    else:
-                        x1 = k * 0.5 * (1 + cos(aA * (T1 - As)))
-                else:
-                    if T1 <= Mf:
-                        x1 = 1.0
-                    elif T1 >= Ms:
-                        x1 = 1.0 - k
-                    else:
-                        x1 = 1.0 - k * (0.5 - 0.5 * cos(aM * (T1 - Mf)))
+                # x1 is that of the last Newton iterate, within 1e-8 K of T1:
+                # recomputing it would change the energy by < 1e-11 J.
                 if x1 > 1.0:
                     x1 = 1.0
                 elif x1 < 0.0:
@@ -785,8 +773,10 @@ def simulate(
     nodes[-1, 0] = t[-1]
     T = np.interp(t, nodes[:, 0], nodes[:, 1])
     xi = np.interp(t, nodes[:, 0], nodes[:, 2])
-    on = cur != 0
-    rising = np.flatnonzero(on & ~np.concatenate(([False], on[:-1])))
+    # Pulse onsets from the run-length code: a nonzero run after a zero one (or first).
+    nonzero = levels != 0
+    onset = nonzero & np.concatenate(([True], ~nonzero[:-1]))
+    rising = bounds[:-1][onset]
     return SimulationResult(
         time_s=t,
         current_a=cur,
