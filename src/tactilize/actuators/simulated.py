@@ -83,7 +83,7 @@ class SimulatedOutput(OutputBase):
         self._bin_us = max(1, int(round(_SCHEDULE_RATE_HZ / trace_rate_hz)))
         self.trace_rate_hz = _SCHEDULE_RATE_HZ / self._bin_us
         self._bin_s = self._bin_us * 1e-6
-        self._models = [WireModel(self.spec, max_step_s=self._bin_s) for _ in range(channels)]
+        self._models = [WireModel(self.spec) for _ in range(channels)]
         self._scheds = [PulseScheduler(_SCHEDULE_RATE_HZ) for _ in range(channels)]
         self._carry_us = [0] * channels
         self._carry_a = [0.0] * channels
