@@ -545,7 +545,9 @@ class _ParquetStore:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
-        table = pa.Table.from_pylist(rows, schema=self.schema)
+        # Column lists, not from_pylist: the latter costs ~1 ms a row in this process,
+        # which the workers need.
+        table = pa.Table.from_pydict({n: [r.get(n) for r in rows] for n in self.schema.names}, schema=self.schema)
         # Dot-prefixed temporaries are ignored by Parquet readers.
         tmp = self.path / f".{_PART_PREFIX}{os.getpid()}-{self._next:05d}.parquet.tmp"
         pq.write_table(table, tmp)
@@ -741,13 +743,53 @@ def _init_worker() -> None:
         pass
 
 
-def _chunks(items: Sequence[CatalogItem], size: int) -> list[list[CatalogItem]]:
-    return [list(items[i : i + size]) for i in range(0, len(items), size)]
+class _Feeder:
+    """Hands out tasks of a size that adapts to how long an image takes.
+
+    A task should last about ``target_s``: long enough that sending it and its
+    rows costs little beside the analysis (tiny thumbnails need hundreds per
+    task), short enough that progress moves and, near the end, no worker waits
+    for another's long task (no task takes more than a share of what is left).
+    """
+
+    def __init__(self, items: Sequence[CatalogItem], slots: int, fixed: int | None = None, target_s: float = 0.15):
+        self.items = items
+        self.slots = max(1, slots)
+        self.fixed = fixed
+        self.target_s = target_s
+        self.pos = 0
+        self.size = fixed or 2  # small first tasks give a first estimate quickly
+        self.per_image_s: float | None = None
+
+    def __bool__(self) -> bool:
+        return self.pos < len(self.items)
+
+    def next(self) -> list[CatalogItem] | None:
+        remaining = len(self.items) - self.pos
+        if remaining <= 0:
+            return None
+        size = self.fixed or max(1, min(self.size, remaining // (2 * self.slots) or 1))
+        chunk = list(self.items[self.pos : self.pos + size])
+        self.pos += len(chunk)
+        return chunk
+
+    def observe(self, rows: list[dict[str, Any]]) -> None:
+        if self.fixed:
+            return
+        secs = [r["seconds"] for r in rows if r.get("seconds")]
+        if not secs:
+            return
+        t = sum(secs) / len(secs)
+        # A moving average: one slow image must not swing the task size.
+        self.per_image_s = t if self.per_image_s is None else 0.7 * self.per_image_s + 0.3 * t
+        self.size = int(min(512, max(1, self.target_s / max(self.per_image_s, 1e-6))))
 
 
-def _run_serial(chunks: list[list[CatalogItem]], settings: AnalysisSettings) -> Iterator[list[dict[str, Any]]]:
-    for chunk in chunks:
-        yield analyse_chunk(chunk, settings)
+def _run_serial(feed: _Feeder, settings: AnalysisSettings) -> Iterator[list[dict[str, Any]]]:
+    while (chunk := feed.next()) is not None:
+        rows = analyse_chunk(chunk, settings)
+        feed.observe(rows)
+        yield rows
 
 
 def _error_rows(chunk: Sequence[CatalogItem], settings: AnalysisSettings, reason: str) -> list[dict[str, Any]]:
@@ -764,7 +806,7 @@ _WORKER_DIED = (
 )
 
 
-def _run_processes(chunks: list[list[CatalogItem]], settings: AnalysisSettings, workers: int) -> Iterator[list[dict[str, Any]]]:
+def _run_processes(feed: _Feeder, settings: AnalysisSettings, workers: int) -> Iterator[list[dict[str, Any]]]:
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 
@@ -785,13 +827,10 @@ def _run_processes(chunks: list[list[CatalogItem]], settings: AnalysisSettings, 
             fut = pool.submit(analyse_chunk, chunk, settings)
         chunk_of[fut] = chunk
 
-    todo = iter(chunks)
     try:
         # A bounded number in flight keeps memory flat for a catalog of any size.
-        for chunk in todo:
+        while len(chunk_of) < 2 * workers and (chunk := feed.next()) is not None:
             submit(chunk)
-            if len(chunk_of) >= 3 * workers:
-                break
         while chunk_of:
             done, _ = wait(list(chunk_of), return_when=FIRST_COMPLETED)
             for fut in done:
@@ -800,7 +839,8 @@ def _run_processes(chunks: list[list[CatalogItem]], settings: AnalysisSettings, 
                     rows = fut.result()
                 except BrokenProcessPool:
                     rows = _error_rows(chunk, settings, _WORKER_DIED)
-                nxt = next(todo, None)
+                feed.observe(rows)
+                nxt = feed.next()
                 if nxt is not None:
                     submit(nxt)
                 yield rows
@@ -808,9 +848,7 @@ def _run_processes(chunks: list[list[CatalogItem]], settings: AnalysisSettings, 
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _run_dask(
-    chunks: list[list[CatalogItem]], settings: AnalysisSettings, scheduler: Any, timeout_s: float
-) -> Iterator[list[dict[str, Any]]]:
+def _run_dask(feed: _Feeder, settings: AnalysisSettings, scheduler: Any, timeout_s: float) -> Iterator[list[dict[str, Any]]]:
     try:
         from distributed import Client, as_completed
         from distributed.scheduler import KilledWorker
@@ -826,18 +864,18 @@ def _run_dask(
     else:
         client = scheduler
     try:
-        n_slots = max(1, sum(client.nthreads().values()))
-        todo = iter(chunks)
-        # range first: zip must not pull (and drop) a chunk once the window is full.
-        first = [client.submit(analyse_chunk, c, settings, pure=False) for _, c in zip(range(3 * n_slots), todo)]
-        queue = as_completed(first, loop=client.loop)  # this client need not be the default one
-        chunk_of = dict(zip(first, chunks))
+        feed.slots = max(1, sum(client.nthreads().values()))
+        chunk_of: dict[Any, list[CatalogItem]] = {}
+        queue = as_completed([], loop=client.loop)  # this client need not be the default one
+
+        def submit(chunk: list[CatalogItem]) -> None:
+            f = client.submit(analyse_chunk, chunk, settings, pure=False)
+            chunk_of[f] = chunk
+            queue.add(f)
+
+        while len(chunk_of) < 2 * feed.slots and (first := feed.next()) is not None:
+            submit(first)
         for fut in queue:
-            nxt = next(todo, None)
-            if nxt is not None:
-                f = client.submit(analyse_chunk, nxt, settings, pure=False)
-                chunk_of[f] = nxt
-                queue.add(f)
             chunk = chunk_of.pop(fut)
             try:
                 rows = fut.result()
@@ -849,6 +887,10 @@ def _run_dask(
                     str(scheduler) if own else "<dask client>",
                     f"the Dask cluster failed ({exc.__class__.__name__}: {exc}); the rows finished so far are kept, rerun to resume",
                 ) from None
+            feed.observe(rows)
+            nxt = feed.next()
+            if nxt is not None:
+                submit(nxt)
             yield rows
             fut.release()
     finally:
@@ -907,8 +949,9 @@ def run_batch(
     retry_failed : bool
         Also analyse again the ids whose earlier row is an error.
     chunk_size : int, optional
-        Images per task (default: a few per task, fewer for small batches so
-        that every worker gets some).
+        Images per task.  By default it adapts so that a task lasts about
+        0.15 s (many thumbnails, or one large photo per task), smaller near
+        the end so that every worker stays busy.
     part_rows, part_seconds : int, float
         Rows are written when this many are waiting or this many seconds [s]
         have passed, whichever comes first: what a crash can lose at most.
@@ -943,16 +986,13 @@ def run_batch(
         todo = [it for it in items if it.id not in done_before]
         skipped = len(items) - len(todo)
         n_workers = max(1, int(workers)) if workers else default_workers()
-        slots = n_workers if scheduler is None else 8
-        # Small tasks keep every worker busy to the end; the per-task cost is a pickle of a few rows.
-        size = chunk_size or max(1, min(4, len(todo) // (16 * slots) or 1))
-        chunks = _chunks(todo, size)
+        feed = _Feeder(todo, n_workers, chunk_size)
         if scheduler is not None:
-            results = _run_dask(chunks, settings, scheduler, scheduler_timeout_s)
-        elif n_workers == 1 or len(chunks) <= 1:
-            results = _run_serial(chunks, settings)
+            results = _run_dask(feed, settings, scheduler, scheduler_timeout_s)
+        elif n_workers == 1 or len(todo) <= 1:
+            results = _run_serial(feed, settings)
         else:
-            results = _run_processes(chunks, settings, n_workers)
+            results = _run_processes(feed, settings, n_workers)
 
         ok = failed = 0
         buffer: list[dict[str, Any]] = []
