@@ -92,7 +92,9 @@ def serve_echo() -> None:
     sock.bind(("127.0.0.1", 0))
     sock.listen(128)
     print(f"echo at http://127.0.0.1:{sock.getsockname()[1]}/", flush=True)
-    uvicorn.Server(uvicorn.Config(app, log_level="warning")).run(sockets=[sock])
+    # Same WebSocket settings as tactilize serve, so the ratio isolates tactilize's own work.
+    sys.setswitchinterval(0.0005)
+    uvicorn.Server(uvicorn.Config(app, log_level="warning", ws_per_message_deflate=False)).run(sockets=[sock])
 
 
 # ----------------------------------------------------------------- phases

@@ -13,7 +13,6 @@ These tests need Debian's ``chromium`` (``apt-get install chromium``) and the
 
 from __future__ import annotations
 
-import math
 import os
 import re
 import shutil

@@ -163,6 +163,12 @@ def test_upload_refusals(client):
     assert r.status_code == 422 and "width_mm" in r.json()["error"]
     r = client.post("/api/textures", files={"file": ("a.png", good[:30], "image/png")})
     assert r.status_code in (415, 422) and "a.png" in r.json()["error"]
+    r = client.post("/api/textures", data={"width_mm": "10"})
+    assert r.status_code in (400, 422) and "file" in r.json()["error"]
+    r = client.post("/api/textures", content=b"--x\r\ngarbage", headers={"content-type": "multipart/form-data; boundary=x"})
+    assert r.status_code in (400, 422) and "error" in r.json()
+    r = client.post("/api/textures", files={"file": ("a.png", good, "image/png")}, data={"width_mm": "10", "dpi": "300"})
+    assert r.status_code == 422 and "not both" in r.json()["error"]
     # a decompression bomb: a header claiming 20000 x 20000 pixels
     from PIL import Image
 

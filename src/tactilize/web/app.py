@@ -36,7 +36,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
-from fastapi import APIRouter, FastAPI, File, Form, HTTPException, Request, UploadFile, WebSocket
+from fastapi import APIRouter, FastAPI, Request, WebSocket
 from fastapi.responses import FileResponse, JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
 
@@ -52,6 +52,8 @@ log = logging.getLogger("tactilize.web")
 MAX_UPLOAD_BYTES = 12 * 1024 * 1024
 #: Largest upload accepted [pixels]: 16 Mpx; analysing it takes about a second.
 MAX_UPLOAD_PIXELS = 16 * 1024 * 1024
+#: Room for the multipart framing and the small form fields around the file [bytes].
+_FORM_OVERHEAD = 64 * 1024
 #: Uploads kept in memory; the oldest is forgotten first.
 MAX_UPLOADS = 24
 
@@ -426,31 +428,51 @@ def _api_router() -> APIRouter:
         )
 
     @r.post("/textures")
-    async def upload(
-        request: Request,
-        file: UploadFile = File(...),
-        width_mm: str | None = Form(None),
-        dpi: str | None = Form(None),
-    ) -> Any:
+    async def upload(request: Request) -> Any:
+        """Multipart form: ``file`` (the picture), optional ``width_mm`` or ``dpi``."""
         s = st(request)
-        size = _number(width_mm, "width_mm"), _number(dpi, "dpi")
-        if isinstance(size[0], str) or isinstance(size[1], str):
-            return _error(422, next(x for x in size if isinstance(x, str)))
-        # Read one byte past the limit: enough to know it is too large without
-        # holding an arbitrarily large body in memory.
-        data = await file.read(MAX_UPLOAD_BYTES + 1)
+        too_large = f"file too large (limit {MAX_UPLOAD_BYTES // (1024 * 1024)} MB)"
+        # The body is bounded *before* the multipart parser sees it: a parser
+        # left alone would spool any size to disk before the handler could refuse.
+        limit = MAX_UPLOAD_BYTES + _FORM_OVERHEAD
+        try:
+            declared = int(request.headers.get("content-length", "0"))
+        except ValueError:
+            return _error(400, "bad Content-Length header")
+        if declared > limit:
+            s.counters["uploads_refused"] += 1
+            return _error(413, too_large)
+        body = bytearray()
+        async for chunk in request.stream():
+            body += chunk
+            if len(body) > limit:
+                s.counters["uploads_refused"] += 1
+                return _error(413, too_large)
+        request._body = bytes(body)  # Starlette's form parser reads the cached body
+        try:
+            form = await request.form(max_files=1, max_fields=8)
+        except Exception as exc:  # malformed multipart: say so, never a 500
+            return _error(400, f"not a valid multipart form ({exc.__class__.__name__})")
+        file = form.get("file")
+        if file is None or isinstance(file, str):
+            return _error(422, "send the picture as the form field 'file'")
+        src = Path(file.filename or "upload").name or "upload"
+        w_mm, dpi = _number(form.get("width_mm"), "width_mm"), _number(form.get("dpi"), "dpi")
+        for v in (w_mm, dpi):
+            if isinstance(v, str):
+                return _error(422, v)
+        if w_mm is not None and dpi is not None:
+            return _error(422, "give width_mm or dpi, not both")
+        data = await file.read()
         if len(data) > MAX_UPLOAD_BYTES:
             s.counters["uploads_refused"] += 1
-            return _error(413, f"{file.filename}: file too large (limit {MAX_UPLOAD_BYTES // (1024 * 1024)} MB)")
+            return _error(413, f"{src}: {too_large}")
         if not data:
-            return _error(422, f"{file.filename}: empty file")
+            return _error(422, f"{src}: empty file")
         try:
-            entry = await asyncio.get_running_loop().run_in_executor(
-                None, s.add_upload, data, file.filename or "upload", size[0], size[1]
-            )
+            entry = await asyncio.get_running_loop().run_in_executor(None, s.add_upload, data, src, w_mm, dpi)
         except ImageError as exc:
             s.counters["uploads_refused"] += 1
-            src = file.filename or "upload"
             return _error(415 if "not an image" in exc.fault else 422, f"{src}: {exc.fault}")
         s.counters["uploads"] += 1
         return JSONResponse(entry.describe(), status_code=201)

@@ -408,7 +408,7 @@ def _wire_source(output: Any):
     if not callable(fn):
         return None
     last_t = [-math.inf]
-    span_s = 4 * WIRE_PERIOD_S
+    span_s = 2 * WIRE_PERIOD_S
 
     def pull() -> dict[str, Any] | None:
         tr = fn(span_s)
