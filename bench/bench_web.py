@@ -229,6 +229,9 @@ def main(argv=None):
     # Memory after the first 10 % of the run (allocator and caches warmed) vs the end.
     warm = rss[max(1, len(rss) // 10)][1] if len(rss) > 2 else rss[0][1]
     doc = {
+        # 1-minute load average over the cores: the figures depend on it (shared machines)
+        "load_average_1min": os.getloadavg()[0],
+        "cpu_count": os.cpu_count(),
         "server_latency_us": {k: stats["server_latency_us"][k] for k in ("p50", "p90", "p99", "max")},
         "server_latency_batches": stats["batches"],
         "round_trip_ms": {"p50": pct(rtt, 50) * 1e3, "p99": pct(rtt, 99) * 1e3, "mean": statistics.fmean(rtt) * 1e3},
@@ -256,6 +259,7 @@ def main(argv=None):
         return
     s = doc["sustained"]
     lat = doc["server_latency_us"]
+    print(f"machine: {doc['cpu_count']} CPUs, load average {doc['load_average_1min']:.2f} at the end of the run")
     print(f"server-side latency (arrival -> drive sent), {args.round_trips} batches of 4 samples:")
     print(f"  p50 {lat['p50']:.0f} us   p99 {lat['p99']:.0f} us   max {lat['max']:.0f} us   (goal p99 < 1000 us)")
     r, e, q = doc["round_trip_ms"], doc["echo_round_trip_ms"], doc["round_trip_ratio_to_echo"]
