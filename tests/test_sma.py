@@ -273,3 +273,13 @@ def test_whatever_the_envelope_lets_through_stays_under_its_temperature_limit(en
     # 4 s from ambient is past 7 time constants: the settled peak is reached.
     res = simulate_drive(drive, 4.0, SPEC, dt_s=1e-4)
     assert res.summary()["peak_temperature_c"] <= SPEC.max_temperature_c
+
+
+def test_simulate_drive_reports_its_current_on_the_sample_grid():
+    res = simulate_drive(Drive(200.0, 0.25e-3), 0.5, SPEC, dt_s=5e-6)
+    cur = res.current_a
+    assert cur.size == 100_000 and res.time_s.size == 100_001
+    assert set(np.unique(cur)) == {0.0, SPEC.rated_current_a}
+    assert np.count_nonzero(cur) == 100 * 50  # 100 pulses of 50 samples
+    assert res.pulse_starts_s.size == 100
+    assert np.allclose(np.diff(res.pulse_starts_s), 5e-3)

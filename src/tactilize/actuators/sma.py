@@ -870,17 +870,21 @@ def simulate_drive(
     pulse_edges = None
     if starts:
         # xi at each pulse start, pulse end, next start; only complete periods.
-        xs = np.array([model.initial_martensite_fraction] + [e[1] for e in edges])
+        xs = np.concatenate(([model.initial_martensite_fraction], np.asarray(edges)[:, 1]))
         m = (len(xs) - 1) // 2
-        complete = [i for i in range(m) if durations[2 * i + 1] >= drive.period_s - drive.pulse_width_s - 1e-12]
-        if complete:
-            ci = np.asarray(complete)
+        offs = np.asarray(durations[1 : 2 * m : 2])
+        ci = np.flatnonzero(offs >= drive.period_s - drive.pulse_width_s - 1e-12)
+        if ci.size:
             pulse_edges = spec.displacement_m(np.stack([xs[2 * ci], xs[2 * ci + 1], xs[2 * ci + 2]], axis=1))
-    samp = np.floor(t[:-1] / drive.period_s) if starts else None
-    cur = np.zeros(n)
+    # The current on the sample grid: +I at each onset sample, -I at each end, summed.
+    steps = np.zeros(n + 1, dtype=np.int32)
     if starts:
-        phase = t[:-1] - samp * drive.period_s
-        cur[phase < drive.pulse_width_s] = current
+        st = np.asarray(starts)
+        on_idx = np.minimum(np.floor(st / dt + 0.5).astype(np.int64), n)
+        off_idx = np.minimum(np.floor((st + drive.pulse_width_s) / dt + 0.5).astype(np.int64), n)
+        steps += np.bincount(on_idx, minlength=n + 1)[: n + 1].astype(np.int32)
+        steps -= np.bincount(off_idx, minlength=n + 1)[: n + 1].astype(np.int32)
+    cur = np.cumsum(steps[:n]) * current
     return SimulationResult(
         time_s=t,
         current_a=cur,
