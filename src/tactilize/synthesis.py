@@ -43,8 +43,6 @@ later (:func:`soa_s`), the leading channel chosen by the stroke direction.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 

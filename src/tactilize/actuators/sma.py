@@ -49,7 +49,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..errors import DriveError, WireError
+from ..errors import WireError
 from ..mapping import Drive
 
 __all__ = [
