@@ -1190,7 +1190,8 @@ class SafetyEnvelope:
         a = lg[0] * (1 - v) + lg[1] * v
         b = lg[2] * (1 - v) + lg[3] * v
         lo = math.exp(a * (1 - u) + b * u)
-        if f != frequency_hz:
+        if frequency_hz > self.frequencies_hz[-1]:
+            # same duty above the grid, as for the largest width
             lo *= f / frequency_hz
         return lo, hi
 
