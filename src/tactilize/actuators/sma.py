@@ -74,6 +74,10 @@ DEFAULT_DT_S = 5e-6
 FOLLOW_THRESHOLD_M = 0.01e-6
 #: Bumped whenever the physics changes, so cached envelopes are rebuilt.
 MODEL_VERSION = 2
+try:
+    _SOURCE_HASH = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:12]
+except OSError:  # frozen or zipped install: the version alone
+    _SOURCE_HASH = ""
 
 
 # --------------------------------------------------------------------------- the wire
@@ -279,8 +283,11 @@ class WireSpec:
         return dataclasses.asdict(self)
 
     def key(self) -> str:
-        """A short stable hash of every field and the model version (cache key)."""
-        text = json.dumps({"v": MODEL_VERSION, **self.to_dict()}, sort_keys=True)
+        """A short hash of every field, the model version and this module's source (cache key).
+
+        The source is part of it so that an edited model never reuses an
+        envelope computed by the old one."""
+        text = json.dumps({"v": MODEL_VERSION, "src": _SOURCE_HASH, **self.to_dict()}, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
