@@ -193,6 +193,39 @@ def sustained(url, pid, seconds, rate_hz=1000):
     return {"sent": sent, "elapsed_s": elapsed, "rate_hz": sent / elapsed, "received": received, "rss": rss, "late_max_s": late_max}
 
 
+def pipeline_only(n, batch=4, interval_s=0.004):
+    """The server's per-batch work without the network, in this process: parse
+    the message, validate it, track, look up, apply the laws, drive the
+    (simulated) output, serialise the reply.  Paced like a pen, so caches are
+    as cold as in the server."""
+    from tactilize.actuators.factory import open_output
+    from tactilize.web.app import ServerState
+    from tactilize.web.session import PenSession, _dumps
+    from tactilize.mapping import Profile
+
+    out = open_output("simulated")
+    try:
+        state = ServerState(out, Profile.preset("paper"))
+        sess = PenSession(state)
+        sess.handle(json.dumps({"type": "texture", "id": "corduroy"}))
+        times = []
+        t0 = time.perf_counter()
+        for k in range(n):
+            t = time.perf_counter() - t0
+            rows = [circle_sample(t - (batch - 1 - i) * 0.001) for i in range(batch)]
+            text = json.dumps({"type": "samples", "seq": k, "samples": rows})
+            s = time.perf_counter_ns()
+            sess.handle(text)
+            _dumps(sess.render_pending())
+            times.append(time.perf_counter_ns() - s)
+            if interval_s:
+                time.sleep(interval_s)
+        sess.close()
+    finally:
+        out.close()
+    return times
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seconds", type=float, default=60.0, help="length of the sustained 1 kHz phase [s]")
@@ -219,6 +252,9 @@ def main(argv=None):
             rtt = round_trips(ws, args.round_trips)
         stats = httpx.get(base + "/api/stats", params={"last": args.round_trips}).json()
         ref = echo_round_trips(f"ws://127.0.0.1:{echo_port}/ws", args.round_trips)
+        pipe = pipeline_only(min(args.round_trips, 2000))
+        # Back to back: what the work costs when the CPU stays busy with it.
+        pipe_hot = pipeline_only(min(args.round_trips, 2000), interval_s=0.0)
         sus = sustained(url, server.pid, args.seconds)
         stats_after = httpx.get(base + "/api/stats").json()
     finally:
@@ -234,6 +270,8 @@ def main(argv=None):
         "cpu_count": os.cpu_count(),
         "server_latency_us": {k: stats["server_latency_us"][k] for k in ("p50", "p90", "p99", "max")},
         "server_latency_batches": stats["batches"],
+        "pipeline_only_us": {"p50": pct(pipe, 50) / 1e3, "p99": pct(pipe, 99) / 1e3},
+        "pipeline_back_to_back_us": {"p50": pct(pipe_hot, 50) / 1e3, "p99": pct(pipe_hot, 99) / 1e3},
         "round_trip_ms": {"p50": pct(rtt, 50) * 1e3, "p99": pct(rtt, 99) * 1e3, "mean": statistics.fmean(rtt) * 1e3},
         "echo_round_trip_ms": {"p50": pct(ref, 50) * 1e3, "p99": pct(ref, 99) * 1e3},
         "round_trip_ratio_to_echo": {"p50": pct(rtt, 50) / pct(ref, 50), "p99": pct(rtt, 99) / pct(ref, 99)},
@@ -262,6 +300,10 @@ def main(argv=None):
     print(f"machine: {doc['cpu_count']} CPUs, load average {doc['load_average_1min']:.2f} at the end of the run")
     print(f"server-side latency (arrival -> drive sent), {args.round_trips} batches of 4 samples:")
     print(f"  p50 {lat['p50']:.0f} us   p99 {lat['p99']:.0f} us   max {lat['max']:.0f} us   (goal p99 < 1000 us)")
+    pl = doc["pipeline_only_us"]
+    ph = doc["pipeline_back_to_back_us"]
+    print(f"  of which the pipeline itself (same work in-process, no network, paced): p50 {pl['p50']:.0f} us   p99 {pl['p99']:.0f} us")
+    print(f"  the same pipeline back to back (CPU kept busy):                      p50 {ph['p50']:.0f} us   p99 {ph['p99']:.0f} us")
     r, e, q = doc["round_trip_ms"], doc["echo_round_trip_ms"], doc["round_trip_ratio_to_echo"]
     print("WebSocket round trip on loopback (batch -> its drive):")
     print(f"  tactilize p50 {r['p50']:.3f} ms   p99 {r['p99']:.3f} ms   (goal p99 < 5 ms)")

@@ -349,3 +349,26 @@ def test_slow_stroke_on_whole_pixels():
     short = StrokeTracker(max_window_s=0.03)
     speeds_short = [short.extend([s]).speed_m_s for s in samples_from_css(rows, px)][30:]
     assert min(speeds_short) == 0.0
+
+
+def test_unchanged_drive_is_not_resent(corduroy, monkeypatch):
+    import tactilize.pen as pen_mod
+
+    clock = [100.0]
+    monkeypatch.setattr(pen_mod.time, "monotonic", lambda: clock[0])
+    r, out = make_renderer(corduroy)
+    s = line_stroke(0.03, 0.0, rate_hz=1000.0, duration_s=0.2)
+    r.feed(s[:100])
+    assert len(out.applied) == 1
+    r.feed(s[100:104])  # same speed, same texture: within 0.5 %
+    assert len(out.applied) == 1
+    assert r.last.applied == out.applied[-1]
+    clock[0] += 0.2  # refresh: the output is asked again
+    r.feed(s[104:108])
+    assert len(out.applied) == 2
+    faster = line_stroke(0.05, 0.0, rate_hz=1000.0, duration_s=0.1, start=(s[-1].x_m, s[-1].y_m), t0=s[107].t_s + 0.001)
+    r.feed(faster)
+    assert len(out.applied) == 3  # a real change goes out at once
+    r.lift()
+    r.feed(line_stroke(0.05, 0.0, rate_hz=1000.0, duration_s=0.1, t0=5.0))
+    assert len(out.applied) == 4  # after a stop, the first drive always goes out
