@@ -105,6 +105,9 @@ class PenSession:
         self.pending: deque[tuple] = deque()
         self.pending_lift = False
         self.seq: Any = None
+        #: perf_counter_ns when the message being handled arrived (set by the reader)
+        self.msg_ns = 0
+        #: arrival of the newest message the waiting samples came in (for the latency record)
         self.arrival_ns = 0
         self.wake = asyncio.Event()
         self._idle: asyncio.TimerHandle | None = None
@@ -238,10 +241,8 @@ class PenSession:
         return d
 
     def _wake(self) -> None:
-        self.arrival_ns = self._msg_ns
+        self.arrival_ns = self.msg_ns
         self.wake.set()
-
-    _msg_ns = 0
 
     # ------------------------------------------------------------- rendering
 
@@ -360,7 +361,7 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
     try:
         while True:
             message = await ws.receive()
-            session._msg_ns = time.perf_counter_ns()
+            session.msg_ns = time.perf_counter_ns()
             if message["type"] == "websocket.disconnect":
                 break
             text = message.get("text")
