@@ -48,7 +48,13 @@ def hold_drive(spec: str, drive: Drive, hold_s: float, channels: int = 2) -> dic
         if lost or getattr(out, "connected", True) is False:
             why = lost[0] if lost else "disconnected"
             raise OutputError(spec, f"controller lost after {held_s:.2f} s of the hold ({why})")
-        out.stop()  # raises OutputError when a connected controller does not acknowledge
+        try:
+            out.stop()  # raises OutputError when a connected controller does not acknowledge
+        except OutputError as exc:
+            # The controller can vanish between the last wait and the stop.
+            if getattr(out, "connected", True) is False:
+                raise OutputError(spec, f"controller lost after {held_s:.2f} s of the hold ({exc.fault})") from None
+            raise
     finally:
         try:
             out.close()
