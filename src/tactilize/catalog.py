@@ -397,8 +397,8 @@ def _draft_decode(
         else:
             pitch = METRES_PER_INCH / (_file_dpi(im) or DEFAULT_DPI)
         scale = 1
-        # libjpeg scales by 1/2, 1/4, 1/8 only; keep every texture element at least
-        # 16 px a side so the texture map still has tiles to work with.
+        # libjpeg scales by 1/2, 1/4, 1/8 only; keep at least 16 px on the short side
+        # so that the spectrum still has a few bins to find a peak in.
         while scale < 8 and pitch * scale * 2 <= target * (1 + 1e-9) and min(w, h) // (scale * 2) >= 16:
             scale *= 2
         # Even at full size only the luma is decoded: the analysis is grey, and skipping
