@@ -226,10 +226,35 @@ def pipeline_only(n, batch=4, interval_s=0.004):
     return times
 
 
+def flood(url, pid, seconds):
+    """A client that sends 200-sample messages as fast as it can and never reads:
+    the server must drop old samples (latest wins) and keep its memory flat."""
+    proc = psutil.Process(pid)
+    rss0 = proc.memory_info().rss
+    ws = connect(url, max_size=2**20)
+    ws.send(json.dumps({"type": "hello", "texture": "corduroy"}))
+    t0 = time.perf_counter()
+    n = 0
+    try:
+        while time.perf_counter() - t0 < seconds:
+            rows = [[(n * 200 + i) * 0.05, 10 + (n * 200 + i) * 1e-4, 10.0, 0.5] for i in range(200)]
+            ws.send(json.dumps({"type": "samples", "seq": n, "samples": rows}))
+            n += 1
+    finally:
+        rss1 = proc.memory_info().rss
+        ws.close_timeout = 1
+        try:
+            ws.close()
+        except Exception:
+            pass
+    return {"messages": n, "samples": 200 * n, "seconds": time.perf_counter() - t0, "rss_start_mb": rss0 / 2**20, "rss_end_mb": rss1 / 2**20}
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seconds", type=float, default=60.0, help="length of the sustained 1 kHz phase [s]")
     ap.add_argument("--round-trips", type=int, default=3000, help="batches for the latency phases")
+    ap.add_argument("--flood-seconds", type=float, default=10.0, help="length of the flood phase [s]")
     ap.add_argument("--output", default="simulated", help="server output spec")
     ap.add_argument("--json", action="store_true", help="print one JSON document")
     ap.add_argument("--serve-echo", action="store_true", help=argparse.SUPPRESS)
@@ -257,6 +282,8 @@ def main(argv=None):
         pipe_hot = pipeline_only(min(args.round_trips, 2000), interval_s=0.0)
         sus = sustained(url, server.pid, args.seconds)
         stats_after = httpx.get(base + "/api/stats").json()
+        fl = flood(url, server.pid, args.flood_seconds)
+        fl["counters"] = httpx.get(base + "/api/stats").json()["counters"]
     finally:
         stop(server)
         stop(echo)
@@ -292,6 +319,11 @@ def main(argv=None):
             "samples_dropped": stats_after["counters"].get("samples_dropped", 0),
         },
     }
+    doc["flood"] = {
+        **{k: v for k, v in fl.items() if k != "counters"},
+        "samples_dropped_total": fl["counters"].get("samples_dropped", 0),
+        "samples_received_total": fl["counters"].get("samples_received", 0),
+    }
     if args.json:
         print(json.dumps(doc, indent=2))
         return
@@ -315,6 +347,10 @@ def main(argv=None):
           f"end {s['rss_end_mb']:.1f} MB (growth after warm-up {s['rss_growth_after_warmup_mb']:+.2f} MB)")
     ul = s["server_latency_us_under_load"]
     print(f"  server-side latency under load: p50 {ul['p50']:.0f} us   p99 {ul['p99']:.0f} us")
+    f = doc["flood"]
+    print(f"flood (never reading): {f['samples']} samples in {f['seconds']:.1f} s; server dropped "
+          f"{f['samples_dropped_total']} of {f['samples_received_total']} received (latest wins); "
+          f"RSS {f['rss_start_mb']:.1f} -> {f['rss_end_mb']:.1f} MB")
 
 
 if __name__ == "__main__":
