@@ -372,3 +372,23 @@ def test_unchanged_drive_is_not_resent(corduroy, monkeypatch):
     r.lift()
     r.feed(line_stroke(0.05, 0.0, rate_hz=1000.0, duration_s=0.1, t0=5.0))
     assert len(out.applied) == 4  # after a stop, the first drive always goes out
+
+
+def test_direction_frame_matches_the_texture(corduroy):
+    # Corduroy's ribs are vertical (wave vector along x).  With the physical
+    # profile only the stroke component across the ribs counts.
+    r, _ = make_renderer(corduroy, "physical")
+    across = r.feed(line_stroke(0.05, 0.0, duration_s=0.1, start=(0.01, 0.03)))
+    assert across.applied[0].pulse_frequency_hz == pytest.approx(0.05 * across.features.spatial_frequency_per_m, rel=1e-3)
+    r.lift()
+    along = r.feed(line_stroke(0.05, math.pi / 2, duration_s=0.1, start=(0.01, 0.04)))  # up the screen
+    assert along.state.direction_rad == pytest.approx(math.pi / 2)
+    # cos 90 deg ~ 0: only the actuator's 1 Hz floor remains
+    assert along.applied[0].pulse_frequency_hz <= 1.0 < 0.1 * across.applied[0].pulse_frequency_hz
+    r.lift()
+    linen = builtin_map("linen")  # wave vector at 45 deg, y up
+    r.set_texture(linen)
+    diag = r.feed(line_stroke(0.05, math.radians(45), duration_s=0.1, start=(0.01, 0.04)))
+    anti = r.feed(line_stroke(0.05, math.radians(-45), duration_s=0.1, start=(0.01, 0.02), t0=1.0))
+    assert anti.applied[0].pulse_frequency_hz <= 1.0
+    assert diag.applied[0].pulse_frequency_hz == pytest.approx(0.05 * 800, rel=0.02)
