@@ -61,6 +61,14 @@ _EXPORTS = {
     "export_android": "export",
     "ahap_pattern": "export",
     "android_waveform": "export",
+    "OutputError": "errors",
+    "open_output": "actuators.factory",
+    "SerialOutput": "actuators.serial",
+    "AudioOutput": "actuators.audio",
+    "CatalogError": "catalog",
+    "run_batch": "catalog",
+    "read_catalog": "catalog",
+    "Catalog": "catalog",
 }
 
 __all__ = sorted(_EXPORTS) + ["__version__"]
