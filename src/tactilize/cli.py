@@ -7,7 +7,6 @@ prints one line on stderr naming the input and the fault and exits with status 2
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import sys
@@ -16,6 +15,7 @@ from typing import Any
 import click
 
 from .errors import TactilizeError
+from .jsonutil import dumps
 
 BAD_INPUT = 2
 
@@ -46,19 +46,7 @@ class _Group(click.Group):
 
 def emit_json(doc: Any) -> None:
     """Print one JSON document (NaN and infinities become null, as JSON has none)."""
-    click.echo(json.dumps(_jsonable(doc), indent=2, sort_keys=False))
-
-
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if hasattr(x, "item") and callable(x.item):  # numpy scalars
-        return _jsonable(x.item())
-    return x
+    click.echo(dumps(doc))
 
 
 def _positive(name: str):

@@ -14,14 +14,13 @@ from pathlib import Path
 import click
 
 from ..errors import TactilizeError
+from ..jsonutil import dumps
 
 DB_HELP = "SQLAlchemy URL or SQLite file (default: experiments.sqlite3 in the user data directory)."
 
 
 def _emit(doc) -> None:
-    from ..cli import emit_json
-
-    emit_json(doc)
+    click.echo(dumps(doc))
 
 
 @click.group()
