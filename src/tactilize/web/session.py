@@ -312,9 +312,12 @@ def _dumps(doc: dict[str, Any]) -> str:
 async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
     """Serve one page over its WebSocket until it disconnects."""
     await ws.accept()
+    loop = asyncio.get_running_loop()
+    # Choosing a texture looks its map up synchronously; make sure the built-in
+    # maps exist (normally done at startup) without blocking the event loop.
+    await loop.run_in_executor(None, state.warm)
     session = PenSession(state)
     state.sessions += 1
-    loop = asyncio.get_running_loop()
     send_lock = asyncio.Lock()
     closed = asyncio.Event()
 
