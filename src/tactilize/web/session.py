@@ -331,7 +331,8 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
         while not closed.is_set():
             await session.wake.wait()
             session.wake.clear()
-            arrival = session.arrival_ns
+            # Taken now: messages arriving while this batch is sent belong to the next.
+            arrival, session.arrival_ns = session.arrival_ns, 0
             try:
                 msg = session.render_pending()
             except TactilizeError as exc:  # e.g. a profile law refusing a value
@@ -342,7 +343,6 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
             await send(msg)
             if arrival:
                 state.latency_ns.append(time.perf_counter_ns() - arrival)
-                session.arrival_ns = 0
             state.counters["drives_sent"] += 1
             session.schedule_idle(loop)
 
@@ -382,9 +382,16 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
             # steady stream is rendered batch by batch, not only at the end.
             if session.wake.is_set():
                 await asyncio.sleep(0)
-            for t in tasks:
-                if t.done() and not t.cancelled() and t.exception() is not None:
-                    raise t.exception()  # type: ignore[misc]
+            failed = [t for t in tasks if t.done() and not t.cancelled() and t.exception() is not None]
+            if failed:
+                # A bug or a dead socket in a helper task: end this connection
+                # (the output is stopped below); the page reconnects.
+                log.error("pen session ended: %r", failed[0].exception())
+                try:
+                    await ws.close(code=1011)
+                except Exception:  # already gone
+                    pass
+                break
     except WebSocketDisconnect:
         pass
     finally:
