@@ -442,3 +442,39 @@ def test_cli_serve_bad_input_is_one_line_exit_2():
         timeout=60,
     )
     assert r.returncode == 2 and "teleport" in r.stderr
+
+
+def test_output_errors_reach_the_page():
+    from starlette.websockets import WebSocketDisconnect
+
+    from tactilize.errors import OutputError
+
+    class Flaky(FakeOutput):
+        def __init__(self, exc):
+            super().__init__()
+            self.exc = exc
+
+        def apply(self, channels):
+            raise self.exc
+
+    # A device fault the output reports: the page is told, the connection lives.
+    out = Flaky(OutputError("serial:/dev/ttyACM0", "controller not answering"))
+    with TestClient(create_app(out, "paper", warm=False)) as c:
+        with c.websocket_connect("/ws") as ws:
+            hello(ws)
+            ws.send_text(json.dumps({"type": "samples", "samples": stroke_rows(20.0)}))
+            assert "controller not answering" in recv_type(ws, "error")["message"]
+            ws.send_text(json.dumps({"type": "ping", "id": 1}))
+            assert recv_type(ws, "pong")["id"] == 1
+    # A bug: the connection is closed (1011) and the output stopped, no hang.
+    out = Flaky(RuntimeError("boom"))
+    with TestClient(create_app(out, "paper", warm=False)) as c:
+        with c.websocket_connect("/ws") as ws:
+            hello(ws)
+            ws.send_text(json.dumps({"type": "samples", "samples": stroke_rows(20.0)}))
+            with pytest.raises(WebSocketDisconnect) as info:
+                for _ in range(20):
+                    ws.send_text(json.dumps({"type": "ping", "id": 2}))
+                    ws.receive_json()
+            assert info.value.code == 1011
+    assert out.stops >= 1  # whatever apply half-did was stopped

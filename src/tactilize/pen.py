@@ -626,6 +626,8 @@ class PenRenderer:
                 # spare it (and a serial link) the frame.
                 applied = self._sent[1]
             else:
+                # Marked running first: if apply fails half-way, the next lift still stops it.
+                self._running = True
                 applied = list(self.output.apply(requested))
                 self._sent, self._sent_at = (requested, applied), now
             self._running = True
