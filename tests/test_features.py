@@ -172,3 +172,10 @@ def test_stack_analysis_equals_one_by_one(make_grating):
         alone = tz.extract_features(tz.load_image(arr, dpi=300))
         assert feat.spatial_frequency_per_m == pytest.approx(alone.spatial_frequency_per_m, rel=1e-6)
         assert feat.spectral_intensity == pytest.approx(alone.spectral_intensity, rel=1e-6)
+
+
+def test_vertical_stripes_have_orientation_zero_not_180():
+    arr = grating_array((128, 128), 800.0, 0.0, 300, quantise=False, phase=0.0)
+    feat = tz.extract_features(tz.load_image(arr, dpi=300))
+    assert 0.0 <= feat.orientation_deg < 180.0
+    assert _angle_error(feat.orientation_deg, 0.0) < 0.5

@@ -127,7 +127,9 @@ class TextureFeatures:
         if not self.has_peak:
             return 0.0
         kx, ky = self.wave_vector_per_m
-        return math.degrees(math.atan2(ky, kx)) % 180.0
+        angle = math.degrees(math.atan2(ky, kx)) % 180.0
+        # a tiny negative angle wraps to 180.0 in floating point; the range is [0, 180)
+        return 0.0 if angle >= 180.0 else angle
 
     @property
     def modulation_depth(self) -> float:

@@ -41,6 +41,7 @@ from fastapi.responses import FileResponse, JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
 
 from ..errors import ImageError, ProfileError, TactilizeError
+from ..jsonutil import jsonable
 from ..mapping import Profile, preset_names
 from ..pen import DEFAULT_M_PER_CSS_PX
 
@@ -129,19 +130,8 @@ class TextureEntry:
             "url": f"/api/textures/{self.id}.png",
         }
         if with_features:
-            d["features"] = _clean(self.map.whole.to_dict())
+            d["features"] = jsonable(self.map.whole.to_dict())
         return d
-
-
-def _clean(x: Any) -> Any:
-    """JSON has no NaN or infinity: make them null."""
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if isinstance(x, dict):
-        return {k: _clean(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_clean(v) for v in x]
-    return x
 
 
 class ServerState:
@@ -414,7 +404,7 @@ def _api_router() -> APIRouter:
         except KeyError:
             return _error(404, f"no texture {texture_id!r}")
         m = await asyncio.get_running_loop().run_in_executor(None, lambda: e.map)
-        return _clean(
+        return jsonable(
             {
                 **e.describe(with_features=False),
                 "features": m.whole.to_dict(),
@@ -483,7 +473,7 @@ def _api_router() -> APIRouter:
         return {
             "default": s.profile.name,
             "profiles": [
-                {"name": name, "description": p.description, "limits": p.limits.to_dict(), "laws": _clean(p.to_dict())}
+                {"name": name, "description": p.description, "limits": p.limits.to_dict(), "laws": jsonable(p.to_dict())}
                 for name, p in s.profiles().items()
             ],
         }

@@ -62,6 +62,7 @@ from fastapi import WebSocket
 from starlette.websockets import WebSocketDisconnect, WebSocketState
 
 from ..errors import TactilizeError
+from ..jsonutil import dumps
 from ..pen import PenRenderer, sample_error, samples_from_css
 
 __all__ = ["websocket_endpoint", "PenSession", "MAX_BATCH", "MAX_PENDING", "MAX_MESSAGE_CHARS", "IDLE_S"]
@@ -304,9 +305,7 @@ def _dumps(doc: dict[str, Any]) -> str:
     try:
         return json.dumps(doc, allow_nan=False, separators=(",", ":"))
     except ValueError:
-        from .app import _clean
-
-        return json.dumps(_clean(doc), separators=(",", ":"))
+        return dumps(doc, compact=True)
 
 
 async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
