@@ -69,6 +69,10 @@ _EXPORTS = {
     "run_batch": "catalog",
     "read_catalog": "catalog",
     "Catalog": "catalog",
+    "StrokeTracker": "pen",
+    "PenRenderer": "pen",
+    "builtin_textures": "textures",
+    "create_app": "web.app",
 }
 
 __all__ = sorted(_EXPORTS) + ["__version__"]
