@@ -386,34 +386,32 @@ def analyse_stack(
     flat_idx = power.reshape(b, -1).argmax(axis=1)
     iy, ix = np.divmod(flat_idx, power.shape[2])
 
-    def mag(ky: np.ndarray, kx: np.ndarray) -> np.ndarray:
-        # |F| at signed bins (ky, kx), using Hermitian symmetry for kx < 0.
-        neg = kx < 0
-        kyy = np.where(neg, -ky, ky) % h
-        kxx = np.abs(kx)
-        ok = kxx < power.shape[2]
-        kxx = np.minimum(kxx, power.shape[2] - 1)
-        vals = power[np.arange(b), kyy, kxx]
-        return np.sqrt(np.where(ok, vals, 0.0).astype(np.float64))
-
     ky_signed = np.where(iy > h // 2, iy - h, iy)
     if h % 2 == 0:
         ky_signed = np.where(iy == h // 2, iy, ky_signed)
     kx0 = ix
-    a0 = mag(ky_signed, kx0)
-    dx = _hann_offset(mag(ky_signed, kx0 - 1), a0, mag(ky_signed, kx0 + 1))
-    dy = _hann_offset(mag(ky_signed - 1, kx0), a0, mag(ky_signed + 1, kx0))
+    # |F| on the 3 x 3 block of signed bins around each peak, in one gather;
+    # Hermitian symmetry gives the bins left of the stored half (kx < 0).
+    ky_blk = ky_signed[:, None, None] + np.array([-1, 0, 1])[None, :, None]
+    kx_blk = kx0[:, None, None] + np.array([-1, 0, 1])[None, None, :]
+    neg = kx_blk < 0
+    kyy = np.where(neg, -ky_blk, ky_blk) % h
+    kxx = np.abs(kx_blk)
+    inside = kxx < power.shape[2]
+    vals = power[np.arange(b)[:, None, None], kyy, np.minimum(kxx, power.shape[2] - 1)]
+    blk = np.sqrt(np.where(inside, vals, 0.0).astype(np.float64))  # (B, 3, 3): [dy, dx]
+
+    a0 = blk[:, 1, 1]
+    dx = _hann_offset(blk[:, 1, 0], a0, blk[:, 1, 2])
+    dy = _hann_offset(blk[:, 0, 1], a0, blk[:, 2, 1])
     kx_px = (kx0 + dx) / w
     ky_px_down = (ky_signed + dy) / h
 
     # Amplitude of the sinusoid: undo the window's coherent gain and scalloping loss.
     amp = 2.0 * a0 / (n * _HANN_CG2 * _hann_response(dx) * _hann_response(dy))
 
-    # Power in the peak's 3 x 3 neighbourhood, for it and its mirror image.
-    peak_power = np.zeros(b)
-    for oy in (-1, 0, 1):
-        for ox in (-1, 0, 1):
-            peak_power += mag(ky_signed + oy, kx0 + ox) ** 2
+    # Power in the peak's 3 x 3 neighbourhood (the mirror peak holds as much again).
+    peak_power = (blk**2).sum(axis=(1, 2))
     full_ac = s0
 
     variance = s0 / (n * n * _HANN_PG2)
