@@ -218,3 +218,13 @@ def test_non_positive_dpi_or_width(kw):
 def test_float_array_out_of_range():
     with pytest.raises(tz.ImageError, match=r"\[0, 1\]"):
         tz.load_image(np.full((4, 4), 2.0))
+
+
+def test_colour_jpeg_luma_equals_pillows_grey_conversion():
+    # load_image takes libjpeg's luma plane; it must equal Pillow's RGB -> L conversion.
+    rng = np.random.default_rng(5)
+    yy, xx = np.mgrid[0:96, 0:128]
+    rgb = np.stack([128 + 100 * np.sin(xx / 7.0), 128 + 80 * np.cos(yy / 5.0), rng.integers(0, 255, (96, 128))], -1)
+    data = _png_bytes(Image.fromarray(rgb.astype(np.uint8)), "JPEG", quality=90)
+    expected = np.asarray(Image.open(io.BytesIO(data)).convert("L"), dtype=np.float32) / 255.0
+    np.testing.assert_allclose(tz.load_image(data).pixels, expected, atol=1.01 / 255)
