@@ -81,14 +81,29 @@ class Drive:
     clamped: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
+        # Drives are made for every pen batch: one chained comparison is the fast
+        # path (NaN fails it, so does infinity); the slow path says what is wrong.
+        try:
+            ok = (
+                0.0 <= self.pulse_frequency_hz < math.inf
+                and 0.0 <= self.pulse_width_s < math.inf
+                and 0.0 <= self.amplitude <= 1.0
+                and not isinstance(self.pulse_frequency_hz, bool)
+            )
+        except TypeError:
+            ok = False
+        if not ok:
+            self._explain()
+        if type(self.clamped) is not tuple:
+            # Accept any iterable of names but store an immutable tuple (hashable, comparable).
+            object.__setattr__(self, "clamped", tuple(self.clamped))
+
+    def _explain(self) -> None:
         for name in ("pulse_frequency_hz", "pulse_width_s", "amplitude"):
             value = getattr(self, name)
-            if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+            if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value) or value < 0:
                 raise DriveError("<drive>", f"{name} must be a finite number >= 0, got {value!r}")
-        if self.amplitude > 1.0:
-            raise DriveError("<drive>", f"amplitude must be in [0, 1], got {self.amplitude!r}")
-        # Accept any iterable of names but store an immutable tuple (hashable, comparable).
-        object.__setattr__(self, "clamped", tuple(self.clamped))
+        raise DriveError("<drive>", f"amplitude must be in [0, 1], got {self.amplitude!r}")
 
     @classmethod
     def off(cls, clamped: tuple[str, ...] = ()) -> "Drive":
@@ -111,13 +126,20 @@ class Drive:
         return 1.0 / self.pulse_frequency_hz if self.pulse_frequency_hz > 0 else math.inf
 
     def replace(self, **changes: Any) -> "Drive":
-        """A copy with some fields changed."""
-        return dataclasses.replace(self, **changes)
+        """A copy with some fields changed (validated like any new Drive)."""
+        # Spelled out rather than dataclasses.replace: this runs for every pen batch.
+        return Drive(
+            changes.pop("pulse_frequency_hz", self.pulse_frequency_hz),
+            changes.pop("pulse_width_s", self.pulse_width_s),
+            changes.pop("amplitude", self.amplitude),
+            changes.pop("clamped", self.clamped),
+            **changes,
+        )
 
     def with_clamp(self, name: str, **changes: Any) -> "Drive":
         """A copy with fields changed and ``name`` appended to :attr:`clamped`."""
         clamped = self.clamped if name in self.clamped else self.clamped + (name,)
-        return dataclasses.replace(self, clamped=clamped, **changes)
+        return self.replace(clamped=clamped, **changes)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready mapping (SI units, plus ``pulse_width_ms`` for display)."""
