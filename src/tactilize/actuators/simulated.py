@@ -89,6 +89,8 @@ class SimulatedOutput(OutputBase):
         self._carry_a = [0.0] * channels
         self._drives = [Drive.off()] * channels
         self._lock = threading.RLock()
+        self._pending_lock = threading.Lock()  # held for microseconds only
+        self._pending: list[Drive] | None = None
         self._t_us = 0  # simulated time [us]
         size = max(2, int(round(trace_seconds * self.trace_rate_hz)))
         self._size = size
@@ -110,18 +112,27 @@ class SimulatedOutput(OutputBase):
             raise OutputError("<simulated>", "output is closed")
         drives = self._check(channels)
         applied = [d if d.is_off else self.envelope.apply(d) for d in drives]
-        with self._lock:
-            for c, d in enumerate(applied):
-                self._scheds[c].set_drive(d)
-                self._drives[c] = d
+        self._hand_over(applied)
         return applied
 
     def stop(self) -> None:
         """Turn every channel off (pulses in progress complete, as on real hardware)."""
-        with self._lock:
-            for c in range(self.channels):
-                self._scheds[c].set_drive(Drive.off())
-                self._drives[c] = Drive.off()
+        self._hand_over([Drive.off()] * self.channels)
+
+    def _hand_over(self, drives: list[Drive]) -> None:
+        # The caller (a pen batch) must never wait for a simulation tick to finish:
+        # the drives wait here and the next advance takes them at the simulated
+        # instant it starts from, the same instant as if we had waited.
+        with self._pending_lock:
+            self._pending = drives
+            self._drives = list(drives)
+
+    def _take_pending(self) -> None:
+        with self._pending_lock:
+            pending, self._pending = self._pending, None
+        if pending is not None:
+            for c, d in enumerate(pending):
+                self._scheds[c].set_drive(d)
 
     def close(self) -> None:
         """Stop, end the thread and wait for it."""
@@ -158,6 +169,7 @@ class SimulatedOutput(OutputBase):
         if n <= 0:
             return
         with self._lock:
+            self._take_pending()
             t0_us = self._t_us
             first = t0_us // self._bin_us + 1
             last = (t0_us + n) // self._bin_us
