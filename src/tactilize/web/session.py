@@ -352,12 +352,15 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
         while not closed.is_set():
             await asyncio.sleep(WIRE_PERIOD_S)
             try:
-                trace = source()
+                # Built off the event loop: a pen batch arriving meanwhile must not
+                # wait for the plot's data (it shows in the server-side p99).
+                text = await loop.run_in_executor(None, _trace_text, source)
             except Exception as exc:  # the page's plot must never kill the pen
                 log.debug("wire trace failed: %s", exc)
                 return
-            if trace is not None:
-                await send(trace)
+            if text is not None and ws.application_state == WebSocketState.CONNECTED:
+                async with send_lock:
+                    await ws.send_text(text)
 
     tasks = [asyncio.create_task(renderer_task()), asyncio.create_task(wire_task())]
     try:
@@ -403,6 +406,11 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
         for t in tasks:
             t.cancel()
         await asyncio.gather(*tasks, return_exceptions=True)
+
+
+def _trace_text(source: Any) -> str | None:
+    trace = source()
+    return None if trace is None else _dumps(trace)
 
 
 def _wire_source(output: Any):
