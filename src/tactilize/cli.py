@@ -260,25 +260,6 @@ def serve(host: str, port: int, output_spec: str, profile_name: str | None, open
 # ----------------------------------------------------------------- simulate / envelope / export
 
 
-def _pyplot(option: str):
-    """matplotlib.pyplot on a file backend, or a one-line error naming the option."""
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        raise TactilizeError(option, "needs matplotlib (pip install 'tactilize[plot]')") from None
-    return plt
-
-
-def _save_plot(fig: Any, path: str) -> None:
-    try:
-        fig.savefig(path, dpi=120, bbox_inches="tight")
-    except (OSError, ValueError) as exc:
-        raise TactilizeError(path, f"cannot write the plot ({exc})") from None
-
-
 def _wire_option(wire: str, length_mm: float | None):
     """The wire named by ``--wire`` (and ``--length-mm``), errors naming the option."""
     from .actuators.sma import WireSpec
@@ -356,25 +337,9 @@ def simulate_cmd(
         "latent_j": result.latent_j,
     }
     if plot_path:
-        plt = _pyplot("--plot")
-        step = max(1, result.time_s.size // 20000)
-        t = result.time_s[::step]
-        fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 7))
-        axes[0].plot(t, result.temperature_c[::step], lw=0.8)
-        for y, label in ((spec.austenite_start_c, "A_s"), (spec.austenite_finish_c, "A_f")):
-            axes[0].axhline(y, color="grey", lw=0.5, ls="--")
-        axes[0].set_ylabel("temperature [°C]")
-        axes[1].plot(t, result.martensite_fraction[::step], lw=0.8)
-        axes[1].set_ylabel("martensite fraction")
-        axes[2].plot(t, result.displacement_m[::step] * 1e6, lw=0.8)
-        axes[2].set_ylabel("displacement [µm]")
-        axes[2].set_xlabel("time [s]")
-        axes[0].set_title(
-            f"{spec.name} wire, {frequency_hz:g} Hz, {pulse_width_ms:g} ms, {current_ma:g} mA: "
-            f"{'follows' if doc['follows'] else 'does not follow'}, {doc['displacement_pp_um']:.2f} µm p-p"
-        )
-        _save_plot(fig, plot_path)
-        plt.close(fig)
+        from .plots import plot_simulation
+
+        plot_simulation(result, spec, doc, frequency_hz, pulse_width_ms, current_ma, plot_path)
         doc["plot"] = plot_path
     if as_json:
         emit_json(doc)
@@ -405,19 +370,9 @@ def envelope_cmd(wire: str, length_mm: float | None, plot_path: str | None, as_j
     env = build_envelope(spec)
     doc = env.to_dict()
     if plot_path:
-        plt = _pyplot("--plot")
-        fig, ax = plt.subplots(figsize=(7, 5))
-        for j, cur in enumerate(env.currents_a):
-            hi = [row[j] * 1e3 for row in env.max_width_s]
-            lo = [row[j] * 1e3 for row in env.min_follow_width_s]
-            line = ax.loglog(env.frequencies_hz, hi, marker="o", ms=3, label=f"{cur * 1e3:.0f} mA: largest allowed")[0]
-            ax.fill_between(env.frequencies_hz, lo, hi, color=line.get_color(), alpha=0.15)
-        ax.set_xlabel("pulse frequency [Hz]")
-        ax.set_ylabel("pulse width [ms]")
-        ax.set_title(f"{spec.name} wire: vibrating band (shaded) and the envelope")
-        ax.legend(fontsize=8)
-        _save_plot(fig, plot_path)
-        plt.close(fig)
+        from .plots import plot_envelope
+
+        plot_envelope(env, spec, plot_path)
         doc["plot"] = plot_path
     if as_json:
         emit_json(doc)
