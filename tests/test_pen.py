@@ -392,3 +392,33 @@ def test_direction_frame_matches_the_texture(corduroy):
     anti = r.feed(line_stroke(0.05, math.radians(-45), duration_s=0.1, start=(0.01, 0.02), t0=1.0))
     assert anti.applied[0].pulse_frequency_hz <= 1.0
     assert diag.applied[0].pulse_frequency_hz == pytest.approx(0.05 * 800, rel=0.02)
+
+
+def test_default_split_is_phantom_only_where_amplitude_is_intensity():
+    import math as _math
+
+    from tactilize.actuators.base import OutputBase
+    from tactilize.actuators.simulated import SimulatedOutput
+    from tactilize.pen import StrokeState, default_splitter
+
+    class VoiceCoil(OutputBase):
+        def apply(self, channels):
+            return list(channels)
+
+        def stop(self):
+            pass
+
+    drive = Drive(120.0, 3e-4, 1.0)
+    fields = {f: 0.0 for f in StrokeState._fields}
+    state = StrokeState(**{**fields, "direction_rad": 0.0})
+    coil = default_splitter(VoiceCoil())(drive, 2, state)
+    # energy model: a stroke along the actuator axis puts the whole intensity on actuator 2
+    assert coil[0].amplitude == pytest.approx(0.0, abs=1e-9) and coil[1].amplitude == pytest.approx(1.0)
+    assert coil[0].amplitude ** 2 + coil[1].amplitude ** 2 == pytest.approx(1.0)
+    diagonal = StrokeState(**{**fields, "direction_rad": _math.pi / 2})
+    half = default_splitter(VoiceCoil())(drive, 2, diagonal)
+    assert half[0].amplitude == pytest.approx(_math.sqrt(0.5)) == half[1].amplitude
+    # the SMA wire: both pins at the texture's full current, whatever the direction
+    assert SimulatedOutput.amplitude_is_intensity is False
+    sma = default_splitter(SimulatedOutput(start=False))(drive, 2, diagonal)
+    assert sma == [drive, drive]

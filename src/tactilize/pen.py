@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable, NamedTuple, Sequence
 
 from .mapping import Drive, Profile
+from .synthesis import pen_channels
 
 __all__ = [
     "PenSample",
@@ -458,42 +459,25 @@ def _equal_channels(drive: Drive, n: int, state: StrokeState | None) -> list[Dri
     return [drive] * n
 
 
-def _default_splitter() -> Callable[[Drive, int, StrokeState | None], list[Drive]]:
-    """The two-channel split: synthesis's phantom/apparent-motion helper if it
-    exists, else the same drive on every channel (what the paper's pen does when
-    both pins present one texture)."""
-    try:
-        from . import synthesis
-    except Exception:  # synthesis not there (or broken): the paper's plain split
-        return _equal_channels
-    fn = getattr(synthesis, "pen_channels", None)
-    if fn is None:
-        return _equal_channels
-    return _adapt_pen_channels(fn)
+def _phantom_channels(drive: Drive, n: int, state: StrokeState | None) -> list[Drive]:
+    if n != 2:
+        return [drive] * n
+    return pen_channels(drive, state.direction_rad if state is not None else None)
 
 
-def _adapt_pen_channels(fn: Callable[..., Any]) -> Callable[[Drive, int, StrokeState | None], list[Drive]]:
-    import inspect
+def default_splitter(output: Any) -> Callable[[Drive, int, StrokeState | None], list[Drive]]:
+    """How one drive becomes one per channel on ``output``.
 
-    try:
-        params = inspect.signature(fn).parameters
-    except (TypeError, ValueError):
-        params = {}
-
-    def split(drive: Drive, n: int, state: StrokeState | None) -> list[Drive]:
-        kwargs: dict[str, Any] = {}
-        if "direction_rad" in params:
-            kwargs["direction_rad"] = state.direction_rad if state else None
-        if "speed_m_s" in params:
-            kwargs["speed_m_s"] = state.speed_m_s if state else 0.0
-        if "channels" in params:
-            kwargs["channels"] = n
-        out = list(fn(drive, **kwargs))
-        if len(out) < n:
-            out += [Drive.off()] * (n - len(out))
-        return out[:n]
-
-    return split
+    Where an output's amplitude is the felt intensity (voice coils and LRAs on
+    audio), the phantom sensation follows the stroke direction by the energy
+    model.  On the SMA wire the amplitude is the pulse current, and lowering it
+    drops the wire out of its narrow vibrating band (both pins would fall
+    still on a diagonal stroke), so both pins play the texture's drive as in
+    the paper's pen.  Outputs say which with ``amplitude_is_intensity``.
+    """
+    if getattr(output, "amplitude_is_intensity", True):
+        return _phantom_channels
+    return _equal_channels
 
 
 class PenRenderer:
@@ -513,8 +497,9 @@ class PenRenderer:
         Actuators in the pen (the paper's has two).
     splitter : callable, optional
         ``splitter(drive, channels, state) -> list[Drive]``: how one drive
-        becomes one per channel.  By default synthesis's ``pen_channels``
-        (phantom sensation / apparent motion) when available, else equal drives.
+        becomes one per channel.  By default :func:`default_splitter`: the
+        phantom sensation where the output's amplitude is intensity, the same
+        drive on both pins on the SMA wire.
     resend_rel : float
         A drive within this relative difference of the one last applied, on
         every channel and quantity, is not sent again (0.5 %: twenty times
@@ -548,7 +533,7 @@ class PenRenderer:
         self.output = output
         self.tracker = tracker or StrokeTracker()
         self.channels = int(getattr(output, "channels", channels) or channels)
-        self.splitter = splitter or _default_splitter()
+        self.splitter = splitter or default_splitter(output)
         self._off = [Drive.off()] * self.channels
         self._running = False  # did we leave the output driven?
         self.resend_rel = float(resend_rel)

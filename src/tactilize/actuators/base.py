@@ -45,6 +45,9 @@ class OutputBase:
     """Shared plumbing: context manager and a check on the number of channels."""
 
     channels: int = 2
+    #: True where a drive's amplitude is the felt intensity (voice coil, LRA);
+    #: False for the SMA wire, whose amplitude is its pulse current.
+    amplitude_is_intensity: bool = True
 
     def __enter__(self):
         return self

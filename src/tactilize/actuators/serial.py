@@ -109,6 +109,10 @@ class SerialOutput(OutputBase):
         The port cannot be opened, or no controller answers on it.
     """
 
+    #: amplitude is the wire's pulse current, not felt intensity: scaling it
+    #: (e.g. for a phantom sensation) takes the wire out of its vibrating band
+    amplitude_is_intensity = False
+
     channels = 2
 
     def __init__(

@@ -57,6 +57,10 @@ class SimulatedOutput(OutputBase):
         Monotonic clock in seconds (``time.monotonic``).
     """
 
+    #: amplitude is the wire's pulse current, not felt intensity: scaling it
+    #: (e.g. for a phantom sensation) takes the wire out of its vibrating band
+    amplitude_is_intensity = False
+
     def __init__(
         self,
         wire: WireSpec | str | None = None,
