@@ -106,6 +106,21 @@ class Drive:
         raise DriveError("<drive>", f"amplitude must be in [0, 1], got {self.amplitude!r}")
 
     @classmethod
+    def _trusted(cls, pulse_frequency_hz: float, pulse_width_s: float, amplitude: float, clamped: tuple[str, ...]) -> "Drive":
+        """A Drive from values already known to be valid (finite, >= 0,
+        amplitude <= 1, ``clamped`` a tuple), without ``__init__``'s checks.
+
+        For the limits and envelopes that clamp a valid drive into a valid
+        range: they run for every pen batch, and a checked frozen dataclass
+        costs several times more to build.
+        """
+        d = object.__new__(cls)
+        d.__dict__.update(
+            pulse_frequency_hz=pulse_frequency_hz, pulse_width_s=pulse_width_s, amplitude=amplitude, clamped=clamped
+        )
+        return d
+
+    @classmethod
     def off(cls, clamped: tuple[str, ...] = ()) -> "Drive":
         """A drive that keeps the actuator off."""
         return cls(0.0, 0.0, 0.0, clamped)
@@ -199,21 +214,32 @@ class ActuatorLimits:
         """Clamp a drive into these limits, naming each limit that changed it."""
         if drive.is_off:
             return drive
-        out = drive
-        f = out.pulse_frequency_hz
+        # The clamped values first, then one Drive (this runs for every pen batch).
+        f, w, clamped = drive.pulse_frequency_hz, drive.pulse_width_s, drive.clamped
+        names: list[str] = []
         if f > self.max_frequency_hz:
-            out = out.with_clamp("max_frequency_hz", pulse_frequency_hz=self.max_frequency_hz)
+            f = self.max_frequency_hz
+            names.append("max_frequency_hz")
         elif f < self.min_frequency_hz:
-            out = out.with_clamp("min_frequency_hz", pulse_frequency_hz=self.min_frequency_hz)
-        w = out.pulse_width_s
+            f = self.min_frequency_hz
+            names.append("min_frequency_hz")
         if w > self.max_pulse_width_s:
-            out = out.with_clamp("max_pulse_width_s", pulse_width_s=self.max_pulse_width_s)
+            w = self.max_pulse_width_s
+            names.append("max_pulse_width_s")
         elif w < self.min_pulse_width_s:
-            out = out.with_clamp("min_pulse_width_s", pulse_width_s=self.min_pulse_width_s)
+            w = self.min_pulse_width_s
+            names.append("min_pulse_width_s")
         # Relative tolerance: a width computed as max_duty / f must not re-trigger.
-        if out.duty_ratio > self.max_duty_ratio * (1 + 1e-12):
-            out = out.with_clamp("max_duty_ratio", pulse_width_s=self.max_duty_ratio / out.pulse_frequency_hz)
-        return out
+        if f * w > self.max_duty_ratio * (1 + 1e-12):
+            w = self.max_duty_ratio / f
+            names.append("max_duty_ratio")
+        if not names:
+            return drive
+        for name in names:
+            if name not in clamped:
+                clamped = clamped + (name,)
+        # Every value is the valid drive's own or a limit (checked finite, >= 0).
+        return Drive._trusted(f, w, drive.amplitude, clamped)
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)

@@ -34,7 +34,10 @@ from __future__ import annotations
 
 import math
 import time
+from bisect import bisect_left
 from collections import deque
+from itertools import islice
+from operator import mul
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable, NamedTuple, Sequence
 
@@ -50,6 +53,7 @@ __all__ = [
     "samples_from_css",
     "DEFAULT_M_PER_CSS_PX",
     "sample_error",
+    "sample_ok",
 ]
 
 #: A CSS pixel is 1/96 inch by definition (FACTS.md section 5); the page
@@ -94,11 +98,48 @@ def sample_error(row: Any) -> str | None:
     for i, v in enumerate(row):
         if i == 3 and v is None:
             continue
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        try:
+            finite = not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
+        except OverflowError:  # an integer beyond any float (JSON allows any length)
+            finite = False
+        if not finite:
             return f"sample value {i} must be a finite number, got {v!r}"
     if len(row) > 3 and row[3] is not None and not 0.0 <= row[3] <= 1.0:
         return f"pressure must be in [0, 1], got {row[3]!r}"
     return None
+
+
+_NUMBER_TYPES = frozenset((float, int))
+
+
+def sample_ok(row: Any) -> bool:
+    """True when a CSS sample row is certainly well formed (the fast path of
+    :func:`sample_error`, which says why a row is not).
+
+    False does not mean malformed: unusual but valid rows (a tuple, an integer
+    subclass) are left to :func:`sample_error`.  Every pen batch checks each of
+    its rows, so this does it with a few C-level calls instead of a loop.
+    """
+    if type(row) is not list:
+        return False
+    n = len(row)
+    if not 3 <= n <= 6:
+        return False
+    if n > 3:
+        p = row[3]
+        if p is None:
+            row = row[:3] + row[4:]  # pressure may be null (a mouse)
+        elif not ((type(p) is float or type(p) is int) and 0.0 <= p <= 1.0):
+            return False
+    # bool is its own type, so it fails here as in sample_error.
+    if not _NUMBER_TYPES.issuperset(map(type, row)):
+        return False
+    try:
+        # A finite sum means every value is finite (inf and nan propagate; an
+        # integer too large for a float raises).
+        return -math.inf < math.fsum(row) < math.inf
+    except (OverflowError, ValueError):
+        return False
 
 
 def samples_from_css(rows: Iterable[Sequence[Any]], m_per_px: float) -> list[PenSample]:
@@ -118,19 +159,27 @@ def samples_from_css(rows: Iterable[Sequence[Any]], m_per_px: float) -> list[Pen
     -------
     list of PenSample
     """
+    # tuple.__new__ skips the named tuple's Python-level __new__ (one per sample).
+    new = tuple.__new__
     out = []
     for r in rows:
         n = len(r)
-        out.append(
-            PenSample(
-                r[0] * 1e-3,
-                r[1] * m_per_px,
-                r[2] * m_per_px,
-                r[3] if n > 3 else None,
-                r[4] if n > 4 else 0.0,
-                r[5] if n > 5 else 0.0,
+        if n == 6:
+            out.append(new(PenSample, (r[0] * 1e-3, r[1] * m_per_px, r[2] * m_per_px, r[3], r[4], r[5])))
+        else:
+            out.append(
+                new(
+                    PenSample,
+                    (
+                        r[0] * 1e-3,
+                        r[1] * m_per_px,
+                        r[2] * m_per_px,
+                        r[3] if n > 3 else None,
+                        r[4] if n > 4 else 0.0,
+                        r[5] if n > 5 else 0.0,
+                    ),
+                )
             )
-        )
     return out
 
 
@@ -247,6 +296,10 @@ class StrokeTracker:
         self.max_speed_m_s = float(max_speed_m_s)
         self.still_speed_m_s = float(still_speed_m_s)
         self._buf: deque[PenSample] = deque(maxlen=int(max_samples))
+        # The same samples' timestamps and positions as x + iy, kept beside
+        # _buf for the fit (see _fit).
+        self._t: deque[float] = deque(maxlen=int(max_samples))
+        self._z: deque[complex] = deque(maxlen=int(max_samples))
         self._candidate: PenSample | None = None
         self._state: StrokeState | None = None
         self._dirty = False
@@ -259,6 +312,8 @@ class StrokeTracker:
     def reset(self) -> None:
         """Forget the stroke (the pen was lifted)."""
         self._buf.clear()
+        self._t.clear()
+        self._z.clear()
         self._candidate = None
         self._state = None
         self._dirty = False
@@ -277,17 +332,21 @@ class StrokeTracker:
 
     def add(self, sample: PenSample) -> bool:
         """Add one sample; True when it was accepted into the stroke."""
-        if not (math.isfinite(sample.t_s) and math.isfinite(sample.x_m) and math.isfinite(sample.y_m)):
+        t_s, x_m, y_m = sample.t_s, sample.x_m, sample.y_m
+        # v - v is 0 for every finite v and NaN for infinities and NaN: one test
+        # for all three (this runs for every sample).
+        if (t_s - t_s) + (x_m - x_m) + (y_m - y_m) != 0.0:
             self.counts["invalid"] += 1
             return False
         buf = self._buf
         if not buf:
             self._start(sample)
             return True
-        last = self._candidate or buf[-1]
-        dt = sample.t_s - last.t_s
+        cand = self._candidate
+        last = cand or buf[-1]
+        dt = t_s - last.t_s
         if dt <= 0:
-            if dt == 0 and sample.x_m == last.x_m and sample.y_m == last.y_m:
+            if dt == 0 and x_m == last.x_m and y_m == last.y_m:
                 self.counts["duplicate"] += 1
                 return False
             if dt < -self.max_gap_s:
@@ -300,8 +359,8 @@ class StrokeTracker:
             self.counts["gap"] += 1
             self._start(sample)
             return True
-        if self._candidate is not None:
-            cand, self._candidate = self._candidate, None
+        if cand is not None:
+            self._candidate = None
             if self._speed_between(cand, sample) <= self.max_speed_m_s:
                 # The pen really is over there now: new stroke from the candidate.
                 self.counts["jump"] += 1
@@ -309,17 +368,25 @@ class StrokeTracker:
                 return self._append(sample)
             # The candidate was a glitch; judge this sample against the stroke.
             self.counts["glitch"] += 1
-            if sample.t_s <= buf[-1].t_s:
+            if t_s <= buf[-1].t_s:
                 self.counts["out_of_order"] += 1
                 return False
-            if buf[-1].t_s < sample.t_s - self.max_gap_s:
+            if buf[-1].t_s < t_s - self.max_gap_s:
                 self.counts["gap"] += 1
                 self._start(sample)
                 return True
-        if self._speed_between(buf[-1], sample) > self.max_speed_m_s:
+            dt = t_s - buf[-1].t_s
+        prev = buf[-1]
+        # _speed_between inlined (dt > 0 here): the common path of every sample.
+        if math.hypot(x_m - prev.x_m, y_m - prev.y_m) / dt > self.max_speed_m_s:
             self._candidate = sample
             return False
-        return self._append(sample)
+        buf.append(sample)
+        self._t.append(t_s)
+        self._z.append(complex(x_m, y_m))
+        self.counts["accepted"] += 1
+        self._dirty = True
+        return True
 
     def extend(self, samples: Iterable[PenSample]) -> StrokeState | None:
         """Add many samples; returns the latest estimate."""
@@ -337,14 +404,20 @@ class StrokeTracker:
 
     def _start(self, sample: PenSample) -> None:
         self._buf.clear()
+        self._t.clear()
+        self._z.clear()
         self._candidate = None
         self._buf.append(sample)
+        self._t.append(sample.t_s)
+        self._z.append(complex(sample.x_m, sample.y_m))
         self.counts["accepted"] += 1
         self._dirty = False
         self._state = StrokeState(sample.t_s, sample.x_m, sample.y_m, 0.0, None, sample.pressure, 1)
 
     def _append(self, sample: PenSample) -> bool:
         self._buf.append(sample)
+        self._t.append(sample.t_s)
+        self._z.append(complex(sample.x_m, sample.y_m))
         self.counts["accepted"] += 1
         self._dirty = True
         return True
@@ -352,46 +425,45 @@ class StrokeTracker:
     def _fit(self) -> StrokeState:
         buf = self._buf
         sample = buf[-1]
-        t_from = sample.t_s - self.window_s
+        t0, x0, y0 = sample.t_s, sample.x_m, sample.y_m
         n = len(buf)
-        # Samples in the window, but at least min_samples (all are of this stroke).
-        start = n - 1
-        while start > 0 and buf[start - 1].t_s >= t_from:
-            start -= 1
+        # Samples in the window, but at least min_samples (all are of this
+        # stroke).  Timestamps increase strictly within a stroke (add() drops
+        # the rest), so the window's first sample is found by bisection.
+        start = bisect_left(self._t, t0 - self.window_s)
         start = max(0, min(start, n - self.min_samples))
         # Slow stroke: widen the window until it spans enough travel.
-        t_limit = sample.t_s - self.max_window_s
+        t_limit = t0 - self.max_window_s
         while start > 0 and buf[start - 1].t_s >= t_limit:
             p = buf[start]
-            if abs(sample.x_m - p.x_m) + abs(sample.y_m - p.y_m) >= self.min_travel_m:
+            if abs(x0 - p.x_m) + abs(y0 - p.y_m) >= self.min_travel_m:
                 break
             start -= 1
-        # One pass of sums, relative to the newest sample (keeps the
-        # subtraction exact for timestamps of any origin).
-        t0, x0, y0 = sample.t_s, sample.x_m, sample.y_m
+        # Sums relative to the newest sample (keeps the subtraction exact for
+        # timestamps of any origin), with built-ins over whole columns: a 1 kHz
+        # pen puts ~30 samples in the window, and a Python loop over them was
+        # the costliest step of a pen batch.  Positions are x + iy, so one
+        # complex sum gives the x and the y sum: complex addition, and a float
+        # times a complex, round each part exactly as the real operations do.
+        # sum() adds in order, as a loop does.
         m = n - start
-        st = sx = sy = stt = stx = sty = 0.0
-        for i in range(start, n):
-            p = buf[i]
-            t = p.t_s - t0
-            x = p.x_m - x0
-            y = p.y_m - y0
-            st += t
-            sx += x
-            sy += y
-            stt += t * t
-            stx += t * x
-            sty += t * y
+        z0 = complex(x0, y0)
+        ts = [t - t0 for t in islice(self._t, start, n)]
+        zs = [z - z0 for z in islice(self._z, start, n)]
+        st = sum(ts, 0.0)
+        stt = sum(map(mul, ts, ts), 0.0)
         var = stt - st * st / m
         if var > 0:
-            vx = (stx - st * sx / m) / var
-            vy = (sty - st * sy / m) / var
+            sz = sum(zs, 0j)
+            stz = sum(map(mul, ts, zs), 0j)
+            vx = (stz.real - st * sz.real / m) / var
+            vy = (stz.imag - st * sz.imag / m) / var
         else:
             vx = vy = 0.0
         speed = math.hypot(vx, vy)
         # y is down on screen, up in the direction frame: flip its sign.
         direction = math.atan2(-vy, vx) if speed > self.still_speed_m_s else None
-        return StrokeState(sample.t_s, sample.x_m, sample.y_m, speed, direction, sample.pressure, m)
+        return StrokeState(t0, x0, y0, speed, direction, sample.pressure, m)
 
 
 @dataclass(frozen=True)
@@ -430,25 +502,62 @@ class RenderResult:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (SI, plus ``speed_mm_s`` and ``direction_deg`` for display)."""
         st = self.state
-        chans = []
+        chans: list[dict[str, Any]] = []
+        on = False
+        prev: tuple[Any, Any, dict[str, Any]] | None = None
+        # Written out rather than via Drive.to_dict: this builds every pen batch's reply.
         for req, app in zip(self.requested, self.applied):
-            d = app.to_dict()
-            # The page shows every limit that acted, the profile's and the envelope's.
-            d["clamped"] = sorted(set(req.clamped) | set(app.clamped))
-            d["requested_frequency_hz"] = req.pulse_frequency_hz
+            if prev is not None and req is prev[0] and app is prev[1]:
+                # Channels given the same drives (the SMA pen's two pins): same entry.
+                d = dict(prev[2])
+                d["clamped"] = list(d["clamped"])
+                chans.append(d)
+                continue
+            f, w, a = app.pulse_frequency_hz, app.pulse_width_s, app.amplitude
+            on = on or not (f <= 0 or w <= 0 or a <= 0)
+            d = {
+                "pulse_frequency_hz": f,
+                "pulse_width_s": w,
+                "pulse_width_ms": w * 1e3,
+                "duty_ratio": f * w,
+                "amplitude": a,
+                # The page shows every limit that acted, the profile's and the envelope's.
+                "clamped": sorted(set(req.clamped) | set(app.clamped)) if req.clamped or app.clamped else [],
+                "requested_frequency_hz": req.pulse_frequency_hz,
+            }
             chans.append(d)
+            prev = (req, app, d)
+        if len(self.applied) > len(self.requested):  # zip stopped early: judge "on" by every channel
+            on = self.on
         feat = self.features
+        if st is None:
+            return {
+                "down": self.down,
+                "inside": self.inside,
+                "on": on,
+                "t_s": None,
+                "x_m": None,
+                "y_m": None,
+                "speed_m_s": 0.0,
+                "speed_mm_s": 0.0,
+                "direction_deg": None,
+                "pressure": None,
+                "spatial_frequency_per_m": float(feat.spatial_frequency_per_m) if feat is not None else None,
+                "spectral_intensity": float(feat.spectral_intensity) if feat is not None else None,
+                "channels": chans,
+            }
+        direction = st.direction_rad
         return {
             "down": self.down,
             "inside": self.inside,
-            "on": self.on,
-            "t_s": st.t_s if st else None,
-            "x_m": st.x_m if st else None,
-            "y_m": st.y_m if st else None,
-            "speed_m_s": st.speed_m_s if st else 0.0,
-            "speed_mm_s": st.speed_m_s * 1e3 if st else 0.0,
-            "direction_deg": math.degrees(st.direction_rad) + 0.0 if st and st.direction_rad is not None else None,
-            "pressure": st.pressure if st else None,
+            "on": on,
+            "t_s": st.t_s,
+            "x_m": st.x_m,
+            "y_m": st.y_m,
+            "speed_m_s": st.speed_m_s,
+            "speed_mm_s": st.speed_m_s * 1e3,
+            "direction_deg": math.degrees(direction) + 0.0 if direction is not None else None,
+            "pressure": st.pressure,
             "spatial_frequency_per_m": float(feat.spatial_frequency_per_m) if feat is not None else None,
             "spectral_intensity": float(feat.spectral_intensity) if feat is not None else None,
             "channels": chans,
@@ -629,14 +738,21 @@ def _close(a: Sequence[Drive], b: Sequence[Drive], rel: float) -> bool:
     """Every channel's frequency, width and amplitude within ``rel`` of the other's."""
     if rel <= 0 or len(a) != len(b):
         return False
+    px = py = None
     for x, y in zip(a, b):
-        for u, v in (
-            (x.pulse_frequency_hz, y.pulse_frequency_hz),
-            (x.pulse_width_s, y.pulse_width_s),
-            (x.amplitude, y.amplitude),
-        ):
-            if abs(u - v) > rel * max(abs(u), abs(v)):
-                return False
+        if x is px and y is py:  # the same pair as the previous channel (one drive on both pins)
+            continue
+        px, py = x, y
+        # Spelled out, no tuples: this runs for every pen batch.
+        u, v = x.pulse_frequency_hz, y.pulse_frequency_hz
+        if abs(u - v) > rel * max(abs(u), abs(v)):
+            return False
+        u, v = x.pulse_width_s, y.pulse_width_s
+        if abs(u - v) > rel * max(abs(u), abs(v)):
+            return False
+        u, v = x.amplitude, y.amplitude
+        if abs(u - v) > rel * max(abs(u), abs(v)):
+            return False
     return True
 
 

@@ -1217,9 +1217,11 @@ class SafetyEnvelope:
         w_max = self.max_pulse_width_s(drive.pulse_frequency_hz, drive.amplitude * self.spec.rated_current_a)
         if drive.pulse_width_s <= w_max:
             return drive
+        clamped = drive.clamped if "envelope" in drive.clamped else drive.clamped + ("envelope",)
         if w_max <= 0:
-            return Drive.off(drive.clamped + (("envelope",) if "envelope" not in drive.clamped else ()))
-        return drive.with_clamp("envelope", pulse_width_s=w_max)
+            return Drive.off(clamped)
+        # w_max is finite and positive here (below a valid drive's width).
+        return Drive._trusted(drive.pulse_frequency_hz, w_max, drive.amplitude, clamped)
 
     def to_dict(self) -> dict[str, Any]:
         return {
