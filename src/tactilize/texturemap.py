@@ -45,6 +45,16 @@ class TextureMap:
     shape: tuple[int, int]
     whole: TextureFeatures
 
+    def __post_init__(self) -> None:
+        # lookup() runs for every pen batch: its constants once, computed as it
+        # would compute them.
+        rows, cols = self.grid
+        object.__setattr__(
+            self,
+            "_lookup",
+            (self.width_m, self.height_m, self.tile_px * self.pitch_m[0], self.tile_px * self.pitch_m[1], rows - 1, cols - 1),
+        )
+
     @property
     def grid(self) -> tuple[int, int]:
         """(rows, cols) of tiles."""
@@ -72,12 +82,12 @@ class TextureMap:
         TextureFeatures or None
             None outside the picture.
         """
-        if not (0.0 <= x_m < self.width_m and 0.0 <= y_m < self.height_m):
+        width_m, height_m, tile_w_m, tile_h_m, last_row, last_col = self._lookup
+        if not (0.0 <= x_m < width_m and 0.0 <= y_m < height_m):
             return None
-        rows, cols = self.grid
         # Tiles cover the image edge to edge; the last row/column absorbs any remainder.
-        col = min(cols - 1, int(x_m / (self.tile_px * self.pitch_m[0])))
-        row = min(rows - 1, int(y_m / (self.tile_px * self.pitch_m[1])))
+        col = min(last_col, int(x_m / tile_w_m))
+        row = min(last_row, int(y_m / tile_h_m))
         return self.tiles[row][col]
 
     def at_pitch(self, pitch_m: float | tuple[float, float]) -> "TextureMap":
