@@ -49,7 +49,8 @@ class SimulatedOutput(OutputBase):
         Trace points per second [Hz]; a pulse shorter than a trace step still
         marks its step with its current (the drive trace is a max, not a mean).
     tick_s : float
-        How often the thread advances the model [s].
+        How often the thread advances the model [s]; up to half a tick later
+        when it waits for the gap after a pen batch (:meth:`after_batch`).
     start : bool
         Start the real-time thread now; with False, call :meth:`advance` yourself
         (deterministic, for tests and offline use).
@@ -102,6 +103,8 @@ class SimulatedOutput(OutputBase):
         self._buf_t = np.zeros(size)
         self._buf = np.zeros((channels, 3, size))  # current, temperature, displacement
         self._clock = clock
+        # Set by after_batch(): a time-critical caller just finished (see _loop).
+        self._quiet = threading.Event()
         self._running = False
         self._thread: threading.Thread | None = None
         self._closed = False
@@ -158,10 +161,25 @@ class SimulatedOutput(OutputBase):
         self._thread = threading.Thread(target=self._loop, name="tactilize-simulated-wire", daemon=True)
         self._thread.start()
 
+    def after_batch(self) -> None:
+        """Tell the simulation thread that a time-critical step just ended.
+
+        The pen server calls this when a batch's drive has been sent.  The
+        thread, once its tick is due, steps the model right then (waiting at
+        most half a tick more for it): a step takes a fraction of a millisecond of
+        Python, and done in the gap before the next batch it does not hold the
+        GIL while a batch is being handled.  Cheap; safe from any thread.
+        """
+        self._quiet.set()
+
     def _loop(self) -> None:
         last = self._clock()
         while self._running:
             time.sleep(self.tick_s)
+            # Due now; step at the next quiet moment if one comes within half a
+            # tick (a longer step integrates exactly as well).
+            self._quiet.clear()
+            self._quiet.wait(0.5 * self.tick_s)
             now = self._clock()
             # After a stall (suspended laptop) do not try to catch up minutes.
             self.advance(min(now - last, 1.0))

@@ -35,7 +35,8 @@ Server to page
 ``{"type": "wire", "t_s": [...], "displacement_um": [[...], [...]]}``
     The simulated wires' displacement per channel since the previous message
     (simulated time [s], displacement [um]), when the output keeps a trace;
-    :data:`WIRE_PERIOD_S` apart.
+    :data:`WIRE_PERIOD_S` apart, or up to half as much again (each waits for
+    the gap after a drive, when the pen is busy).
 ``{"type": "error", "message": TEXT}``
     A malformed message was ignored; the connection stays open.
 
@@ -333,6 +334,10 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
     state.sessions += 1
     send_lock = asyncio.Lock()
     closed = asyncio.Event()
+    # Outputs that do background work in Python (the simulated wire) do it
+    # between batches when told that one has just been sent.
+    after_batch = getattr(state.output, "after_batch", None)
+    drive_sent = asyncio.Event()
 
     async def send(doc: dict[str, Any]) -> None:
         if ws.application_state != WebSocketState.CONNECTED:
@@ -356,6 +361,9 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
             await send(msg)
             if arrival:
                 state.latency_ns.append(time.perf_counter_ns() - arrival)
+            if after_batch is not None:
+                after_batch()
+            drive_sent.set()
             state.counters["drives_sent"] += 1
             session.schedule_idle(loop)
 
@@ -365,6 +373,13 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
             return
         while not closed.is_set():
             await asyncio.sleep(WIRE_PERIOD_S)
+            # Like the simulation thread, build the trace just after a drive went
+            # out (if one does within half a period): its thread takes the GIL too.
+            drive_sent.clear()
+            try:
+                await asyncio.wait_for(drive_sent.wait(), 0.5 * WIRE_PERIOD_S)
+            except asyncio.TimeoutError:
+                pass
             try:
                 # Built off the event loop: a pen batch arriving meanwhile must not
                 # wait for the plot's data (it shows in the server-side p99).
