@@ -36,9 +36,9 @@ import math
 import time
 from bisect import bisect_left
 from collections import deque
+from dataclasses import dataclass, field
 from itertools import islice
 from operator import mul
-from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable, NamedTuple, Sequence
 
 from .mapping import Drive, Profile
