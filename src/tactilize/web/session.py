@@ -52,7 +52,6 @@ newest always wins.  A lift discards whatever samples were waiting before it.
 from __future__ import annotations
 
 import asyncio
-import gc
 import json
 import logging
 import math
@@ -364,7 +363,6 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
                 state.latency_ns.append(time.perf_counter_ns() - arrival)
             if after_batch is not None:
                 after_batch()
-            _collect_between_batches()
             drive_sent.set()
             state.counters["drives_sent"] += 1
             session.schedule_idle(loop)
@@ -437,24 +435,6 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
         for t in tasks:
             t.cancel()
         await asyncio.gather(*tasks, return_exceptions=True)
-
-
-def _collect_between_batches() -> None:
-    """Run the garbage collector's young collections now, between two batches.
-
-    A pen batch allocates a few dozen containers, so CPython's automatic
-    collection of the youngest generation (every 700 allocations) falls inside
-    about one batch in twenty and delays it by ~0.2 ms; the middle generation's
-    (every tenth) by ~2 ms.  Started here, just after a drive was sent, when
-    the youngest generation is half full, the same work lands in the gap before
-    the next batch.  The oldest generation is left to CPython.
-    """
-    if not gc.isenabled():
-        return
-    c0, c1, _ = gc.get_count()
-    t0, t1, _ = gc.get_threshold()
-    if c0 >= t0 // 2:
-        gc.collect(1 if c1 + 1 >= t1 else 0)
 
 
 def _trace_text(source: Any) -> str | None:
