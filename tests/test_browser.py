@@ -104,11 +104,16 @@ class Pen:
         self.page = page
         self.cdp = page.context.new_cdp_session(page)
 
-    def _send(self, kind, x, y, buttons, force=0.6):
+    def _send(self, kind, x, y, buttons, force=0.6, at_s=None):
+        # ``at_s`` (seconds since the epoch) becomes the event's own timestamp.
+        # The strokes below compute the position and the timestamp from one clock
+        # reading, so the speed the page measures is the speed asked for however
+        # late a loaded machine delivers the event.
         self.cdp.send(
             "Input.dispatchMouseEvent",
             {
                 "type": kind,
+                "timestamp": time.time() if at_s is None else at_s,
                 "x": x,
                 "y": y,
                 "button": "left",
@@ -132,16 +137,18 @@ class Pen:
     def stroke(self, x0, y0, v_px_s, duration_s=0.5, interval_s=0.004):
         """Press, move right at v_px_s [CSS px/s] in real time; returns the drive
         the data-testid elements showed late in the stroke, with the pen moving."""
-        self._send("mousePressed", x0, y0, 1)
+        epoch0 = time.time()
         t0 = time.perf_counter()
+        self._send("mousePressed", x0, y0, 1, at_s=epoch0)
         x = x0
         shown = None
         while (t := time.perf_counter() - t0) < duration_s or shown is None:
             if t > 3 * duration_s:
                 raise AssertionError("the page never showed a drive for the moving pen")
-            # Position from the real clock, so the speed is exact whatever the pacing.
+            # Position and timestamp from the same clock reading: the speed is
+            # exact whatever the pacing.
             x = x0 + v_px_s * t
-            self._send("mouseMoved", x, y0, 1)
+            self._send("mouseMoved", x, y0, 1, at_s=epoch0 + t)
             if t > 0.6 * duration_s and shown is None:
                 # Read while the pen still moves (a pen at rest has speed 0).
                 shown = self.page.evaluate(self.READ)
