@@ -157,7 +157,8 @@ def texture_map(img: TextureImage, tile_px: int | None = None, *, workers: int =
     rows, cols = h // tile, w // tile
     # Tiles of the regular grid; the remainder strip at the right and bottom is
     # looked up in the last tile rather than analysed as a ragged one.
+    # A view, not a copy: analyse_stack takes any strides.
     blocks = img.pixels[: rows * tile, : cols * tile].reshape(rows, tile, cols, tile).swapaxes(1, 2)
-    feats = analyse_stack(blocks.reshape(rows * cols, tile, tile), img.pitch_m, workers=workers)
+    feats = analyse_stack(blocks, img.pitch_m, workers=workers)
     grid = tuple(tuple(feats[r * cols : (r + 1) * cols]) for r in range(rows))
     return TextureMap(grid, tile, img.pitch_m, (h, w), whole)
