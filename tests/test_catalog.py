@@ -214,7 +214,7 @@ def test_every_good_image_has_a_correct_row_and_every_bad_one_its_reason(shop, p
             if key == "pitch_m":
                 continue
             assert row[key] == pytest.approx(value, rel=1e-9, abs=1e-12), (row["id"], key)
-        for key, value in texture_map(img).summary().items():
+        for key, value in texture_map(img, sample_px="auto").summary().items():
             assert row[f"map_{key}"] == pytest.approx(value, rel=1e-9, abs=1e-12), (row["id"], key)
         for speed, label in zip(SPEEDS_M_S, ("30", "60", "120")):
             drv = profile.drive(feat, speed_m_s=speed)
@@ -431,3 +431,28 @@ def test_progress_bar_only_on_a_terminal():
     bar.close()
     text = tty.getvalue()
     assert "10/10" in text and "img/s" in text and "ETA" in text and "1 failed" in text and text.endswith("\n")
+
+
+def test_map_tiles_sampled_by_default_and_whole_on_request(tmp_path):
+    # 768 x 1024 pictures have 128 px tiles: sampled on their centred 64 px by default
+    src = tmp_path / "big"
+    src.mkdir()
+    for i, period in enumerate((6.0, 11.0, 20.0)):
+        g = _grating(768, 1024, period, 25.0 * i, 0.5, seed=i)
+        Image.fromarray(g).save(src / f"g{i}.png")
+    fast = run_batch(src, tmp_path / "fast.parquet", workers=1, speeds_m_s=SPEEDS_M_S)
+    full = run_batch(src, tmp_path / "full.parquet", workers=1, speeds_m_s=SPEEDS_M_S, full_map=True)
+    assert fast.ok == full.ok == 3
+    a = read_catalog(tmp_path / "fast.parquet").set_index("id").sort_index()
+    b = read_catalog(tmp_path / "full.parquet").set_index("id").sort_index()
+    pitch_mm = 25.4 / 96
+    assert np.allclose(a["map_sample_mm"], 64 * pitch_mm) and np.allclose(b["map_sample_mm"], 128 * pitch_mm)
+    assert np.allclose(a["map_tile_mm"], b["map_tile_mm"])
+    for key in ("spatial_frequency_per_m_median", "spatial_frequency_per_m_min", "spatial_frequency_per_m_max"):
+        assert np.allclose(a[f"map_{key}"], b[f"map_{key}"], rtol=0.01), key
+    assert np.allclose(a["map_spectral_intensity_median"], b["map_spectral_intensity_median"], atol=0.005)
+    # the whole-image features do not depend on it
+    assert np.array_equal(a["spatial_frequency_per_m"], b["spatial_frequency_per_m"])
+    # and a catalog made one way is not continued the other
+    with pytest.raises(CatalogError, match="full_map"):
+        run_batch(src, tmp_path / "fast.parquet", workers=1, speeds_m_s=SPEEDS_M_S, full_map=True)

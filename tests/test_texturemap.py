@@ -67,3 +67,48 @@ def test_summary_reports_the_spread():
     assert s["spatial_frequency_per_m_min"] == pytest.approx(400, rel=0.03)
     assert s["spatial_frequency_per_m_max"] == pytest.approx(1200, rel=0.03)
     assert s["grid_rows"] == 4 and s["grid_cols"] == 8
+
+
+def _noisy_grating(period_px: float, angle_deg: float, shape=(768, 1024)) -> tz.TextureImage:
+    # 96 dpi: frequency_per_m = 1 / (period_px * pitch)
+    pitch = 0.0254 / 96
+    arr = grating_array(shape, 1.0 / (period_px * pitch), angle_deg, 96, contrast=0.6, noise=0.08, seed=3)
+    return tz.load_image(arr, dpi=96)
+
+
+@pytest.mark.parametrize(("period_px", "angle_deg"), [(4.5, 0.0), (9.0, 33.0), (16.0, 120.0), (30.0, 61.0)])
+def test_sampled_tiles_agree_with_whole_tiles(period_px, angle_deg):
+    img = _noisy_grating(period_px, angle_deg)
+    whole_tiles = tz.texture_map(img)
+    sampled = tz.texture_map(img, sample_px=whole_tiles.tile_px // 2)
+    assert (whole_tiles.tile_px, sampled.sample_px, whole_tiles.sample_px) == (128, 64, None)
+    assert sampled.grid == whole_tiles.grid
+    f_full, f_half = whole_tiles.field("spatial_frequency_per_m"), sampled.field("spatial_frequency_per_m")
+    truth = 1.0 / (period_px * img.pitch_m[0])
+    # every local frequency right to 1 % either way (two periods or more in the sample)
+    assert np.abs(f_half / truth - 1).max() < 0.01
+    assert np.abs(f_full / truth - 1).max() < 0.01
+    # i_s is given for the tile's size: the same texture reads the same
+    i_full, i_half = whole_tiles.field("spectral_intensity"), sampled.field("spectral_intensity")
+    assert np.abs(i_half - i_full).max() < 0.005
+    assert sampled.summary()["sample_mm"] == pytest.approx(64 * img.pitch_m[0] * 1e3)
+    assert whole_tiles.summary()["sample_mm"] == pytest.approx(128 * img.pitch_m[0] * 1e3)
+
+
+def test_auto_sample_falls_back_to_whole_tiles():
+    # 45 px periods: the 64 px half tile holds 1.4 of them, too few to measure well
+    assert tz.texture_map(_noisy_grating(45.0, 10.0), sample_px="auto").sample_px is None
+    assert tz.texture_map(_noisy_grating(12.0, 10.0), sample_px="auto").sample_px == 64
+    # tiles of 32 px: a 16 px sample is too small whatever the texture
+    small = _noisy_grating(4.0, 10.0, shape=(160, 200))
+    tmap = tz.texture_map(small, sample_px="auto")
+    assert tmap.tile_px == 32 and tmap.sample_px is None
+    # a flat picture has no period to judge by
+    flat = tz.load_image(np.full((768, 1024), 0.4, np.float32), dpi=96)
+    assert tz.texture_map(flat, sample_px="auto").sample_px is None
+
+
+@pytest.mark.parametrize("bad", [3, 129, "half"])
+def test_sample_px_out_of_range_is_refused(bad):
+    with pytest.raises(ValueError, match="sample_px"):
+        tz.texture_map(_noisy_grating(12.0, 0.0, shape=(256, 256)), tile_px=128, sample_px=bad)

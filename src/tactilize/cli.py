@@ -190,6 +190,7 @@ def controller_emulator(link: str | None) -> None:
 @click.option("--profile", "profile_name", default="paper", show_default=True, help="Preset name or TOML file.")
 @click.option("--dpi", type=float, callback=_positive("dpi"), help="Pixels per inch where the manifest says nothing.")
 @click.option("--analysis-dpi", type=float, callback=_positive("analysis-dpi"), help="Lowest resolution the analysis may use; lets JPEGs decode at 1/2..1/8 size.")
+@click.option("--full-map", is_flag=True, help="Measure every texture-map tile whole (default: its centred half when that holds two periods).")
 @click.option("--workers", type=int, default=None, help="Local processes (default: all cores; 1 = in this process).")
 @click.option("--scheduler", default=None, help="Dask scheduler address (tcp://HOST:PORT): run on that cluster.")
 @click.option("--retry-failed", is_flag=True, help="Analyse again the images whose earlier row is an error.")
@@ -200,6 +201,7 @@ def batch(
     profile_name: str,
     dpi: float | None,
     analysis_dpi: float | None,
+    full_map: bool,
     workers: int | None,
     scheduler: str | None,
     retry_failed: bool,
@@ -219,6 +221,7 @@ def batch(
             profile=profile_name,
             dpi=dpi,
             analysis_pitch_m=METRES_PER_INCH / analysis_dpi if analysis_dpi else None,
+            full_map=full_map,
             workers=workers,
             scheduler=scheduler,
             retry_failed=retry_failed,

@@ -416,6 +416,7 @@ def analyse_stack(
     radial: bool = False,
     workers: int = 1,
     scale: float = 1.0,
+    intensity_size: int | None = None,
 ) -> list[TextureFeatures]:
     """Features of every image in a stack of equal-sized grey images.
 
@@ -434,6 +435,11 @@ def analyse_stack(
     scale : float
         Factor from stored values to grey levels, applied with the window
         (1/255 analyses 8-bit pixels without a float copy of the image).
+    intensity_size : int, optional
+        Number of pixels for which ``spectral_intensity`` is given (i_s is read
+        off the DFT, whose values grow with the number of pixels summed): a
+        sample of a larger region reports the region's i_s for the same
+        texture.  Default: H * W.
 
     Returns
     -------
@@ -516,6 +522,7 @@ def analyse_stack(
     full_ac = s0
 
     variance = s0 / (n * n * _HANN_PG2)
+    n_is = n if intensity_size is None else int(intensity_size)
     out: list[TextureFeatures] = []
     radial_profiles = _radial_from_power(power, h, w) if radial else [None] * b
     for i in range(b):
@@ -524,8 +531,8 @@ def analyse_stack(
             out.append(dataclasses.replace(_no_peak((h, w), pitch_m, mean), radial=radial_profiles[i]))
             continue
         a = float(amp[i])
-        f0 = 255.0 * mean * n
-        fk = 255.0 * 0.5 * a * n
+        f0 = 255.0 * mean * n_is
+        fk = 255.0 * 0.5 * a * n_is
         i_s = math.log1p(fk) / math.log1p(f0) if f0 > 0 else 0.0
         out.append(
             TextureFeatures(
