@@ -228,3 +228,46 @@ def test_colour_jpeg_luma_equals_pillows_grey_conversion():
     data = _png_bytes(Image.fromarray(rgb.astype(np.uint8)), "JPEG", quality=90)
     expected = np.asarray(Image.open(io.BytesIO(data)).convert("L"), dtype=np.float32) / 255.0
     np.testing.assert_allclose(tz.load_image(data).pixels, expected, atol=1.01 / 255)
+
+
+def test_eight_bit_images_keep_their_levels_and_convert_on_demand():
+    img = tz.load_image(_png_bytes(Image.fromarray(RAMP)), dpi=200)
+    levels, scale = img.analysis_data()
+    assert levels.dtype == np.uint8 and scale == pytest.approx(1 / 255)
+    assert np.array_equal(levels, RAMP)
+    # pixels: exactly the float decode (the same division), made once and kept
+    assert img.pixels.dtype == np.float32
+    assert np.array_equal(img.pixels, RAMP.astype(np.float32) / np.float32(255.0))
+    assert img.pixels is img.pixels
+    assert img.shape == RAMP.shape and img.width_m == pytest.approx(64 * METRES_PER_INCH / 200)
+    # a uint8 array is copied: changing the caller's array changes nothing
+    arr = RAMP.copy()
+    from_array = tz.load_image(arr)
+    arr[:] = 0
+    assert np.array_equal(from_array.analysis_data()[0], RAMP)
+    # float data stays float
+    f = tz.load_image(RAMP / 255.0)
+    assert f.analysis_data()[1] == 1.0 and f.analysis_data()[0].dtype == np.float32
+
+
+def test_texture_image_is_immutable_and_pickles():
+    import pickle
+
+    img = tz.load_image(RAMP, dpi=150).with_source("ramp")
+    with pytest.raises(AttributeError, match="immutable"):
+        img.pitch_m = (1.0, 1.0)
+    back = pickle.loads(pickle.dumps(img))
+    assert back.source == "ramp" and back.pitch_m == img.pitch_m
+    assert np.array_equal(back.pixels, img.pixels) and back.analysis_data()[0].dtype == np.uint8
+    moved = img.with_pitch(1e-4)
+    assert moved.pitch_m == (1e-4, 1e-4) and moved.analysis_data()[0] is img.analysis_data()[0]
+
+
+def test_features_from_levels_equal_features_from_floats():
+    from conftest import grating_array
+
+    g8 = (grating_array((256, 320), 2000.0, 30.0, 300, noise=0.05) * 255).round().astype(np.uint8)
+    from_levels = tz.extract_features(tz.load_image(g8, dpi=300))
+    from_floats = tz.extract_features(tz.load_image(g8.astype(np.float32) / 255, dpi=300))
+    for key, value in from_floats.to_dict().items():
+        assert from_levels.to_dict()[key] == pytest.approx(value, rel=1e-5, abs=1e-7), key

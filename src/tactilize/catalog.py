@@ -371,7 +371,7 @@ def _load(item: CatalogItem, settings: AnalysisSettings) -> tuple[TextureImage, 
         if drafted is not None:
             grey, dpi_reduced, scale = drafted
             img = load_image(grey, dpi=dpi_reduced, max_pixels=settings.max_pixels)
-            return TextureImage(img.pixels, img.pitch_m, item.path), scale
+            return img.with_source(item.path), scale
     return load_image(item.path, dpi=dpi, width_mm=width_mm, max_pixels=settings.max_pixels), 1
 
 

@@ -606,7 +606,8 @@ def extract_features(
         constant image gives :data:`NO_PEAK`'s values (all 0, never NaN); white
         noise gives its strongest bin with ``periodicity`` near 0.
     """
-    feat = analyse_stack(img.pixels[None], img.pitch_m, radial=radial_profile, workers=workers)[0]
+    data, scale = img.analysis_data()
+    feat = analyse_stack(data, img.pitch_m, radial=radial_profile, workers=workers, scale=scale)[0]
     if tamura:
         feat = dataclasses.replace(feat, tamura=tamura_features(img.pixels))
     return feat

@@ -12,7 +12,6 @@ import io
 import os
 import struct
 import warnings
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -33,7 +32,6 @@ DEFAULT_MAX_PIXELS = 64 * 1024 * 1024
 _LUMA = np.array([0.299, 0.587, 0.114], dtype=np.float32)
 
 
-@dataclass(frozen=True, eq=False)
 class TextureImage:
     """A grey texture image with its physical pixel pitch.
 
@@ -41,46 +39,104 @@ class TextureImage:
     ----------
     pixels : ndarray of float32, shape (height, width)
         Grey levels in [0, 1], 0 black.  Row 0 is the top of the picture.
+        An image decoded from 8-bit data keeps its 8-bit levels and makes this
+        array on first use (then keeps it): the analysis reads the levels
+        directly, a quarter of the memory traffic and no conversion pass.
     pitch_m : tuple of float
         (x, y) size of one pixel on the display [m].
     source : str
         Where it came from (a path, ``<bytes>``, ``<array>``...), for messages.
+
+    Immutable; equal only to itself.
     """
 
-    pixels: np.ndarray
+    __slots__ = ("_levels", "_pixels", "pitch_m", "source")
+
+    _levels: np.ndarray | None
+    _pixels: np.ndarray | None
     pitch_m: tuple[float, float]
-    source: str = "<array>"
+    source: str
+
+    def __init__(self, pixels: np.ndarray, pitch_m: tuple[float, float], source: str = "<array>") -> None:
+        for name, value in (("_levels", None), ("_pixels", pixels), ("pitch_m", tuple(pitch_m)), ("source", source)):
+            object.__setattr__(self, name, value)
+
+    @classmethod
+    def from_levels(cls, levels: np.ndarray, pitch_m: tuple[float, float], source: str = "<array>") -> "TextureImage":
+        """An image from 8-bit grey levels (uint8, 0 black, 255 white), converted lazily."""
+        if levels.dtype != np.uint8 or levels.ndim != 2:
+            raise TypeError(f"levels must be a 2-D uint8 array, got {levels.dtype} {levels.shape}")
+        img = cls.__new__(cls)
+        for name, value in (("_levels", levels), ("_pixels", None), ("pitch_m", tuple(pitch_m)), ("source", source)):
+            object.__setattr__(img, name, value)
+        return img
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError(f"TextureImage is immutable (cannot set {name!r})")
+
+    def __repr__(self) -> str:
+        h, w = self.shape
+        return f"TextureImage({w} x {h} px, pitch_m={self.pitch_m!r}, source={self.source!r})"
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        if self._levels is not None:
+            return (TextureImage.from_levels, (self._levels, self.pitch_m, self.source))
+        return (TextureImage, (self._pixels, self.pitch_m, self.source))
+
+    @property
+    def pixels(self) -> np.ndarray:
+        """Grey levels in [0, 1], float32 (H, W)."""
+        if self._pixels is None:
+            # The same division the loader always used: identical values to a float decode.
+            pixels = self._levels.astype(np.float32) / np.float32(255.0)  # type: ignore[union-attr]
+            object.__setattr__(self, "_pixels", pixels)
+        return self._pixels  # type: ignore[return-value]
+
+    def analysis_data(self) -> tuple[np.ndarray, float]:
+        """(array, scale) such that array * scale is :attr:`pixels`: the 8-bit
+        levels with 1/255 when the image has them, else the pixels with 1."""
+        if self._levels is not None:
+            return self._levels, 1.0 / 255.0
+        return self._pixels, 1.0  # type: ignore[return-value]
 
     @property
     def shape(self) -> tuple[int, int]:
         """(height, width) in pixels."""
-        return self.pixels.shape  # type: ignore[return-value]
+        return (self._levels if self._levels is not None else self._pixels).shape  # type: ignore[union-attr,return-value]
 
     @property
     def width_m(self) -> float:
         """Displayed width [m]."""
-        return self.pixels.shape[1] * self.pitch_m[0]
+        return self.shape[1] * self.pitch_m[0]
 
     @property
     def height_m(self) -> float:
         """Displayed height [m]."""
-        return self.pixels.shape[0] * self.pitch_m[1]
+        return self.shape[0] * self.pitch_m[1]
 
     @property
     def dpi(self) -> tuple[float, float]:
         """(x, y) pixels per inch."""
         return (METRES_PER_INCH / self.pitch_m[0], METRES_PER_INCH / self.pitch_m[1])
 
+    def with_source(self, source: str) -> "TextureImage":
+        """The same image under another name (for messages)."""
+        if self._levels is not None:
+            return TextureImage.from_levels(self._levels, self.pitch_m, source)
+        return TextureImage(self._pixels, self.pitch_m, source)  # type: ignore[arg-type]
+
     def with_pitch(self, pitch_m: float | tuple[float, float]) -> "TextureImage":
         """The same pixels shown at another pixel pitch [m]."""
         px, py = _pitch_pair(pitch_m, self.source)
-        return TextureImage(self.pixels, (px, py), self.source)
+        if self._levels is not None:
+            return TextureImage.from_levels(self._levels, (px, py), self.source)
+        return TextureImage(self._pixels, (px, py), self.source)  # type: ignore[arg-type]
 
     def describe(self) -> dict[str, Any]:
         """Plain summary for reports: pixel size, physical size in mm, dpi."""
         return {
-            "width_px": int(self.pixels.shape[1]),
-            "height_px": int(self.pixels.shape[0]),
+            "width_px": int(self.shape[1]),
+            "height_px": int(self.shape[0]),
             "width_mm": self.width_m * 1e3,
             "height_mm": self.height_m * 1e3,
             "dpi": self.dpi[0],
@@ -139,13 +195,13 @@ def load_image(
         raise ImageError(name, f"width_mm must be a positive number, got {width_mm!r}")
 
     if isinstance(source, TextureImage):
-        pixels, file_dpi = source.pixels, source.dpi[0]
+        data, file_dpi = source.analysis_data()[0], source.dpi[0]
     elif isinstance(source, np.ndarray):
-        pixels, file_dpi = _from_array(source, name, max_pixels), None
+        data, file_dpi = _from_array(source, name, max_pixels), None
     else:
-        pixels, file_dpi = _from_pillow(source, name, max_pixels)
+        data, file_dpi = _from_pillow(source, name, max_pixels)
 
-    h, w = pixels.shape
+    h, w = data.shape
     if dpi is not None:
         pitch = METRES_PER_INCH / dpi
     elif width_mm is not None:
@@ -154,7 +210,9 @@ def load_image(
         pitch = METRES_PER_INCH / file_dpi
     else:
         pitch = METRES_PER_INCH / DEFAULT_DPI
-    return TextureImage(pixels, (pitch, pitch), name)
+    if data.dtype == np.uint8:
+        return TextureImage.from_levels(data, (pitch, pitch), name)
+    return TextureImage(data, (pitch, pitch), name)
 
 
 def _finite(x: Any) -> bool:
@@ -189,6 +247,8 @@ def _from_array(arr: np.ndarray, name: str, max_pixels: int) -> np.ndarray:
     elif arr.ndim != 2:
         raise ImageError(name, f"array must have shape (H, W), (H, W, 3) or (H, W, 4), got {arr.shape}")
     _check_size(arr.shape[0], arr.shape[1], name, max_pixels)
+    if arr.dtype == np.uint8 and arr.ndim == 2:
+        return np.array(arr, order="C")  # 8-bit levels, kept as such (a copy: the caller may change theirs)
     if arr.dtype == bool:
         a = arr.astype(np.float32)
     elif np.issubdtype(arr.dtype, np.integer):
@@ -290,7 +350,8 @@ def _file_dpi(im: Any) -> float | None:
 
 
 def _to_grey(im: Any, name: str) -> np.ndarray:
-    """Pillow image of any mode -> float32 grey in [0, 1], alpha over white."""
+    """Pillow image of any mode -> grey, alpha over white: uint8 levels for 8-bit
+    data (every mode Pillow converts to "L"), else float32 in [0, 1]."""
     from PIL import Image
 
     mode = im.mode
@@ -316,7 +377,7 @@ def _to_grey(im: Any, name: str) -> np.ndarray:
         return np.asarray(im, dtype=np.float32)
     if mode != "L":
         im = im.convert("L")  # RGB, CMYK, YCbCr, LAB, HSV: Pillow's luma conversion
-    return np.asarray(im, dtype=np.float32) / np.float32(255.0)
+    return np.asarray(im, dtype=np.uint8)
 
 
 def _rescale(a: np.ndarray) -> np.ndarray:

@@ -192,11 +192,12 @@ def texture_map(
     # Tiles of the regular grid; the remainder strip at the right and bottom is
     # looked up in the last tile rather than analysed as a ragged one.
     # A view, not a copy: analyse_stack takes any strides.
-    blocks = img.pixels[: rows * tile, : cols * tile].reshape(rows, tile, cols, tile).swapaxes(1, 2)
+    data, scale = img.analysis_data()
+    blocks = data[: rows * tile, : cols * tile].reshape(rows, tile, cols, tile).swapaxes(1, 2)
     sample = tile if sample_px is None else int(sample_px)
     if sample < tile:
         off = (tile - sample) // 2
         blocks = blocks[:, :, off : off + sample, off : off + sample]
-    feats = analyse_stack(blocks, img.pitch_m, workers=workers, intensity_size=tile * tile)
+    feats = analyse_stack(blocks, img.pitch_m, workers=workers, scale=scale, intensity_size=tile * tile)
     grid = tuple(tuple(feats[r * cols : (r + 1) * cols]) for r in range(rows))
     return TextureMap(grid, tile, img.pitch_m, (h, w), whole, None if sample == tile else sample)

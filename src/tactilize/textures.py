@@ -67,8 +67,7 @@ class BuiltinTexture:
     def image(self) -> TextureImage:
         """The picture as a :class:`~tactilize.image.TextureImage` (8-bit grey levels, 300 dpi)."""
         # The 8-bit pixels, exactly as the page shows them, so the features match the PNG.
-        img = load_image(self.pixels_u8, dpi=TEXTURE_DPI)
-        return TextureImage(img.pixels, img.pitch_m, f"builtin:{self.id}")
+        return load_image(self.pixels_u8, dpi=TEXTURE_DPI).with_source(f"builtin:{self.id}")
 
     @cached_property
     def pixels_u8(self) -> np.ndarray:
