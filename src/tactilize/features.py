@@ -523,37 +523,40 @@ def analyse_stack(
 
     variance = s0 / (n * n * _HANN_PG2)
     n_is = n if intensity_size is None else int(intensity_size)
-    out: list[TextureFeatures] = []
     radial_profiles = _radial_from_power(power, h, w) if radial else [None] * b
-    for i in range(b):
-        mean = float(means[i])
-        if variance[i] <= _FLAT_VARIANCE or s0[i] <= 0:
-            out.append(dataclasses.replace(_no_peak((h, w), pitch_m, mean), radial=radial_profiles[i]))
+    # Every per-image number computed for the whole stack at once, then handed
+    # over as Python floats: a texture map has dozens of tiles.
+    flat = (variance <= _FLAT_VARIANCE) | (s0 <= 0)
+    safe_s0 = np.where(s0 > 0, s0, 1.0)
+    f0 = 255.0 * means * n_is
+    fk = 255.0 * 0.5 * amp * n_is
+    with np.errstate(divide="ignore", invalid="ignore"):
+        i_s = np.where(f0 > 0, np.log1p(fk) / np.log1p(np.where(f0 > 0, f0, 1.0)), 0.0)
+    cols = [
+        kx_px, -ky_px_down, np.clip(i_s, 0.0, 1.0), amp, means,
+        np.minimum(1.0, 2.0 * peak_power / safe_s0), np.sqrt(variance),
+        sxx / safe_s0, syy / safe_s0, -sxy_down / safe_s0,  # y up
+        0.5 + 0.5 * orient[:, 0] / safe_s0, 0.5 - 0.5 * orient[:, 0] / safe_s0, -0.5 * orient[:, 1] / safe_s0,  # y up
+    ]
+    table = np.stack([np.asarray(c, dtype=np.float64) for c in cols], axis=1).tolist()
+    pitch = (float(pitch_m[0]), float(pitch_m[1]))
+    out: list[TextureFeatures] = []
+    for i, (kx, ky, i_si, a, mean, per, con, mxx, myy, mxy, txx, tyy, txy) in enumerate(table):
+        if flat[i]:
+            out.append(dataclasses.replace(_no_peak((h, w), pitch, mean), radial=radial_profiles[i]))
             continue
-        a = float(amp[i])
-        f0 = 255.0 * mean * n_is
-        fk = 255.0 * 0.5 * a * n_is
-        i_s = math.log1p(fk) / math.log1p(f0) if f0 > 0 else 0.0
         out.append(
             TextureFeatures(
-                wave_vector_per_px=(float(kx_px[i]), float(-ky_px_down[i])),
-                pitch_m=(float(pitch_m[0]), float(pitch_m[1])),
+                wave_vector_per_px=(kx, ky),
+                pitch_m=pitch,
                 shape=(h, w),
-                spectral_intensity=float(min(1.0, max(0.0, i_s))),
+                spectral_intensity=i_si,
                 peak_amplitude=a,
                 mean_level=mean,
-                periodicity=float(min(1.0, 2.0 * peak_power[i] / full_ac[i])),
-                contrast=float(math.sqrt(variance[i])),
-                spectral_moments_per_px2=(
-                    float(sxx[i] / s0[i]),
-                    float(syy[i] / s0[i]),
-                    float(-sxy_down[i] / s0[i]),  # y up
-                ),
-                orientation_tensor=(
-                    float(0.5 + 0.5 * orient[i, 0] / s0[i]),
-                    float(0.5 - 0.5 * orient[i, 0] / s0[i]),
-                    float(-0.5 * orient[i, 1] / s0[i]),  # y up
-                ),
+                periodicity=per,
+                contrast=con,
+                spectral_moments_per_px2=(mxx, myy, mxy),
+                orientation_tensor=(txx, tyy, txy),
                 radial=radial_profiles[i],
             )
         )
