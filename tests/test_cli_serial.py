@@ -64,7 +64,7 @@ def grating(tmp_path):
     return str(path)
 
 
-def wait_for(predicate, timeout_s: float = 2.0) -> bool:
+def wait_for(predicate, timeout_s: float = 10.0) -> bool:
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         if predicate():
