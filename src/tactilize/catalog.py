@@ -413,7 +413,7 @@ def _draft_decode(
         # the chroma upsampling and colour conversion saves about a third of the decode.
         im.draft("L", (-(-w // scale), -(-h // scale)))
         im.load()
-        im = ImageOps.exif_transpose(im)
+        ImageOps.exif_transpose(im, in_place=True)
         if im.mode != "L":  # CMYK JPEGs do not draft to grey
             im = im.convert("L")
         grey = np.asarray(im, dtype=np.uint8)

@@ -313,7 +313,8 @@ def _from_pillow(source: Any, name: str, max_pixels: int) -> tuple[np.ndarray, f
                 im.draft("L", im.size)
             im.seek(0)  # first frame of an animation
             im.load()
-            im = ImageOps.exif_transpose(im)
+            # In place: without an orientation tag nothing happens (a new image copies every pixel).
+            ImageOps.exif_transpose(im, in_place=True)
             grey = _to_grey(im, name)
     except ImageError:
         raise
