@@ -215,7 +215,10 @@ def test_pen_stroke_two_speeds_then_lift(page):
         )
         assert float(page.get_by_test_id("drive-duty").text_content()) == 0.0
         steady = steady_drives(page, seq_before)
-        assert len(steady) >= 10, "the page should report a drive per pointer event"
+        # Drives come a batch of samples per frame; a loaded machine draws fewer
+        # frames (9 in 0.4 s seen under three busy loops), so ask for enough for
+        # the medians below, not for a frame rate.
+        assert len(steady) >= 5, "the page should report the drives of a moving pen"
         results[v_mm_s] = (shown, steady)
     (slow, slow_steady), (fast, fast_steady) = results[10.0], results[40.0]
     # What the data-testid elements showed while the pen was down.
