@@ -255,14 +255,15 @@ def test_port_vanishes_and_returns(tmp_path):
         out.apply([Drive(120.0, 400e-6), Drive(80.0, 300e-6)])
         assert wait_for(lambda: len(first.lines) == 2)
         first.kill()  # the board is unplugged (or crashed): no goodbye
-        assert wait_for(lambda: not out.connected)
-        assert "lost" in seen
+        # The flag drops first, then the event is told: wait for both.
+        assert wait_for(lambda: not out.connected and "lost" in seen)
         with pytest.raises(OutputError, match="disconnected"):
             out.apply([Drive(120.0, 400e-6), Drive(80.0, 300e-6)])
         second = EmulatorProcess(link)  # plugged back in: same path, fresh firmware
         try:
             assert out.wait_connected(5.0)
-            assert out.reconnects == 1 and "reconnected" in seen
+            # The flag rises first, then the count and the event: wait for them too.
+            assert wait_for(lambda: out.reconnects == 1 and "reconnected" in seen)
             # the fresh controller was given the drives again without being asked
             assert wait_for(lambda: len(second.lines) >= 2)
             on = {e["channel"]: e for e in second.lines if e["on"]}
