@@ -264,86 +264,39 @@ def _window_axes(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
     return wy, wx
 
 
-#: Elements per block of rows windowed and transformed together (256 kB of
-#: float32): small enough that the block, its window and its row spectra stay
-#: in a core's L2 cache between the multiply and the FFT.
-_BLOCK_ELEMS = 1 << 16
+#: Largest stack [pixels] whose windowed copy is kept between calls (4 bytes
+#: a pixel: 16 MB); larger ones get a fresh array and give it back.
+_SCRATCH_MAX_PX = 1 << 22
 
 
 def _windowed_rfft2(stack: np.ndarray, scale: float, workers: int) -> np.ndarray:
     """rfft2 of every Hann-windowed image in ``stack`` (shape (..., H, W)), as (B, H, W//2+1) complex64.
 
-    Two ways, by what is cheaper where (measured, 768 x 1024 and 1024 x 1024):
-
-    * 8-bit levels up to 2 Mpx: one multiply by the 2-D window (with ``scale``
-      folded in) reading the levels straight from any strides, then one
-      batched FFT; the mixed uint8 x float32 multiply costs the same per
-      element whatever the window's shape, so one pass beats two;
-    * float images: the separable window a block of rows at a time, just
-      before those rows' FFTs, rather than a pass of its own over the whole
-      image (at 1024 x 1024 that pass streams 12 MB through memory).
-
-    ``scale`` multiplies the pixels on the way (1/255 for 8-bit levels).  The
-    result may be a per-thread scratch array, overwritten by the next call.
+    The window (separable, with ``scale`` folded into its row factor) is one
+    compiled pass that reads the pixels in whatever dtype and strides they
+    come (8-bit levels, float pixels, tile views) and writes float32 once;
+    then one batched FFT.  ``scale`` multiplies the pixels on the way (1/255
+    for 8-bit levels).
     """
+    from . import _spectrum
+
+    if stack.dtype not in (np.uint8, np.float32, np.float64):
+        stack = stack.astype(np.float32)  # rare dtypes (16-bit, integers) are not worth a compiled variant each
+    if stack.ndim == 2:
+        stack = stack[None]
     *lead, h, w = stack.shape
     b = math.prod(lead)
-    if stack.dtype == np.uint8 and h * w <= _WINDOW_2D_MAX_PX:
-        windowed = np.multiply(stack, _window_2d(h, w, scale), out=_scratch(f"windowed{len(lead)}", stack.shape, np.float32))
-        return scipy.fft.rfft2(windowed.reshape(b, h, w), workers=workers, overwrite_x=True)
     wy, wx = _window_axes(h, w)
     if scale != 1.0:
         wx = wx * np.float32(scale)
-    if b * h * w <= 4 * _BLOCK_ELEMS:
-        # Small enough to stay in cache anyway: one multiply, one batched FFT.
-        windowed = np.multiply(stack.reshape(b, h, w), wx, out=_scratch("block", (b, h, w), np.float32))
-        windowed *= wy[:, None]
-        return scipy.fft.rfft2(windowed, workers=workers, overwrite_x=True)
-    spec = _scratch("spectrum", (b, h, w // 2 + 1), np.complex64)
-    rows_per_block = max(1, _BLOCK_ELEMS // w)
-    if h * w >= _BLOCK_ELEMS:
-        # Big images: blocks of rows within each image; any strides (tiles are views).
-        for i, idx in enumerate(np.ndindex(*lead)):
-            img, out = stack[idx], spec[i]
-            for r in range(0, h, rows_per_block):
-                r1 = min(h, r + rows_per_block)
-                block = np.multiply(img[r:r1], wx, out=_scratch("block", (r1 - r, w), np.float32))
-                block *= wy[r:r1, None]
-                out[r:r1] = scipy.fft.rfft(block, axis=-1, workers=workers, overwrite_x=True)
-    else:
-        # Small images (tiles): several whole images per block.
-        flat = stack.reshape(b * h, w)
-        wy_all = _window_rows(h, w, b)
-        spec_rows = spec.reshape(b * h, w // 2 + 1)
-        rows_per_block = max(h, (rows_per_block // h) * h)
-        for r in range(0, b * h, rows_per_block):
-            r1 = min(b * h, r + rows_per_block)
-            block = np.multiply(flat[r:r1], wx, out=_scratch("block", (r1 - r, w), np.float32))
-            block *= wy_all[r:r1, None]
-            spec_rows[r:r1] = scipy.fft.rfft(block, axis=-1, workers=workers, overwrite_x=True)
-    # The column transforms, in place on the scratch array.
-    return scipy.fft.fft(spec, axis=1, workers=workers, overwrite_x=True)
-
-
-#: Largest image [pixels] whose 2-D window is kept (4 bytes a pixel: 8 MB).
-_WINDOW_2D_MAX_PX = 1 << 21
-
-
-@lru_cache(maxsize=8)
-def _window_2d(h: int, w: int, scale: float) -> np.ndarray:
-    """The 2-D periodic Hann window times ``scale``, float32 (H, W)."""
-    wy, wx = _window_axes(h, w)
-    out = np.outer(wy, wx * np.float32(scale)).astype(np.float32)
-    out.setflags(write=False)
-    return out
-
-
-@lru_cache(maxsize=8)
-def _window_rows(h: int, w: int, b: int) -> np.ndarray:
-    """The row factor of the window repeated for ``b`` images stacked row-wise."""
-    out = np.tile(_window_axes(h, w)[0], b)
-    out.setflags(write=False)
-    return out
+    shape = (b, h, w)
+    windowed = _scratch("windowed", shape, np.float32) if b * h * w <= _SCRATCH_MAX_PX else np.empty(shape, np.float32)
+    # One call per run of the last leading axis: a grid of tile views (rows, cols, H, W)
+    # cannot be merged into one axis without a copy.
+    run = lead[-1]
+    for k, idx in enumerate(np.ndindex(*lead[:-1])):
+        _spectrum.window_into(stack[idx], wy, wx, windowed[k * run : (k + 1) * run])
+    return scipy.fft.rfft2(windowed, workers=workers, overwrite_x=True)
 
 
 _SCRATCH = threading.local()
@@ -378,35 +331,9 @@ def _dc_taps(h: int, w: int) -> np.ndarray:
 
 
 @lru_cache(maxsize=32)
-def _moment_basis(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
-    """Columns [weight, weight*kx, weight*kx^2] over the rfft columns, and signed ky per row.
-
-    The weight counts each stored rfft column for itself and its mirror, so sums
-    over the half spectrum equal sums over the full one.
-    """
-    ncol = w // 2 + 1
-    kx = np.arange(ncol, dtype=np.float64) / w
-    weight = np.full(ncol, 2.0)
-    weight[0] = 1.0
-    if w % 2 == 0:
-        weight[-1] = 1.0
-    basis = np.stack([weight, weight * kx, weight * kx**2], axis=1).astype(np.float32)
-    ky_down = scipy.fft.fftfreq(h)  # rows run down the picture
-    return basis, ky_down
-
-
-@lru_cache(maxsize=16)
-def _orientation_basis(h: int, w: int) -> np.ndarray:
-    """(2, H * (W//2+1)) float32: mirror weight times cos 2t and sin 2t of each bin's angle t."""
-    basis, ky_down = _moment_basis(h, w)
-    kx = np.arange(w // 2 + 1) / w
-    ky = ky_down[:, None]
-    r2 = kx[None, :] ** 2 + ky**2
-    r2[0, 0] = 1.0  # DC carries no power (zeroed) and no direction
-    weight = basis[:, 0][None, :]
-    # cos 2t and sin 2t carry the whole tensor (cos^2 + sin^2 = 1): two rows to stream, not three.
-    cols = [weight * (kx[None, :] ** 2 - ky**2) / r2, weight * 2 * kx[None, :] * ky / r2]
-    out = np.stack([c.ravel() for c in cols], axis=0).astype(np.float32)
+def _ky_down(h: int) -> np.ndarray:
+    """Signed vertical frequency of each spectrum row [cycles/pixel]; rows run down the picture."""
+    out = scipy.fft.fftfreq(h)
     out.setflags(write=False)
     return out
 
@@ -489,32 +416,14 @@ def analyse_stack(
     # the 3 x 2 stored bins around DC hold it.
     means = spec[:, 0, 0].real.astype(np.float64) / (h * w / 4.0)
     spec[:, _DC_ROWS, _DC_COLS] -= (means[:, None] * _dc_taps(h, w)).astype(spec.dtype)
-    # SIMD hypot then square in place: faster than re^2 + im^2 on strided views.
-    power = np.abs(spec, out=_scratch("power", spec.shape, np.float32))
-    np.square(power, out=power)
-    power[:, 0, 0] = 0.0  # no DC: the mean is not texture
+    # One compiled pass over each spectrum: the power-weighted sums and the strongest bin.
+    from . import _spectrum
 
-    # Second moments of the full AC spectrum through one matrix product (BLAS) per image.
-    basis, ky_down = _moment_basis(h, w)
-    # Three matrix-vector products (BLAS gemv) rather than one product with a
-    # 3-column matrix: OpenBLAS runs that gemm on sleeping worker threads whose
-    # wake-up costs milliseconds on a busy machine; gemv stays on this thread.
-    rows2d = power.reshape(-1, power.shape[2])
-    marg = np.stack([np.dot(rows2d, np.ascontiguousarray(basis[:, j])) for j in range(3)], axis=1)
-    marg = marg.reshape(b, h, 3)  # per row: sum P, sum P kx, sum P kx^2
-    s0 = marg[:, :, 0].astype(np.float64).sum(axis=1)
-    sxx = marg[:, :, 2].astype(np.float64).sum(axis=1)
-    syy = (marg[:, :, 0].astype(np.float64) * ky_down**2).sum(axis=1)
-    sxy_down = (marg[:, :, 1].astype(np.float64) * ky_down).sum(axis=1)
-
-    # Orientation tensor: power-weighted mean of the unit wave vector's outer
-    # product (pixel frame).  Unlike the k^2 moments it is not dominated by
-    # broadband noise at high frequencies.
-    # (3, n) @ (n, B) is a matrix-vector product BLAS streams well; (B, n) @ (n, 3) is not.
-    orient = np.dot(_orientation_basis(h, w), power.reshape(b, -1).T).T  # (B, 2): cos 2t, sin 2t (y down)
-
-    flat_idx = power.reshape(b, -1).argmax(axis=1)
-    iy, ix = np.divmod(flat_idx, power.shape[2])
+    sums = np.empty((b, 6))
+    flat_idx = np.empty(b, np.int64)
+    _spectrum.spectrum_sums(spec.view(np.float32), w, _ky_down(h), sums, flat_idx)
+    s0, sxx, syy, sxy_down, cos2t, sin2t = sums.T  # y down
+    iy, ix = np.divmod(flat_idx, spec.shape[2])
 
     ky_signed = np.where(iy > h // 2, iy - h, iy)
     if h % 2 == 0:
@@ -527,9 +436,9 @@ def analyse_stack(
     neg = kx_blk < 0
     kyy = np.where(neg, -ky_blk, ky_blk) % h
     kxx = np.abs(kx_blk)
-    inside = kxx < power.shape[2]
-    vals = power[np.arange(b)[:, None, None], kyy, np.minimum(kxx, power.shape[2] - 1)]
-    blk = np.sqrt(np.where(inside, vals, 0.0).astype(np.float64))  # (B, 3, 3): [dy, dx]
+    keep = (kxx < spec.shape[2]) & ((kyy != 0) | (kxx != 0))  # inside the spectrum, not DC
+    vals = np.abs(spec[np.arange(b)[:, None, None], kyy, np.minimum(kxx, spec.shape[2] - 1)])
+    blk = np.where(keep, vals.astype(np.float64), 0.0)  # (B, 3, 3): [dy, dx]
 
     a0 = blk[:, 1, 1]
     dx = _hann_offset(blk[:, 1, 0], a0, blk[:, 1, 2])
@@ -542,11 +451,10 @@ def analyse_stack(
 
     # Power in the peak's 3 x 3 neighbourhood (the mirror peak holds as much again).
     peak_power = (blk**2).sum(axis=(1, 2))
-    full_ac = s0
 
     variance = s0 / (n * n * _HANN_PG2)
     n_is = n if intensity_size is None else int(intensity_size)
-    radial_profiles = _radial_from_power(power, h, w) if radial else [None] * b
+    radial_profiles = _radial_from_power(_power(spec), h, w) if radial else [None] * b
     # Every per-image number computed for the whole stack at once, then handed
     # over as Python floats: a texture map has dozens of tiles.
     flat = (variance <= _FLAT_VARIANCE) | (s0 <= 0)
@@ -559,7 +467,7 @@ def analyse_stack(
         kx_px, -ky_px_down, np.clip(i_s, 0.0, 1.0), amp, means,
         np.minimum(1.0, 2.0 * peak_power / safe_s0), np.sqrt(variance),
         sxx / safe_s0, syy / safe_s0, -sxy_down / safe_s0,  # y up
-        0.5 + 0.5 * orient[:, 0] / safe_s0, 0.5 - 0.5 * orient[:, 0] / safe_s0, -0.5 * orient[:, 1] / safe_s0,  # y up
+        0.5 + 0.5 * cos2t / safe_s0, 0.5 - 0.5 * cos2t / safe_s0, -0.5 * sin2t / safe_s0,  # y up
     ]
     table = np.stack([np.asarray(c, dtype=np.float64) for c in cols], axis=1).tolist()
     pitch = (float(pitch_m[0]), float(pitch_m[1]))
@@ -584,6 +492,14 @@ def analyse_stack(
             )
         )
     return out
+
+
+def _power(spec: np.ndarray) -> np.ndarray:
+    """|F|^2 of a stack of half spectra, DC zeroed, float32."""
+    power = np.abs(spec).astype(np.float32)
+    np.square(power, out=power)
+    power[:, 0, 0] = 0.0
+    return power
 
 
 def _radial_from_power(power: np.ndarray, h: int, w: int) -> list[tuple[np.ndarray, np.ndarray]]:
