@@ -140,3 +140,145 @@ def spectrum_sums(spec, w, ky_down, sums, peak_index):  # pragma: no cover - com
         sums[i, 4] = sc
         sums[i, 5] = ss
         peak_index[i] = best_index
+
+
+# Columns of the table analyse_spectra writes, one row per image.
+COLUMNS = (
+    "kx_px", "ky_px", "spectral_intensity", "peak_amplitude", "mean_level", "periodicity", "contrast",
+    "mxx", "myy", "mxy", "txx", "tyy", "txy", "flat",
+)
+N_COLUMNS = len(COLUMNS)
+
+# 2-D periodic Hann window: coherent gain 1/2 per axis, power gain 3/8 per axis.
+HANN_CG2 = 0.25
+HANN_PG2 = (3.0 / 8.0) ** 2
+
+
+@njit(cache=True, fastmath=_FASTMATH, nogil=True)
+def _hann_response(d):  # pragma: no cover - compiled
+    """|DFT| of a periodic Hann window at offset d bins (|d| <= 1/2), normalised to 1 at d = 0."""
+    if d == 0.0:
+        return 1.0
+    x = np.pi * d
+    return np.sin(x) / x / (1.0 - d * d)
+
+
+@njit(cache=True, fastmath=_FASTMATH, nogil=True)
+def _hann_offset(a_minus, a0, a_plus):  # pragma: no cover - compiled
+    """Sub-bin offset of a tone from three Hann-windowed DFT magnitudes.
+
+    For a periodic Hann window and a single tone, the ratio a of the larger
+    neighbour to the peak gives the offset exactly: d = (2a - 1) / (a + 1).
+    """
+    right = a_plus >= a_minus
+    a = (a_plus if right else a_minus) / a0 if a0 > 0 else 0.0
+    d = min(0.5, max(0.0, (2.0 * a - 1.0) / (a + 1.0)))
+    return d if right else -d
+
+
+@njit(cache=True, fastmath=_FASTMATH, nogil=True)
+def _magnitude(spec, i, ky, kx, h, nc):  # pragma: no cover - compiled
+    """|F| at signed bin (ky, kx) of image i's half spectrum; 0 outside it and at DC.
+
+    Hermitian symmetry gives the bins left of the stored half (kx < 0).
+    """
+    if kx < 0:
+        ky = -ky
+        kx = -kx
+    ky %= h
+    if kx >= nc or (ky == 0 and kx == 0):
+        return 0.0
+    re = np.float64(spec[i, ky, 2 * kx])
+    im = np.float64(spec[i, ky, 2 * kx + 1])
+    return np.sqrt(re * re + im * im)
+
+
+@njit(cache=True, fastmath=_FASTMATH, nogil=True)
+def analyse_spectra(spec, w, ky_down, flat_variance, intensity_size, table):  # pragma: no cover - compiled
+    """Every per-image number of the feature analysis, from the windowed spectra.
+
+    Parameters
+    ----------
+    spec : float32 array (B, H, 2 * (W // 2 + 1)), modified
+        The rfft2 of each Hann-windowed image as interleaved (re, im) pairs.
+        The mean's share is removed from the bins around DC.
+    w : int
+        Width of the images [pixels].
+    ky_down : float64 array (H,)
+        Signed vertical frequency of each row [cycles/pixel], rows running down.
+    flat_variance : float
+        Grey-level variance at or below which an image counts as constant.
+    intensity_size : int
+        Number of pixels for which the spectral intensity is given.
+    table : float64 array (B, N_COLUMNS), written
+        One row per image in the order of :data:`COLUMNS`: the dominant wave
+        vector [cycles/pixel] (y up), i_s, the sinusoid's amplitude and the
+        mean [grey levels], periodicity, RMS contrast, the normalised second
+        moments [cycles^2/pixel^2] and orientation tensor (y up), and 1.0 for
+        an image with no AC content (0.0 otherwise).
+    """
+    nb, h, nc2 = spec.shape
+    nc = nc2 // 2
+    n = h * w
+    sums = np.empty((nb, 6))
+    peak = np.empty(nb, np.int64)
+    means = np.empty(nb)
+    for i in range(nb):
+        # The mean is read off the DC bin instead of a pass over the image: with
+        # the window's DC gain W(0, 0) = h w / 4 this is the window-weighted mean
+        # (the plain mean for a texture that is the same all over).  Then it is
+        # removed where the window spreads it: the periodic Hann window's DFT is
+        # exactly (N/2, -N/4, -N/4) on bins (0, +1, -1), so only the 3 x 2
+        # stored bins around DC hold it.
+        mean = spec[i, 0, 0] / (h * w / 4.0)
+        means[i] = mean
+        for r, ty in ((0, h / 2.0), (1, -h / 4.0), (h - 1, -h / 4.0)):
+            for c, tx in ((0, w / 2.0), (1, -w / 4.0)):
+                spec[i, r, 2 * c] -= np.float32(mean * ty * tx)
+    spectrum_sums(spec, w, ky_down, sums, peak)
+    for i in range(nb):
+        s0 = sums[i, 0]
+        sxx = sums[i, 1]
+        syy = sums[i, 2]
+        sxy_down = sums[i, 3]
+        cos2t = sums[i, 4]
+        sin2t = sums[i, 5]
+        iy = peak[i] // nc
+        kx0 = peak[i] % nc
+        ky0 = iy if iy <= h // 2 else iy - h
+        a0 = _magnitude(spec, i, ky0, kx0, h, nc)
+        left = _magnitude(spec, i, ky0, kx0 - 1, h, nc)
+        right = _magnitude(spec, i, ky0, kx0 + 1, h, nc)
+        up = _magnitude(spec, i, ky0 - 1, kx0, h, nc)
+        down = _magnitude(spec, i, ky0 + 1, kx0, h, nc)
+        # Power in the peak's 3 x 3 neighbourhood (the mirror peak holds as much again).
+        peak_power = 0.0
+        for dy in range(-1, 2):
+            for dx in range(-1, 2):
+                m = _magnitude(spec, i, ky0 + dy, kx0 + dx, h, nc)
+                peak_power += m * m
+        dx = _hann_offset(left, a0, right)
+        dy = _hann_offset(up, a0, down)
+        # Amplitude of the sinusoid: undo the window's coherent gain and scalloping loss.
+        amp = 2.0 * a0 / (n * HANN_CG2 * _hann_response(dx) * _hann_response(dy))
+        variance = s0 / (n * n * HANN_PG2)
+        mean = means[i]
+        f0 = 255.0 * mean * intensity_size
+        fk = 255.0 * 0.5 * amp * intensity_size
+        i_s = min(1.0, max(0.0, np.log1p(fk) / np.log1p(f0))) if f0 > 0 else 0.0
+        safe = s0 if s0 > 0 else 1.0
+        row = table[i]
+        row[0] = (kx0 + dx) / w
+        row[1] = -(ky0 + dy) / h  # y up
+        row[2] = i_s
+        row[3] = amp
+        row[4] = mean
+        row[5] = min(1.0, 2.0 * peak_power / safe)
+        row[6] = np.sqrt(max(variance, 0.0))
+        row[7] = sxx / safe
+        row[8] = syy / safe
+        row[9] = -sxy_down / safe  # y up
+        row[10] = 0.5 + 0.5 * cos2t / safe
+        row[11] = 0.5 - 0.5 * cos2t / safe
+        row[12] = -0.5 * sin2t / safe  # y up
+        row[13] = 1.0 if (variance <= flat_variance or s0 <= 0) else 0.0

@@ -40,9 +40,6 @@ MIN_SIDE_PX = 4
 #: below this fraction of the 8-bit quantisation noise power the image counts as constant
 _FLAT_VARIANCE = (1.0 / 255.0) ** 2 / 12.0 * 1e-3
 
-# 2-D periodic Hann window: coherent gain 1/2 per axis, power gain 3/8 per axis.
-_HANN_CG2 = 0.25
-_HANN_PG2 = (3.0 / 8.0) ** 2
 
 
 @dataclass(frozen=True)
@@ -315,48 +312,12 @@ def _scratch(name: str, shape: tuple[int, ...], dtype: type) -> np.ndarray:
     return buf
 
 
-#: The 3 x 2 stored bins around DC (rows 0, 1, -1; columns 0, 1) that hold the mean.
-_DC_ROWS = np.array([0, 0, 1, 1, -1, -1])
-_DC_COLS = np.array([0, 1, 0, 1, 0, 1])
-
-
-@lru_cache(maxsize=32)
-def _dc_taps(h: int, w: int) -> np.ndarray:
-    """The periodic Hann window's DFT on those bins: (N/2, -N/4, -N/4) per axis."""
-    ty = np.array([h / 2.0, h / 2.0, -h / 4.0, -h / 4.0, -h / 4.0, -h / 4.0])
-    tx = np.array([w / 2.0, -w / 4.0] * 3)
-    out = ty * tx
-    out.setflags(write=False)
-    return out
-
-
 @lru_cache(maxsize=32)
 def _ky_down(h: int) -> np.ndarray:
     """Signed vertical frequency of each spectrum row [cycles/pixel]; rows run down the picture."""
     out = scipy.fft.fftfreq(h)
     out.setflags(write=False)
     return out
-
-
-def _hann_response(d: np.ndarray) -> np.ndarray:
-    """|DFT| of a periodic Hann window at offset d bins (|d| <= 1/2), normalised to 1 at d = 0."""
-    d = np.asarray(d, dtype=np.float64)
-    # No 0/0 at |d| = 1: the offsets come from _hann_offset, clipped to 1/2.
-    return np.sinc(d) / (1.0 - d * d)
-
-
-def _hann_offset(a_minus: np.ndarray, a0: np.ndarray, a_plus: np.ndarray) -> np.ndarray:
-    """Sub-bin offset of a tone from three Hann-windowed DFT magnitudes.
-
-    For a periodic Hann window and a single tone, the ratio of the larger
-    neighbour to the peak, a, gives the offset exactly: d = (2a - 1) / (a + 1).
-    """
-    right = a_plus >= a_minus
-    nb = np.where(right, a_plus, a_minus)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        a = np.where(a0 > 0, nb / a0, 0.0)
-    d = np.clip((2 * a - 1) / (a + 1), 0.0, 0.5)
-    return np.where(right, d, -d)
 
 
 def analyse_stack(
@@ -406,74 +367,19 @@ def analyse_stack(
         means = stack.reshape(b, -1).mean(axis=1) * scale if h * w else np.zeros(b)
         return [_no_peak((h, w), pitch_m, float(m)) for m in means]
 
-    n = h * w
-    spec = _windowed_rfft2(stack, scale, workers)
-    # The mean is read off the DC bin instead of a pass over the image: with the
-    # window's DC gain W(0, 0) = h w / 4 this is the window-weighted mean (the
-    # same as the plain mean for a texture that is the same all over).  Then
-    # the mean is removed where the window spreads it: the periodic Hann
-    # window's DFT is exactly (N/2, -N/4, -N/4) on bins (0, +1, -1), so only
-    # the 3 x 2 stored bins around DC hold it.
-    means = spec[:, 0, 0].real.astype(np.float64) / (h * w / 4.0)
-    spec[:, _DC_ROWS, _DC_COLS] -= (means[:, None] * _dc_taps(h, w)).astype(spec.dtype)
-    # One compiled pass over each spectrum: the power-weighted sums and the strongest bin.
     from . import _spectrum
 
-    sums = np.empty((b, 6))
-    flat_idx = np.empty(b, np.int64)
-    _spectrum.spectrum_sums(spec.view(np.float32), w, _ky_down(h), sums, flat_idx)
-    s0, sxx, syy, sxy_down, cos2t, sin2t = sums.T  # y down
-    iy, ix = np.divmod(flat_idx, spec.shape[2])
-
-    ky_signed = np.where(iy > h // 2, iy - h, iy)
-    if h % 2 == 0:
-        ky_signed = np.where(iy == h // 2, iy, ky_signed)
-    kx0 = ix
-    # |F| on the 3 x 3 block of signed bins around each peak, in one gather;
-    # Hermitian symmetry gives the bins left of the stored half (kx < 0).
-    ky_blk = ky_signed[:, None, None] + np.array([-1, 0, 1])[None, :, None]
-    kx_blk = kx0[:, None, None] + np.array([-1, 0, 1])[None, None, :]
-    neg = kx_blk < 0
-    kyy = np.where(neg, -ky_blk, ky_blk) % h
-    kxx = np.abs(kx_blk)
-    keep = (kxx < spec.shape[2]) & ((kyy != 0) | (kxx != 0))  # inside the spectrum, not DC
-    vals = np.abs(spec[np.arange(b)[:, None, None], kyy, np.minimum(kxx, spec.shape[2] - 1)])
-    blk = np.where(keep, vals.astype(np.float64), 0.0)  # (B, 3, 3): [dy, dx]
-
-    a0 = blk[:, 1, 1]
-    dx = _hann_offset(blk[:, 1, 0], a0, blk[:, 1, 2])
-    dy = _hann_offset(blk[:, 0, 1], a0, blk[:, 2, 1])
-    kx_px = (kx0 + dx) / w
-    ky_px_down = (ky_signed + dy) / h
-
-    # Amplitude of the sinusoid: undo the window's coherent gain and scalloping loss.
-    amp = 2.0 * a0 / (n * _HANN_CG2 * _hann_response(dx) * _hann_response(dy))
-
-    # Power in the peak's 3 x 3 neighbourhood (the mirror peak holds as much again).
-    peak_power = (blk**2).sum(axis=(1, 2))
-
-    variance = s0 / (n * n * _HANN_PG2)
-    n_is = n if intensity_size is None else int(intensity_size)
+    spec = _windowed_rfft2(stack, scale, workers)
+    # Everything per image in one compiled call (what each number is: TextureFeatures
+    # and _spectrum.analyse_spectra); a texture map has dozens of tiles.
+    table = np.empty((b, _spectrum.N_COLUMNS))
+    n_is = h * w if intensity_size is None else int(intensity_size)
+    _spectrum.analyse_spectra(spec.view(np.float32), w, _ky_down(h), _FLAT_VARIANCE, n_is, table)
     radial_profiles = _radial_from_power(_power(spec), h, w) if radial else [None] * b
-    # Every per-image number computed for the whole stack at once, then handed
-    # over as Python floats: a texture map has dozens of tiles.
-    flat = (variance <= _FLAT_VARIANCE) | (s0 <= 0)
-    safe_s0 = np.where(s0 > 0, s0, 1.0)
-    f0 = 255.0 * means * n_is
-    fk = 255.0 * 0.5 * amp * n_is
-    with np.errstate(divide="ignore", invalid="ignore"):
-        i_s = np.where(f0 > 0, np.log1p(fk) / np.log1p(np.where(f0 > 0, f0, 1.0)), 0.0)
-    cols = [
-        kx_px, -ky_px_down, np.clip(i_s, 0.0, 1.0), amp, means,
-        np.minimum(1.0, 2.0 * peak_power / safe_s0), np.sqrt(variance),
-        sxx / safe_s0, syy / safe_s0, -sxy_down / safe_s0,  # y up
-        0.5 + 0.5 * cos2t / safe_s0, 0.5 - 0.5 * cos2t / safe_s0, -0.5 * sin2t / safe_s0,  # y up
-    ]
-    table = np.stack([np.asarray(c, dtype=np.float64) for c in cols], axis=1).tolist()
     pitch = (float(pitch_m[0]), float(pitch_m[1]))
     out: list[TextureFeatures] = []
-    for i, (kx, ky, i_si, a, mean, per, con, mxx, myy, mxy, txx, tyy, txy) in enumerate(table):
-        if flat[i]:
+    for i, (kx, ky, i_si, a, mean, per, con, mxx, myy, mxy, txx, tyy, txy, flat) in enumerate(table.tolist()):
+        if flat:
             out.append(dataclasses.replace(_no_peak((h, w), pitch, mean), radial=radial_profiles[i]))
             continue
         out.append(
