@@ -40,7 +40,14 @@ from typing import Any
 import numpy as np
 
 from .errors import ImageError, TactilizeError
-from .image import DEFAULT_DPI, DEFAULT_MAX_PIXELS, METRES_PER_INCH, TextureImage, load_image
+from .features import warm_up
+from .image import (
+    DEFAULT_DPI,
+    DEFAULT_MAX_PIXELS,
+    METRES_PER_INCH,
+    TextureImage,
+    load_image,
+)
 from .mapping import Drive, Profile
 
 __all__ = [
@@ -749,6 +756,9 @@ def _init_worker() -> None:
         threadpool_limits(1)
     except Exception:
         pass
+    # Nothing to do in a worker forked from a parent that warmed up (see _run_processes);
+    # a worker started afresh loads the compiled passes now, not inside its first task.
+    warm_up()
 
 
 class _Feeder:
@@ -817,6 +827,10 @@ _WORKER_DIED = (
 def _run_processes(feed: _Feeder, settings: AnalysisSettings, workers: int) -> Iterator[list[dict[str, Any]]]:
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
+
+    # Ready in the parent, the compiled analysis is inherited by every forked worker:
+    # loading it costs each fresh process a few tenths of a second, as much as 40 images.
+    warm_up()
 
     def new_pool() -> ProcessPoolExecutor:
         return ProcessPoolExecutor(max_workers=workers, initializer=_init_worker)

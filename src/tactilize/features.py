@@ -32,7 +32,7 @@ import scipy.fft
 
 from .image import TextureImage
 
-__all__ = ["TextureFeatures", "extract_features", "analyse_stack", "radial_profile", "NO_PEAK"]
+__all__ = ["TextureFeatures", "extract_features", "analyse_stack", "radial_profile", "warm_up", "NO_PEAK"]
 
 #: Images smaller than this on a side carry no measurable periodic structure.
 MIN_SIDE_PX = 4
@@ -398,6 +398,24 @@ def analyse_stack(
             )
         )
     return out
+
+
+def warm_up() -> None:
+    """Make the analysis' compiled passes ready in this process, for the usual inputs.
+
+    The first analysis in a process loads them from numba's on-disk cache (a
+    few tenths of a second; on a machine's first run it compiles them, a few
+    seconds).  A process pool calls this in its parent before its workers
+    fork, so that none of them pays it again; a worker started another way
+    calls it once when it starts.  Covers 8-bit levels and float32 and
+    float64 pixels, whole and as tile views (the layouts texture maps pass).
+    """
+    y, x = np.mgrid[0:64, 0:64]
+    grating = (0.5 + 0.4 * np.cos(2 * np.pi * (x / 8.0 + y / 16.0))).astype(np.float32)
+    for pixels, scale in ((np.round(grating * 255).astype(np.uint8), 1 / 255), (grating, 1.0), (grating.astype(np.float64), 1.0)):
+        tiles = pixels.reshape(2, 32, 2, 32).swapaxes(1, 2)
+        analyse_stack(pixels, (1e-4, 1e-4), scale=scale)
+        analyse_stack(tiles[:, :, 8:24, 8:24], (1e-4, 1e-4), scale=scale)
 
 
 def _power(spec: np.ndarray) -> np.ndarray:
