@@ -59,14 +59,17 @@ def spectrum_sums(spec, w, ky_down, sums, peak_index):  # pragma: no cover - com
         Over the full spectrum (each stored column but the first and, for even
         W, the last counts twice for its mirror): sum P, sum P kx^2,
         sum P ky^2, sum P kx ky, sum P cos 2t, sum P sin 2t, with t the
-        bin's angle (y down) and P = |F|^2.
+        bin's angle (y down) and P = |F|^2.  A Nyquist frequency (row H/2
+        of an even height, column W/2 of an even width) is +1/2 and -1/2 at
+        once, so it counts in kx^2 and ky^2 but not in the signed kx ky and
+        sin 2t sums (where the two would cancel).
     peak_index : int64 array (B,), written
         Flat index (row * (W // 2 + 1) + column) of the first bin holding the
         largest P, as ``argmax`` gives it.
     """
     nb, h, nc2 = spec.shape
     nc = nc2 // 2
-    kx = np.empty(nc, np.float32)
+    kx = np.empty(nc, np.float32)  # in the cross terms (kx ky): Nyquist has no sign, see above
     kx2 = np.empty(nc, np.float32)
     weight = np.empty(nc, np.float32)
     for c in range(nc):
@@ -76,6 +79,7 @@ def spectrum_sums(spec, w, ky_down, sums, peak_index):  # pragma: no cover - com
     weight[0] = 1.0
     if w % 2 == 0:
         weight[nc - 1] = 1.0
+        kx[nc - 1] = 0.0
     power = np.empty(nc, np.float32)
     bits = power.view(np.int32)
     tiny = np.float32(1e-30)
@@ -91,6 +95,8 @@ def spectrum_sums(spec, w, ky_down, sums, peak_index):  # pragma: no cover - com
         for r in range(h):
             ky = np.float32(ky_down[r])
             ky2 = ky * ky
+            if 2 * r == h:
+                ky = np.float32(0.0)  # the Nyquist row of an even height: in ky^2 only
             row = spec[i, r]
             # Pass 1: the row's power.  Its maximum is taken over the float bits as
             # integers: for P >= 0 they order the same, and an integer max
