@@ -261,9 +261,11 @@ def _window_axes(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
     return wy, wx
 
 
-#: Largest stack [pixels] whose windowed copy is kept between calls (4 bytes
+#: Largest windowed stack [pixels] whose buffer is kept between calls (4 bytes
 #: a pixel: 16 MB); larger ones get a fresh array and give it back.
 _SCRATCH_MAX_PX = 1 << 22
+
+_SCRATCH = threading.local()
 
 
 def _windowed_rfft2(stack: np.ndarray, scale: float, workers: int) -> np.ndarray:
@@ -286,30 +288,23 @@ def _windowed_rfft2(stack: np.ndarray, scale: float, workers: int) -> np.ndarray
     wy, wx = _window_axes(h, w)
     if scale != 1.0:
         wx = wx * np.float32(scale)
-    shape = (b, h, w)
-    windowed = _scratch("windowed", shape, np.float32) if b * h * w <= _SCRATCH_MAX_PX else np.empty(shape, np.float32)
+    size = b * h * w
+    if size <= _SCRATCH_MAX_PX:
+        # One per-thread buffer, as large as the largest stack so far, so that a
+        # catalog's alternating whole images and tile stacks reuse it (a fresh 3 MB
+        # array costs its page faults every time).  Nothing returned points into it.
+        buf = getattr(_SCRATCH, "windowed", None)
+        if buf is None or buf.size < size:
+            buf = _SCRATCH.windowed = np.empty(size, np.float32)
+        windowed = buf[:size].reshape(b, h, w)
+    else:
+        windowed = np.empty((b, h, w), np.float32)
     # One call per run of the last leading axis: a grid of tile views (rows, cols, H, W)
     # cannot be merged into one axis without a copy.
     run = lead[-1]
     for k, idx in enumerate(np.ndindex(*lead[:-1])):
         _spectrum.window_into(stack[idx], wy, wx, windowed[k * run : (k + 1) * run])
     return scipy.fft.rfft2(windowed, workers=workers, overwrite_x=True)
-
-
-_SCRATCH = threading.local()
-
-
-def _scratch(name: str, shape: tuple[int, ...], dtype: type) -> np.ndarray:
-    """A per-thread work array, reused while the shape stays the same.
-
-    Nothing returned to callers points into it (features are plain numbers).
-    """
-    store = _SCRATCH.__dict__
-    buf = store.get(name)
-    if buf is None or buf.shape != shape or buf.dtype != dtype:
-        buf = np.empty(shape, dtype)
-        store[name] = buf
-    return buf
 
 
 @lru_cache(maxsize=32)
