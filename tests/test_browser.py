@@ -302,6 +302,8 @@ def test_calibration_changes_reported_speed(page):
     assert "calibrated" in page.get_by_test_id("calibration-note").text_content()
     page.get_by_test_id("calibrate").click()
     page.get_by_test_id("calibration-reset").click()
+    # The dialog's close event, which applies the reset, is queued after the click returns.
+    page.wait_for_function(f"Math.abs(window.tactilize.mmPerPx - {DEFAULT_MM_PER_PX}) < 1e-9", timeout=5_000)
     assert page.evaluate("window.tactilize.mmPerPx") == pytest.approx(DEFAULT_MM_PER_PX)
 
 
