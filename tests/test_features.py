@@ -186,7 +186,7 @@ def _numpy_reference(img: np.ndarray) -> dict[str, float]:
     over the *full* 2-D spectrum (no half-spectrum weights, no compiled pass)."""
     h, w = img.shape
     win = np.outer(0.5 - 0.5 * np.cos(2 * np.pi * np.arange(h) / h), 0.5 - 0.5 * np.cos(2 * np.pi * np.arange(w) / w))
-    mean = float((img * win).sum() / win.sum())
+    mean = float(img.mean())
     power = np.abs(np.fft.fft2((img - mean) * win)) ** 2
     power[0, 0] = 0.0
     ky = -np.fft.fftfreq(h)[:, None]  # y up
@@ -233,15 +233,23 @@ def test_compiled_sums_equal_the_plain_numpy_definitions(shape, dtype):
         assert got == pytest.approx(ref[key], rel=1e-4, abs=1e-6)
 
 
-def test_the_peak_is_the_strongest_bin_not_dc():
-    # Two cycles across the picture: the peak's neighbours include the bins the
-    # mean's removal touches; the refined frequency is still exact.
+@pytest.mark.parametrize("cycles", [1.0, 2.0, 3.0])
+def test_a_texture_a_few_cycles_across_is_exact_next_to_dc(cycles):
+    # The peak's neighbours include DC and the bins the mean's removal touches;
+    # at one cycle the tone leaks into the windowed DC bin, which is why the mean
+    # removed is the plain one (read off the DC bin, this read 1.5 cycles).
     h, w = 64, 80
     yy, xx = np.mgrid[0:h, 0:w]
-    img = (0.5 + 0.3 * np.cos(2 * np.pi * (2.0 * xx / w))).astype(np.float32)
+    img = (0.5 + 0.3 * np.cos(2 * np.pi * (cycles * xx / w))).astype(np.float32)
     feat = analyse_stack(img, (1e-4, 1e-4))[0]
-    assert feat.wave_vector_per_px[0] == pytest.approx(2.0 / w, rel=1e-6)
+    assert feat.wave_vector_per_px[0] == pytest.approx(cycles / w, rel=1e-6)
     assert feat.wave_vector_per_px[1] == pytest.approx(0.0, abs=1e-9)
+    assert feat.peak_amplitude == pytest.approx(0.3, rel=1e-5)
+    assert feat.mean_level == pytest.approx(0.5, rel=1e-6)
+
+
+def test_the_peak_is_the_strongest_bin_not_dc():
+    h, w = 64, 80
     # Noise: the reported bin is NumPy's argmax of the windowed power, away from DC.
     rng = np.random.default_rng(5)
     noise = rng.random((h, w)).astype(np.float32)
@@ -263,3 +271,14 @@ def test_tile_views_give_the_same_features_as_copies():
     b = analyse_stack(np.ascontiguousarray(view), (1e-4, 1e-4), scale=1 / 255)
     assert [f.wave_vector_per_px for f in a] == [f.wave_vector_per_px for f in b]
     assert [f.contrast for f in a] == [f.contrast for f in b]
+
+
+def test_mean_level_is_the_plain_mean_of_an_uneven_picture():
+    # Brighter on the right: a window-weighted mean would favour the centre columns.
+    h, w = 96, 128
+    yy, xx = np.mgrid[0:h, 0:w]
+    img = np.clip(0.2 + 0.6 * (xx / w) ** 3 + 0.1 * np.cos(2 * np.pi * xx / 8), 0, 1).astype(np.float32)
+    feat = tz.extract_features(tz.load_image(img, dpi=300))
+    assert feat.mean_level == pytest.approx(float(img.mean()), rel=1e-6)
+    levels = np.round(img * 255).astype(np.uint8)
+    assert tz.extract_features(tz.load_image(levels, dpi=300)).mean_level == pytest.approx(levels.mean() / 255, rel=1e-6)

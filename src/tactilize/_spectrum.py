@@ -25,21 +25,28 @@ _FASTMATH = {"reassoc", "contract", "arcp", "nsz"}
 
 
 @njit(cache=True, fastmath=_FASTMATH, nogil=True)
-def window_into(src, wy, wx, out):  # pragma: no cover - compiled; tested through its results
-    """out[b, r, c] = src[b, r, c] * wy[r] * wx[c], as float32.
+def window_into(src, wy, wx, out, totals):  # pragma: no cover - compiled; tested through its results
+    """out[b, r, c] = src[b, r, c] * wy[r] * wx[c], as float32, and totals[b] = sum of src[b].
 
     ``src`` (B, H, W) of any real dtype and any strides; ``wy`` (H,) and
     ``wx`` (W,) float32 (``wx`` carries any scale such as 1/255); ``out``
-    (B, H, W) float32.
+    (B, H, W) float32; ``totals`` (B,) float64, the plain sums of the
+    unscaled values (for the mean, in the same pass).
     """
     nb, h, w = src.shape
     for i in range(nb):
+        total = 0.0
         for r in range(h):
             f = wy[r]
             row = src[i, r]
             o = out[i, r]
+            row_total = np.float32(0.0)
             for c in range(w):
-                o[c] = np.float32(row[c]) * (f * wx[c])
+                v = np.float32(row[c])
+                o[c] = v * (f * wx[c])
+                row_total += v
+            total += row_total
+        totals[i] = total
 
 
 @njit(cache=True, fastmath=_FASTMATH, nogil=True)
@@ -200,7 +207,7 @@ def _magnitude(spec, i, ky, kx, h, nc):  # pragma: no cover - compiled
 
 
 @njit(cache=True, fastmath=_FASTMATH, nogil=True)
-def analyse_spectra(spec, w, ky_down, flat_variance, intensity_size, table):  # pragma: no cover - compiled
+def analyse_spectra(spec, w, means, ky_down, flat_variance, intensity_size, table):  # pragma: no cover - compiled
     """Every per-image number of the feature analysis, from the windowed spectra.
 
     Parameters
@@ -210,6 +217,8 @@ def analyse_spectra(spec, w, ky_down, flat_variance, intensity_size, table):  # 
         The mean's share is removed from the bins around DC.
     w : int
         Width of the images [pixels].
+    means : float64 array (B,)
+        Each image's plain mean grey level.
     ky_down : float64 array (H,)
         Signed vertical frequency of each row [cycles/pixel], rows running down.
     flat_variance : float
@@ -228,16 +237,13 @@ def analyse_spectra(spec, w, ky_down, flat_variance, intensity_size, table):  # 
     n = h * w
     sums = np.empty((nb, 6))
     peak = np.empty(nb, np.int64)
-    means = np.empty(nb)
     for i in range(nb):
-        # The mean is read off the DC bin instead of a pass over the image: with
-        # the window's DC gain W(0, 0) = h w / 4 this is the window-weighted mean
-        # (the plain mean for a texture that is the same all over).  Then it is
-        # removed where the window spreads it: the periodic Hann window's DFT is
-        # exactly (N/2, -N/4, -N/4) on bins (0, +1, -1), so only the 3 x 2
-        # stored bins around DC hold it.
-        mean = spec[i, 0, 0] / (h * w / 4.0)
-        means[i] = mean
+        # The mean is removed where the window spreads it: the periodic Hann
+        # window's DFT is exactly (N/2, -N/4, -N/4) on bins (0, +1, -1), so only
+        # the 3 x 2 stored bins around DC hold it.  The plain mean, not the DC
+        # bin of the windowed image: a texture one cycle across leaks into that
+        # bin, and its peak came out 1.5 bins instead of 1.
+        mean = means[i]
         for r, ty in ((0, h / 2.0), (1, -h / 4.0), (h - 1, -h / 4.0)):
             for c, tx in ((0, w / 2.0), (1, -w / 4.0)):
                 spec[i, r, 2 * c] -= np.float32(mean * ty * tx)

@@ -65,8 +65,8 @@ class TextureFeatures:
     peak_amplitude : float
         Amplitude of the dominant sinusoid in grey levels (0..0.5 for [0, 1]).
     mean_level : float
-        Mean grey level in [0, 1], weighted by the analysis window (equal to
-        the plain mean for a texture that is the same all over the picture).
+        Mean grey level in [0, 1] (plain: every pixel counts alike; it is
+        F(0) / N, the DC term of the paper's i_s).
     periodicity : float
         Share of the (windowed) AC power in the dominant peak, in [0, 1]:
         ~1 for a pure grating, ~0 for white noise.  Size-independent.
@@ -268,8 +268,9 @@ _SCRATCH_MAX_PX = 1 << 22
 _SCRATCH = threading.local()
 
 
-def _windowed_rfft2(stack: np.ndarray, scale: float, workers: int) -> np.ndarray:
-    """rfft2 of every Hann-windowed image in ``stack`` (shape (..., H, W)), as (B, H, W//2+1) complex64.
+def _windowed_rfft2(stack: np.ndarray, scale: float, workers: int) -> tuple[np.ndarray, np.ndarray]:
+    """rfft2 of every Hann-windowed image in ``stack`` (shape (..., H, W)), as (B, H, W//2+1) complex64,
+    and each image's plain mean (B,), read in the same pass.
 
     The window (separable, with ``scale`` folded into its row factor) is one
     compiled pass that reads the pixels in whatever dtype and strides they
@@ -302,9 +303,10 @@ def _windowed_rfft2(stack: np.ndarray, scale: float, workers: int) -> np.ndarray
     # One call per run of the last leading axis: a grid of tile views (rows, cols, H, W)
     # cannot be merged into one axis without a copy.
     run = lead[-1]
+    totals = np.empty(b)
     for k, idx in enumerate(np.ndindex(*lead[:-1])):
-        _spectrum.window_into(stack[idx], wy, wx, windowed[k * run : (k + 1) * run])
-    return scipy.fft.rfft2(windowed, workers=workers, overwrite_x=True)
+        _spectrum.window_into(stack[idx], wy, wx, windowed[k * run : (k + 1) * run], totals[k * run : (k + 1) * run])
+    return scipy.fft.rfft2(windowed, workers=workers, overwrite_x=True), totals * (scale / (h * w))
 
 
 @lru_cache(maxsize=32)
@@ -364,12 +366,12 @@ def analyse_stack(
 
     from . import _spectrum
 
-    spec = _windowed_rfft2(stack, scale, workers)
+    spec, means = _windowed_rfft2(stack, scale, workers)
     # Everything per image in one compiled call (what each number is: TextureFeatures
     # and _spectrum.analyse_spectra); a texture map has dozens of tiles.
     table = np.empty((b, _spectrum.N_COLUMNS))
     n_is = h * w if intensity_size is None else int(intensity_size)
-    _spectrum.analyse_spectra(spec.view(np.float32), w, _ky_down(h), _FLAT_VARIANCE, n_is, table)
+    _spectrum.analyse_spectra(spec.view(np.float32), w, means, _ky_down(h), _FLAT_VARIANCE, n_is, table)
     radial_profiles = _radial_from_power(_power(spec), h, w) if radial else [None] * b
     pitch = (float(pitch_m[0]), float(pitch_m[1]))
     out: list[TextureFeatures] = []
