@@ -20,7 +20,7 @@ from tactilize.pen import DEFAULT_M_PER_CSS_PX
 from tactilize.textures import png_bytes
 from tactilize.web import create_app
 from tactilize.web import session as session_mod
-from tactilize.web.serve import is_loopback
+from tactilize.web.serve import bind_socket, is_loopback
 
 
 class FakeOutput:
@@ -478,3 +478,19 @@ def test_output_errors_reach_the_page():
                     ws.receive_json()
             assert info.value.code == 1011
     assert out.stops >= 1  # whatever apply half-did was stopped
+
+
+def test_accepted_connections_have_no_nagle_delay():
+    # A drive written right after a wire trace must not wait for the client's
+    # delayed ACK (about 40 ms): the server's connections carry TCP_NODELAY.
+    listener = bind_socket("127.0.0.1", 0)
+    try:
+        client = socket.create_connection(listener.getsockname()[:2], timeout=5)
+        conn, _ = listener.accept()
+        try:
+            assert conn.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY) != 0
+        finally:
+            conn.close()
+            client.close()
+    finally:
+        listener.close()
