@@ -80,7 +80,7 @@ def floor_seconds_2(paths: list[Path]) -> tuple[float, float]:
     halves = [paths[0::2], paths[1::2]]
     with ProcessPoolExecutor(2) as pool:
         list(pool.map(floor_seconds, [h[:2] for h in halves]))  # start both before timing
-        w0, k0 = time.perf_counter(), _children_cpu()
+        w0 = time.perf_counter()
         cpu = sum(c for _, c in pool.map(floor_seconds, halves))
         wall = time.perf_counter() - w0
     return wall, cpu

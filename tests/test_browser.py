@@ -256,7 +256,7 @@ def test_leaving_the_picture_stops(page):
         pen._send("mouseMoved", x, y, 1)
         time.sleep(0.004)
     page.wait_for_function(
-        f"() => {{ const d = window.tactilize.lastDrive; return d && d.seq >= window.tactilize.seq && d.down && !d.inside && !d.on; }}",
+        "() => { const d = window.tactilize.lastDrive; return d && d.seq >= window.tactilize.seq && d.down && !d.inside && !d.on; }",
         timeout=5_000,
     )
     drives = page.evaluate(f"window.tactilize.drives.filter(d => d.seq > {seq0})")
