@@ -267,127 +267,84 @@ def _wire_option(wire: str, length_mm: float | None):
     """The wire named by ``--wire`` (and ``--length-mm``), errors naming the option."""
     from .actuators.sma import WireSpec
 
+    if length_mm is not None and (not math.isfinite(length_mm) or length_mm <= 0):
+        raise TactilizeError("--length-mm", f"must be a positive number, got {length_mm}")
     try:
         return WireSpec.preset(wire, length_m=None if length_mm is None else length_mm / 1e3)
     except TactilizeError as exc:
         raise TactilizeError(f"--wire {wire}", exc.fault) from None
 
 
+def _circuit_option(circuit: str, spec: Any):
+    """The circuit named by ``--circuit`` for a wire, errors naming the option."""
+    from .actuators.sma import Circuit
+
+    try:
+        return Circuit.preset(circuit, spec)
+    except TactilizeError as exc:
+        raise TactilizeError(f"--circuit {circuit}", exc.fault) from None
+
+
+_WIRE_HELP = "Wire preset: 50um, 75um (the paper's) or 100um."
+_CIRCUIT_HELP = "Driver circuit: aa-resistor (default), usb-resistor, aa-sink, aa-direct (docs/hardware.md)."
+
+
 @main.command("simulate")
-@click.option("--frequency", "frequency_hz", type=float, required=True, help="Pulse frequency [Hz].")
-@click.option("--pulse-width-ms", type=float, required=True, help="Pulse width [ms].")
-@click.option("--current-ma", type=float, required=True, help="Peak pulse current into the relaxed wire [mA].")
-@click.option("--duration", "duration_s", type=float, default=5.0, show_default=True, help="Simulated time [s].")
-@click.option("--wire", default="75um", show_default=True, help="Wire preset: 50um, 75um (the paper's) or 100um.")
+@click.option("--texture", "texture_id", default=None, help="A built-in texture to stroke (see `tactilize serve`).")
+@click.option("--image", "image_path", default=None, help="Or an image file to stroke.")
+@click.option("--speed", "speed_mm_s", type=float, default=None, help="Steady stroking speed [mm/s].")
+@click.option("--direction", "direction_deg", type=float, default=None, help="Stroke direction [deg, y up].")
+@click.option("--profile", "profile_name", default="paper", show_default=True, help="Preset name or TOML file.")
+@click.option("--standby/--no-standby", default=True, show_default=True,
+              help="The wire waits in standby (or cold and off) when the pen touches.")
+@click.option("--open-loop", is_flag=True, help="The controller trusts the nominal circuit and air.")
+@click.option("--frequency", "frequency_hz", type=float, default=None, help="Raw mode: pulse frequency [Hz].")
+@click.option("--pulse-width-ms", type=float, default=None, help="Raw mode: pulse width [ms].")
+@click.option("--current-ma", type=float, default=None, help="Raw mode: an ideal current source [mA].")
+@click.option("--duration", "duration_s", type=float, default=None, help="Simulated time [s] (1.5 s / 5 s raw).")
+@click.option("--wire", default="75um", show_default=True, help=_WIRE_HELP)
+@click.option("--circuit", default="aa-resistor", show_default=True, help=_CIRCUIT_HELP)
 @click.option("--length-mm", type=float, default=None, help="Wire length [mm] (default 3).")
-@click.option("--plot", "plot_path", default=None, help="Draw temperature, martensite and displacement to this image file.")
+@click.option("--dpi", type=float, callback=_positive("dpi"), help="Pixels per inch of the displayed image.")
+@click.option("--width-mm", type=float, callback=_positive("width-mm"), help="Displayed width of the image [mm].")
+@click.option("--plot", "plot_path", default=None, help="Raw mode: draw temperature, martensite and displacement.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
-def simulate_cmd(
-    frequency_hz: float,
-    pulse_width_ms: float,
-    current_ma: float,
-    duration_s: float,
-    wire: str,
-    length_mm: float | None,
-    plot_path: str | None,
-    as_json: bool,
-) -> None:
-    """Simulate the SMA wire under a pulse drive, exactly as asked (no envelope)."""
-    from .actuators.sma import build_envelope, simulate_drive
-    from .mapping import Drive
+def simulate_cmd(**opt: Any) -> None:
+    """What the finger gets: a steady stroke on a texture through the simulated wire.
 
-    for name, value in (("frequency", frequency_hz), ("pulse-width-ms", pulse_width_ms), ("duration", duration_s)):
-        if not math.isfinite(value) or value <= 0:
-            raise TactilizeError(f"--{name}", f"must be a positive number, got {value}")
-    if not math.isfinite(current_ma) or current_ma < 0:
-        raise TactilizeError("--current-ma", f"must be a number >= 0 mA, got {current_ma}")
-    if duration_s > 600:
-        raise TactilizeError("--duration", f"at most 600 s, got {duration_s}")
-    if length_mm is not None and (not math.isfinite(length_mm) or length_mm <= 0):
-        raise TactilizeError("--length-mm", f"must be a positive number, got {length_mm}")
-    width_s = pulse_width_ms / 1e3
-    if width_s * frequency_hz >= 1:
-        raise TactilizeError("--pulse-width-ms", f"{pulse_width_ms} ms does not fit in a {1e3 / frequency_hz:g} ms period")
-    spec = _wire_option(wire, length_mm)
-    current_a = current_ma / 1e3
-    drv = Drive(frequency_hz, width_s)
-    result = simulate_drive(drv, duration_s, spec, current_a=current_a)
-    summary = result.summary()
-    env = build_envelope(spec)
-    lo, hi = env.follow_band_s(frequency_hz, current_a)
-    doc = {
-        "wire": spec.name,
-        "length_mm": spec.length_m * 1e3,
-        "frequency_hz": frequency_hz,
-        "pulse_width_ms": pulse_width_ms,
-        "current_ma": current_ma,
-        "duty_ratio": drv.duty_ratio,
-        "duration_s": duration_s,
-        "displacement_pp_um": summary["displacement_pp_um"],
-        "follows": summary["follows"],
-        "mean_temperature_c": summary["mean_temperature_c"],
-        "peak_temperature_c": summary["peak_temperature_c"],
-        "allowed": env.allows(drv, current_a=current_a),
-        "max_allowed_pulse_width_ms": hi * 1e3,
-        "follow_onset_pulse_width_ms": lo * 1e3,
-        "max_temperature_c": spec.max_temperature_c,
-        "pulses_followed": summary["pulses_followed"],
-        "pulses_in_window": summary["pulses_in_window"],
-        "settled_from_s": duration_s * 2 / 3,
-        "electrical_j": result.electrical_j,
-        "stored_j": result.stored_j,
-        "convected_j": result.convected_j,
-        "latent_j": result.latent_j,
-    }
-    if plot_path:
-        from .plots import plot_simulation
+    With --texture or --image and --speed: the pen's whole path (profile,
+    operating-point controller, standby, envelope) for a steady stroke.  With
+    --frequency, --pulse-width-ms and --current-ma instead: one drive exactly as
+    asked, open loop, on an ideal current source (no controller, no envelope).
+    """
+    from .cli_simulate import simulate_raw, simulate_stroke
 
-        plot_simulation(result, spec, doc, frequency_hz, pulse_width_ms, current_ma, plot_path)
-        doc["plot"] = plot_path
-    if as_json:
+    if opt["texture_id"] is not None or opt["image_path"] is not None:
+        doc, text = simulate_stroke(opt)
+    else:
+        doc, text = simulate_raw(opt)
+    if opt["as_json"]:
         emit_json(doc)
         return
-    click.echo(
-        f"{spec.name} wire ({spec.length_m * 1e3:g} mm), {frequency_hz:g} Hz, {pulse_width_ms:g} ms, {current_ma:g} mA "
-        f"(duty {drv.duty_ratio * 100:.2f} %), {duration_s:g} s\n"
-        f"  displacement p-p    {doc['displacement_pp_um']:.3f} um (settled, per pulse)\n"
-        f"  follows             {'yes' if doc['follows'] else 'no'} ({doc['pulses_followed']}/{doc['pulses_in_window']} pulses)\n"
-        f"  mean temperature    {doc['mean_temperature_c']:.2f} C\n"
-        f"  peak temperature    {doc['peak_temperature_c']:.2f} C (limit {spec.max_temperature_c:g} C)\n"
-        f"  allowed             {'yes' if doc['allowed'] else 'no'} (envelope: width up to {hi * 1e3:.3f} ms)"
-    )
+    click.echo(text)
 
 
 @main.command("envelope")
-@click.option("--wire", default="75um", show_default=True, help="Wire preset: 50um, 75um (the paper's) or 100um.")
+@click.option("--wire", default="75um", show_default=True, help=_WIRE_HELP)
+@click.option("--circuit", default="aa-resistor", show_default=True, help=_CIRCUIT_HELP)
 @click.option("--length-mm", type=float, default=None, help="Wire length [mm] (default 3).")
-@click.option("--plot", "plot_path", default=None, help="Draw the safe region to this image file.")
+@click.option("--plot", "plot_path", default=None, help="Draw the felt band and the envelope to this image file.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
-def envelope_cmd(wire: str, length_mm: float | None, plot_path: str | None, as_json: bool) -> None:
-    """The wire's safety envelope: the largest pulse width per frequency and current."""
-    from .actuators.sma import build_envelope
+def envelope_cmd(wire: str, circuit: str, length_mm: float | None, plot_path: str | None, as_json: bool) -> None:
+    """The wire's felt band and safety envelope on a circuit, per pulse frequency."""
+    from .cli_simulate import envelope_table
 
-    if length_mm is not None and (not math.isfinite(length_mm) or length_mm <= 0):
-        raise TactilizeError("--length-mm", f"must be a positive number, got {length_mm}")
     spec = _wire_option(wire, length_mm)
-    env = build_envelope(spec)
-    doc = env.to_dict()
-    if plot_path:
-        from .plots import plot_envelope
-
-        plot_envelope(env, spec, plot_path)
-        doc["plot"] = plot_path
+    doc, text = envelope_table(spec, _circuit_option(circuit, spec), plot_path)
     if as_json:
         emit_json(doc)
         return
-    head = "  f [Hz] " + "".join(f"{c * 1e3:>20.0f} mA" for c in env.currents_a)
-    lines = [f"{spec.name} wire ({spec.length_m * 1e3:g} mm): vibrating band .. largest allowed pulse width [ms]", head]
-    for f, hi_row, lo_row in zip(env.frequencies_hz, env.max_width_s, env.min_follow_width_s):
-        cells = "".join(
-            f"{(f'{lo * 1e3:.3f}' if math.isfinite(lo) else '-'):>11} .. {hi * 1e3:<8.3f}" for hi, lo in zip(hi_row, lo_row)
-        )
-        lines.append(f"  {f:>6g} " + cells)
-    click.echo("\n".join(lines))
+    click.echo(text)
 
 
 @main.command("export")

@@ -68,6 +68,12 @@ class Drive:
         Names of the limits that changed this drive on its way here
         (e.g. ``"max_frequency_hz"``, ``"max_duty_ratio"``, ``"envelope"``);
         empty when the laws' result went through untouched.
+    strength : float or None
+        Where the profile's width law puts this texture between its weakest and
+        strongest, in [0, 1] (:meth:`Profile.drive` sets it).  An actuator with a
+        narrow felt band (the SMA wire) plays this position inside its band
+        rather than the absolute width, which could fall outside it.  None: a
+        hand-made drive; such outputs then place it by its own heat.
 
     Notes
     -----
@@ -79,6 +85,7 @@ class Drive:
     pulse_width_s: float
     amplitude: float = 1.0
     clamped: tuple[str, ...] = ()
+    strength: float | None = None
 
     def __post_init__(self) -> None:
         # Drives are made for every pen batch: one chained comparison is the fast
@@ -94,6 +101,8 @@ class Drive:
             ok = False
         if not ok:
             self._explain()
+        if self.strength is not None and not (0.0 <= self.strength <= 1.0):
+            raise DriveError("<drive>", f"strength must be in [0, 1] or None, got {self.strength!r}")
         if type(self.clamped) is not tuple:
             # Accept any iterable of names but store an immutable tuple (hashable, comparable).
             object.__setattr__(self, "clamped", tuple(self.clamped))
@@ -106,7 +115,14 @@ class Drive:
         raise DriveError("<drive>", f"amplitude must be in [0, 1], got {self.amplitude!r}")
 
     @classmethod
-    def _trusted(cls, pulse_frequency_hz: float, pulse_width_s: float, amplitude: float, clamped: tuple[str, ...]) -> "Drive":
+    def _trusted(
+        cls,
+        pulse_frequency_hz: float,
+        pulse_width_s: float,
+        amplitude: float,
+        clamped: tuple[str, ...],
+        strength: float | None = None,
+    ) -> "Drive":
         """A Drive from values already known to be valid (finite, >= 0,
         amplitude <= 1, ``clamped`` a tuple), without ``__init__``'s checks.
 
@@ -116,7 +132,11 @@ class Drive:
         """
         d = object.__new__(cls)
         d.__dict__.update(
-            pulse_frequency_hz=pulse_frequency_hz, pulse_width_s=pulse_width_s, amplitude=amplitude, clamped=clamped
+            pulse_frequency_hz=pulse_frequency_hz,
+            pulse_width_s=pulse_width_s,
+            amplitude=amplitude,
+            clamped=clamped,
+            strength=strength,
         )
         return d
 
@@ -148,6 +168,7 @@ class Drive:
             changes.pop("pulse_width_s", self.pulse_width_s),
             changes.pop("amplitude", self.amplitude),
             changes.pop("clamped", self.clamped),
+            changes.pop("strength", self.strength),
             **changes,
         )
 
@@ -165,6 +186,7 @@ class Drive:
             "duty_ratio": self.duty_ratio,
             "amplitude": self.amplitude,
             "clamped": list(self.clamped),
+            "strength": self.strength,
         }
 
 
@@ -239,7 +261,7 @@ class ActuatorLimits:
             if name not in clamped:
                 clamped = clamped + (name,)
         # Every value is the valid drive's own or a limit (checked finite, >= 0).
-        return Drive._trusted(f, w, drive.amplitude, clamped)
+        return Drive._trusted(f, w, drive.amplitude, clamped, drive.strength)
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -356,6 +378,10 @@ class LinearWidth(_LawBase):
     def __call__(self, spectral_intensity: float) -> float:
         return max(0.0, (self.k3 * spectral_intensity + self.l) * self.unit_s)
 
+    def position(self, spectral_intensity: float) -> float:
+        """Where this width lies between the law's own widths at i_s = 0 and 1, in [0, 1]."""
+        return _width_position(self, spectral_intensity)
+
 
 @_law("width", "inverse")
 @dataclass(frozen=True)
@@ -369,6 +395,10 @@ class InverseWidth(_LawBase):
     def __call__(self, spectral_intensity: float) -> float:
         return max(0.0, (self.c - self.k4 * spectral_intensity) * self.unit_s)
 
+    def position(self, spectral_intensity: float) -> float:
+        """Where this width lies between the law's own widths at i_s = 0 and 1, in [0, 1]."""
+        return _width_position(self, spectral_intensity)
+
 
 @_law("width", "constant")
 @dataclass(frozen=True)
@@ -379,6 +409,25 @@ class ConstantWidth(_LawBase):
 
     def __call__(self, spectral_intensity: float) -> float:
         return self.width_s
+
+    def position(self, spectral_intensity: float) -> float:
+        """A constant width says nothing about strength: the middle of the band."""
+        return 0.5
+
+
+def _width_position(law: Any, spectral_intensity: float) -> float:
+    """The width law's value at i_s as a position between its values at i_s = 0 and 1.
+
+    This is how every preset's h reaches an actuator with a felt band: the paper's
+    h = 0.4 ms * i_s gives position i_s (a stronger spectral peak, a stronger
+    pulse, as the paper meant); the inverse law 5 - 4 i_s gives 1 - i_s.  A wider
+    pulse is always the stronger end, whatever the law's slope.
+    """
+    lo, hi = sorted((law(0.0), law(1.0)))
+    if hi <= lo:
+        return 0.5
+    i_s = min(1.0, max(0.0, spectral_intensity))
+    return min(1.0, max(0.0, (law(i_s) - lo) / (hi - lo)))
 
 
 @_law("amplitude", "constant")
@@ -527,7 +576,9 @@ class Profile:
         amp = min(1.0, max(0.0, self.amplitude(pressure)))
         if f_p <= 0 or p_w <= 0 or amp <= 0:
             return Drive.off()
-        return (limits or self.limits).apply(Drive(f_p, p_w, amp))
+        position = getattr(self.width, "position", None)
+        strength = position(i_s) if position is not None else None
+        return (limits or self.limits).apply(Drive(f_p, p_w, amp, (), strength))
 
     # -- storage
 

@@ -70,17 +70,20 @@ def plot_simulation(
     _save(plt, fig, path)
 
 
-def plot_envelope(env: Any, spec: Any, path: str, option: str = "--plot") -> None:
-    """The vibrating band (shaded) and the largest allowed pulse width [ms] per frequency [Hz] and current."""
+def plot_envelope(rows: list[dict[str, Any]], spec: Any, circuit: Any, path: str, option: str = "--plot") -> None:
+    """The felt band (shaded) and the envelope's largest pulse width [ms] per frequency [Hz].
+
+    ``rows`` are the ``bands`` of ``tactilize envelope --json``.
+    """
     plt = _pyplot(option)
     fig, ax = plt.subplots(figsize=(7, 5))
-    for j, cur in enumerate(env.currents_a):
-        hi = [row[j] * 1e3 for row in env.max_width_s]
-        lo = [row[j] * 1e3 for row in env.min_follow_width_s]
-        line = ax.loglog(env.frequencies_hz, hi, marker="o", ms=3, label=f"{cur * 1e3:.0f} mA: largest allowed")[0]
-        ax.fill_between(env.frequencies_hz, lo, hi, color=line.get_color(), alpha=0.15)
+    f = [r["frequency_hz"] for r in rows]
+    lo = [r["felt_band_width_s"][0] * 1e3 for r in rows]
+    hi = [r["felt_band_width_s"][1] * 1e3 for r in rows]
+    ax.fill_between(f, lo, hi, alpha=0.25, label="felt band (full switch, relaxed wire)")
+    ax.loglog(f, [r["max_width_s"] * 1e3 for r in rows], marker="o", ms=3, label="envelope: largest width")
     ax.set_xlabel("pulse frequency [Hz]")
     ax.set_ylabel("pulse width [ms]")
-    ax.set_title(f"{spec.name} wire: vibrating band (shaded) and the envelope")
+    ax.set_title(f"{spec.name} wire on {circuit.name}: felt band and envelope")
     ax.legend(fontsize=8)
     _save(plt, fig, path)

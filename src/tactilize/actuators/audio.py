@@ -81,7 +81,7 @@ class AudioOutput(OutputBase):
             raise OutputError("audio", f"gain must be in [0, 1], got {gain}")
         sd = import_sounddevice()
         if envelope is None:
-            from .serial import default_envelope
+            from .sma import default_envelope
 
             envelope = default_envelope()
         self.envelope = envelope

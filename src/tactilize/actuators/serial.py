@@ -4,8 +4,11 @@
 pseudo-terminal of ``tactilize controller-emulator``), checks that a controller
 answers, and then keeps it alive:
 
-- :meth:`~SerialOutput.apply` passes each drive through the actuator's safety
-  envelope and the controller's own hard limits (learnt from its STATUS reply),
+- :meth:`~SerialOutput.apply` places each drive's pulse heat in the wire's felt
+  band (the host side of :class:`~tactilize.actuators.sma.WireController`, open
+  loop: the board's own loop on the measured resistance is the firmware's job),
+  passes it through the safety envelope of the configured wire and circuit and
+  the controller's own hard limits (learnt from its STATUS reply),
   sends one SET frame per channel and waits for each ACK, resending on a timeout
   or a checksum NAK;
 - a keeper thread sends a HEARTBEAT every ``heartbeat_interval_s`` (50 ms) so the
@@ -36,25 +39,9 @@ from ..errors import OutputError
 from ..mapping import ActuatorLimits, Drive
 from . import protocol as P
 from .base import OutputBase
+from .sma import Circuit, SafetyEnvelope, WireController, WireSpec, default_envelope
 
-__all__ = ["SerialOutput", "default_envelope"]
-
-
-def default_envelope() -> Any:
-    """The safety envelope every drive passes through before it leaves the host.
-
-    The SMA wire model's envelope for the paper's 75 um wire
-    (:func:`tactilize.actuators.sma.build_envelope`: the largest pulse width per
-    frequency and current that keeps the wire vibrating and under its maximum
-    temperature; computed once, then cached).  Should the model be unavailable,
-    the pen's :class:`~tactilize.mapping.ActuatorLimits` (1..300 Hz,
-    20 us..2 ms, duty 10 %) bound the same risk more coarsely.
-    """
-    try:
-        from .sma import build_envelope
-    except ImportError:
-        return ActuatorLimits()
-    return build_envelope()
+__all__ = ["SerialOutput"]
 
 
 def _command_name(command: int) -> str:
@@ -82,9 +69,13 @@ class SerialOutput(OutputBase):
     ----------
     port : str
         Serial device path (``/dev/ttyACM0``, ``COM3``, a pty path).
+    wire, circuit : optional
+        The wire and the driver circuit on the board (the paper's 75 um on
+        ``aa-resistor`` by default, see docs/hardware.md).
     envelope : object with ``apply(Drive) -> Drive``, optional
-        Safety envelope applied to every drive before it is sent; default
-        :func:`default_envelope`.
+        Safety envelope applied to every drive before it is sent; default: the
+        :class:`~tactilize.actuators.sma.SafetyEnvelope` of the wire and circuit.
+        With an SMA envelope each pulse's width is first planned in the felt band.
     baudrate : int
         Ignored by USB CDC and ptys; matters for a UART bridge.
     ack_timeout_s : float
@@ -109,8 +100,8 @@ class SerialOutput(OutputBase):
         The port cannot be opened, or no controller answers on it.
     """
 
-    #: amplitude is the wire's pulse current, not felt intensity: scaling it
-    #: (e.g. for a phantom sensation) takes the wire out of its vibrating band
+    #: amplitude is felt strength, placed in the wire's felt band; the amplitude
+    #: sent to the board is the fraction of each pulse its switch conducts
     amplitude_is_intensity = False
 
     channels = 2
@@ -120,6 +111,8 @@ class SerialOutput(OutputBase):
         port: str,
         *,
         envelope: Any = None,
+        wire: WireSpec | str | None = None,
+        circuit: Circuit | str | None = None,
         baudrate: int = 115200,
         ack_timeout_s: float = 0.1,
         retries: int = 3,
@@ -130,7 +123,15 @@ class SerialOutput(OutputBase):
         on_event: Callable[[str, str], None] | None = None,
     ) -> None:
         self.port = str(port)
-        self.envelope = envelope if envelope is not None else default_envelope()
+        spec = WireSpec.resolve(wire)
+        self.envelope = envelope if envelope is not None else (
+            default_envelope() if wire is None and circuit is None else SafetyEnvelope(spec, Circuit.resolve(circuit, spec))
+        )
+        self._planner = (
+            WireController(self.envelope.spec, self.envelope.circuit, self.envelope, closed_loop=False)
+            if isinstance(self.envelope, SafetyEnvelope)
+            else None
+        )
         self.baudrate = baudrate
         self.ack_timeout_s = ack_timeout_s
         self.retries = retries
@@ -249,6 +250,10 @@ class SerialOutput(OutputBase):
     def _make_safe(self, drive: Drive) -> Drive:
         if drive.is_off:
             return Drive.off(drive.clamped)
+        if self._planner is not None:
+            plan = self._planner.plan(drive)
+            clamped = drive.clamped + tuple(n for n in plan.clamped if n not in drive.clamped)
+            drive = Drive(drive.pulse_frequency_hz, plan.pulse_width_s, plan.level, clamped, drive.strength)
         safe = self.envelope.apply(drive)
         limits = self._controller_limits
         if limits is not None and not safe.is_off:

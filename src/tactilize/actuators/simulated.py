@@ -1,15 +1,21 @@
-"""The default output: two simulated SMA wires running in real time on their own thread.
+"""The default output: simulated SMA wires, each under its operating-point controller, in real time.
 
-Every drive passes through the wire's safety envelope in :meth:`SimulatedOutput.apply`.
-A background thread advances the wire model (:mod:`tactilize.actuators.sma`) by the
-wall-clock time elapsed, every ``tick_s``; pulses are scheduled by the same
-phase-continuous rules as the audio synthesiser (:class:`~tactilize.synthesis.PulseScheduler`,
-here at 1 us resolution), so a drive change never truncates or doubles a pulse.
+Every channel is a :class:`~tactilize.actuators.sma.WireModel` (the *plant*)
+driven through a :class:`~tactilize.actuators.sma.WireController` exactly as the
+tactile controller's firmware would drive a real wire: the controller decides
+each pulse's width and the standby bias between pulses, reads the wire's
+resistance and current after every piece of current flow (self-sensing), and
+closes its loop once per pulse period.  Pulse starts follow the same
+phase-continuous rules as the audio synthesiser
+(:class:`~tactilize.synthesis.PulseScheduler`, here at 1 us resolution).
 
-Recent traces (decimated to ``trace_rate_hz``) stay in ring buffers for the web page:
-:meth:`SimulatedOutput.traces` returns plain lists.  The model integrates whole
-pulse segments (a few steps per pulse), so two channels at 300 Hz cost well under
-1 % of a core.
+A background thread advances the plant by the wall-clock time elapsed, every
+``tick_s``.  Recent traces (decimated to ``trace_rate_hz``) stay in ring buffers
+for the web page; every pulse's own displacement peak is logged, so what the
+finger gets can be read back (:meth:`SimulatedOutput.pulse_log`).
+
+The plant may differ from what the controller was told (``plant_wire``,
+``plant_circuit``): cells that sag, air that is warmer than configured.
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections import deque
 from typing import Any, Callable, Sequence
 
 import numpy as np
@@ -25,11 +32,32 @@ from ..errors import OutputError
 from ..mapping import Drive
 from ..synthesis import PulseScheduler
 from .base import OutputBase
-from .sma import SafetyEnvelope, WireModel, WireSpec, build_envelope
+from .sma import Circuit, SafetyEnvelope, WireController, WireModel, WireSpec, build_envelope
+from .sma.controller import STATES
 
 __all__ = ["SimulatedOutput"]
 
-_SCHEDULE_RATE_HZ = 1_000_000  # pulse edges at 1 us
+_US = 1_000_000  # schedule resolution: pulse edges at 1 us
+#: Longest piece of constant current [us] per state: the controller reads the
+#: wire after every piece, so warming bursts stop within a quarter millisecond.
+_PIECE_US = {"off": 20_000, "standby": 2_000, "warming": 250, "vibrating": 10_000}
+_STATE_CODE = {name: i for i, name in enumerate(STATES)}
+
+
+class _Channel:
+    """One wire: plant, controller, pulse schedule, and the pulse being followed."""
+
+    def __init__(self, plant_spec: WireSpec, plant_circuit: Circuit, ctrl: WireController) -> None:
+        self.model = WireModel(plant_spec, plant_circuit)
+        self.ctrl = ctrl
+        self.sched = PulseScheduler(_US)
+        self.scheduled = Drive.off()
+        self.carry_us = 0  # rest of a pulse that runs into the next block
+        self.open_pulse: tuple[float, float, float] | None = None  # (t_s, x_start, x_end)
+        self.log: deque[tuple[float, float, float]] = deque(maxlen=4096)  # (t_s, rise_m, swing_m)
+        self.width_s = 0.0
+        self.current_a = 0.0
+        self.peak_c = self.model.temperature_c
 
 
 class SimulatedOutput(OutputBase):
@@ -38,19 +66,27 @@ class SimulatedOutput(OutputBase):
     Parameters
     ----------
     wire : WireSpec or str
-        The wire of every channel (a preset name or a spec); the paper's 75 um.
+        The wire of every channel, as configured (a preset name or a spec).
+    circuit : Circuit or str
+        The driver circuit, as configured (``aa-resistor`` by default).
     channels : int
         Number of actuators (the pen has 2).
     envelope : SafetyEnvelope, optional
-        Default: :func:`~tactilize.actuators.sma.build_envelope` of the wire.
+        Default: :func:`~tactilize.actuators.sma.build_envelope` of the wire and circuit.
+    closed_loop : bool
+        The controllers use the measured resistance and current (True).
+    standby_s : float
+        How long the standby bias holds a wire after the pen lifts or hovers [s].
+    plant_wire, plant_circuit : optional
+        The real wire and circuit when they differ from the configured ones
+        (another ambient, sagging cells).
     trace_seconds : float
         Length of the kept traces [s].
     trace_rate_hz : float
         Trace points per second [Hz]; a pulse shorter than a trace step still
-        marks its step with its current (the drive trace is a max, not a mean).
+        marks its step with its current (the current trace is a max, not a mean).
     tick_s : float
-        How often the thread advances the model [s]; up to half a tick later
-        when it waits for the gap after a pen batch (:meth:`after_batch`).
+        How often the thread advances the model [s].
     start : bool
         Start the real-time thread now; with False, call :meth:`advance` yourself
         (deterministic, for tests and offline use).
@@ -58,16 +94,22 @@ class SimulatedOutput(OutputBase):
         Monotonic clock in seconds (``time.monotonic``).
     """
 
-    #: amplitude is the wire's pulse current, not felt intensity: scaling it
-    #: (e.g. for a phantom sensation) takes the wire out of its vibrating band
+    #: The profile's amplitude is felt strength on this output: the controller
+    #: turns it into a position in the felt band (module docstring of
+    #: :mod:`tactilize.actuators.sma.controller`), so both pins can play it.
     amplitude_is_intensity = False
 
     def __init__(
         self,
         wire: WireSpec | str | None = None,
         *,
+        circuit: Circuit | str | None = None,
         channels: int = 2,
         envelope: SafetyEnvelope | None = None,
+        closed_loop: bool = True,
+        standby_s: float = 10.0,
+        plant_wire: WireSpec | None = None,
+        plant_circuit: Circuit | None = None,
         trace_seconds: float = 5.0,
         trace_rate_hz: float = 2000.0,
         tick_s: float = 0.02,
@@ -76,34 +118,37 @@ class SimulatedOutput(OutputBase):
         **_ignored: Any,
     ) -> None:
         self.spec = WireSpec.resolve(wire)
+        self.circuit = Circuit.resolve(circuit, self.spec)
         if not isinstance(channels, int) or channels < 1:
             raise OutputError("<simulated>", f"channels must be a positive integer, got {channels!r}")
-        for name, v in (("trace_seconds", trace_seconds), ("trace_rate_hz", trace_rate_hz), ("tick_s", tick_s)):
+        for name, v in (("trace_seconds", trace_seconds), ("trace_rate_hz", trace_rate_hz), ("tick_s", tick_s),
+                        ("standby_s", standby_s)):
             if not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 raise OutputError("<simulated>", f"{name} must be a finite number > 0, got {v!r}")
         self.channels = channels
-        self.envelope = envelope if envelope is not None else build_envelope(self.spec)
+        self.envelope = envelope if envelope is not None else build_envelope(self.spec, self.circuit)
         self.tick_s = float(tick_s)
-        # Trace steps are whole microseconds so bin edges are exact integers.
-        self._bin_us = max(1, int(round(_SCHEDULE_RATE_HZ / trace_rate_hz)))
-        self.trace_rate_hz = _SCHEDULE_RATE_HZ / self._bin_us
+        self._bin_us = max(1, int(round(_US / trace_rate_hz)))
+        self.trace_rate_hz = _US / self._bin_us
         self._bin_s = self._bin_us * 1e-6
-        self._models = [WireModel(self.spec) for _ in range(channels)]
-        self._scheds = [PulseScheduler(_SCHEDULE_RATE_HZ) for _ in range(channels)]
-        self._carry_us = [0] * channels
-        self._carry_a = [0.0] * channels
+        ps = plant_wire if plant_wire is not None else self.spec
+        pc = plant_circuit if plant_circuit is not None else self.circuit
+        self._chans = [
+            _Channel(ps, pc, WireController(self.spec, self.circuit, self.envelope, closed_loop=closed_loop,
+                                            standby_s=standby_s))
+            for _ in range(channels)
+        ]
         self._drives = [Drive.off()] * channels
         self._lock = threading.RLock()
         self._pending_lock = threading.Lock()  # held for microseconds only
-        self._pending: list[Drive] | None = None
-        self._t_us = 0  # simulated time [us]
+        self._pending: list[tuple[str, list[Drive] | None]] = []
+        self._t_us = 0
         size = max(2, int(round(trace_seconds * self.trace_rate_hz)))
         self._size = size
         self._count = 0
         self._buf_t = np.zeros(size)
-        self._buf = np.zeros((channels, 3, size))  # current, temperature, displacement
+        self._buf = np.zeros((channels, 4, size))  # current, temperature, displacement, state
         self._clock = clock
-        # Set by after_batch(): a time-critical caller just finished (see _loop).
         self._quiet = threading.Event()
         self._running = False
         self._thread: threading.Thread | None = None
@@ -113,33 +158,63 @@ class SimulatedOutput(OutputBase):
 
     # -- the Output protocol
 
+    @property
+    def controllers(self) -> list[WireController]:
+        """Each channel's controller (read-only use)."""
+        return [ch.ctrl for ch in self._chans]
+
     def apply(self, channels: Sequence[Drive]) -> list[Drive]:
-        """Set every channel's drive (after the envelope); returns the drives applied."""
+        """Set every channel's texture drive; returns what each wire will get.
+
+        The frequency is the drive's; the width is the controller's plan at the
+        wire's state now (and within the envelope); ``amplitude`` 1.0 means the
+        switch is fully on during each pulse.  An off drive lifts the pen:
+        the wire goes to standby for ``standby_s``.
+        """
         if self._closed:
             raise OutputError("<simulated>", "output is closed")
         drives = self._check(channels)
-        applied = [d if d.is_off else self.envelope.apply(d) for d in drives]
-        self._hand_over(applied)
+        applied = []
+        with self._lock:
+            for ch, d in zip(self._chans, drives):
+                if d.is_off:
+                    applied.append(d)
+                    continue
+                plan = ch.ctrl.plan(d)
+                clamped = d.clamped + tuple(n for n in plan.clamped if n not in d.clamped)
+                out = Drive(d.pulse_frequency_hz, plan.pulse_width_s, plan.level, clamped, d.strength)
+                applied.append(out)
+        self._hand_over("apply", drives)
+        self._drives = applied
         return applied
 
-    def stop(self) -> None:
-        """Turn every channel off (pulses in progress complete, as on real hardware)."""
-        self._hand_over([Drive.off()] * self.channels)
+    def standby(self) -> None:
+        """The pen is over the picture with nothing to render: hold every wire ready."""
+        self._hand_over("standby", None)
 
-    def _hand_over(self, drives: list[Drive]) -> None:
-        # The caller (a pen batch) must never wait for a simulation tick to finish:
-        # the drives wait here and the next advance takes them at the simulated
-        # instant it starts from, the same instant as if we had waited.
+    def stop(self) -> None:
+        """Every channel fully off at once (pulses in progress complete, as on hardware)."""
+        self._hand_over("stop", None)
+        self._drives = [Drive.off()] * self.channels
+
+    def _hand_over(self, kind: str, drives: list[Drive] | None) -> None:
+        # A pen batch must never wait for a simulation tick: commands wait here
+        # and the next advance takes them at the simulated instant it starts from.
         with self._pending_lock:
-            self._pending = drives
-            self._drives = list(drives)
+            self._pending.append((kind, drives))
 
     def _take_pending(self) -> None:
         with self._pending_lock:
-            pending, self._pending = self._pending, None
-        if pending is not None:
-            for c, d in enumerate(pending):
-                self._scheds[c].set_drive(d)
+            pending, self._pending = self._pending, []
+        now = self._t_us * 1e-6
+        for kind, drives in pending:
+            for c, ch in enumerate(self._chans):
+                if kind == "stop":
+                    ch.ctrl.stop()
+                elif kind == "standby":
+                    ch.ctrl.standby(now)
+                else:
+                    ch.ctrl.command(drives[c], now)
 
     def close(self) -> None:
         """Stop, end the thread and wait for it."""
@@ -164,11 +239,8 @@ class SimulatedOutput(OutputBase):
     def after_batch(self) -> None:
         """Tell the simulation thread that a time-critical step just ended.
 
-        The pen server calls this when a batch's drive has been sent.  The
-        thread, once its tick is due, steps the model right then (waiting at
-        most half a tick more for it): a step takes a fraction of a millisecond of
-        Python, and done in the gap before the next batch it does not hold the
-        GIL while a batch is being handled.  Cheap; safe from any thread.
+        The pen server calls this when a batch's drive has been sent; the thread,
+        once its tick is due, steps the model in the gap before the next batch.
         """
         self._quiet.set()
 
@@ -176,8 +248,6 @@ class SimulatedOutput(OutputBase):
         last = self._clock()
         while self._running:
             time.sleep(self.tick_s)
-            # Due now; step at the next quiet moment if one comes within half a
-            # tick (a longer step integrates exactly as well).
             self._quiet.clear()
             self._quiet.wait(0.5 * self.tick_s)
             now = self._clock()
@@ -187,7 +257,7 @@ class SimulatedOutput(OutputBase):
 
     def advance(self, duration_s: float) -> None:
         """Advance every channel by ``duration_s`` [s] of simulated time."""
-        n = int(round(duration_s * _SCHEDULE_RATE_HZ))
+        n = int(round(duration_s * _US))
         if n <= 0:
             return
         with self._lock:
@@ -197,59 +267,96 @@ class SimulatedOutput(OutputBase):
             last = (t0_us + n) // self._bin_us
             bins_t = np.arange(first, last + 1) * self._bin_s
             cols = []
-            for c in range(self.channels):
-                durations, currents, intervals = self._segments(c, n)
-                model = self._models[c]
-                rec: list[float] = [model.time_s, model.temperature_c, model.martensite_fraction]
-                model.run(durations, currents, record=rec)
+            for ch in self._chans:
+                rec: list[float] = [ch.model.time_s, ch.model.temperature_c, ch.model.martensite_fraction]
+                marks: list[tuple[int, int, float, int]] = []
+                self._run_channel(ch, t0_us, n, rec, marks)
                 if bins_t.size:
                     nodes = np.asarray(rec).reshape(-1, 3)
                     T = np.interp(bins_t, nodes[:, 0], nodes[:, 1])
                     xi = np.interp(bins_t, nodes[:, 0], nodes[:, 2])
                     cur = np.zeros(bins_t.size)
-                    for s_us, e_us, amp in intervals:
-                        # Mark every trace step the pulse overlaps.
+                    state = np.zeros(bins_t.size)
+                    for s_us, e_us, amps, code in marks:
                         b0 = max(0, (t0_us + s_us) // self._bin_us + 1 - first)
                         b1 = min(bins_t.size - 1, (t0_us + e_us) // self._bin_us + 1 - first)
                         if b1 >= b0:
-                            cur[b0 : b1 + 1] = np.maximum(cur[b0 : b1 + 1], amp)
-                    cols.append((cur, T, self.spec.displacement_m(xi)))
+                            cur[b0 : b1 + 1] = np.maximum(cur[b0 : b1 + 1], amps)
+                            state[b0 : b1 + 1] = code
+                    cols.append((cur, T, ch.model.spec.displacement_m(xi), state))
             self._t_us += n
             if bins_t.size:
                 self._push(bins_t, cols)
 
-    def _segments(self, c: int, n: int) -> tuple[list[float], list[float], list[tuple[int, int, float]]]:
-        """Constant-current segments [s, A] for the next n us of channel c, and the pulse intervals [us]."""
-        durations: list[float] = []
-        currents: list[float] = []
-        intervals: list[tuple[int, int, float]] = []
-        cursor = 0
-        if self._carry_us[c] > 0:
-            on = min(self._carry_us[c], n)
-            durations.append(on * 1e-6)
-            currents.append(self._carry_a[c])
-            intervals.append((0, on, self._carry_a[c]))
-            self._carry_us[c] -= on
-            cursor = on
-        starts, width, amp = self._scheds[c].next_block(n)
-        current = amp * self.spec.rated_current_a
-        for s in (starts if isinstance(starts, list) else starts.tolist()):
-            if s > cursor:
-                durations.append((s - cursor) * 1e-6)
-                currents.append(0.0)
-            on = min(width, n - s)
-            durations.append(on * 1e-6)
-            currents.append(current)
-            intervals.append((s, s + on, current))
-            cursor = s + on
-            if s + width > n:
-                self._carry_us[c], self._carry_a[c] = s + width - n, current
-        if n > cursor:
-            durations.append((n - cursor) * 1e-6)
-            currents.append(0.0)
-        return durations, currents, intervals
+    def _piece(self, ch: _Channel, dur_us: int, level: float, rec: list, marks: list, at_us: int) -> None:
+        """Run one piece of constant switch level and let the controller read the wire."""
+        if dur_us <= 0:
+            return
+        ch.model.run((dur_us * 1e-6,), (level,), record=rec)
+        # Within a piece the temperature is monotone: its end holds the piece's peak.
+        if ch.model.temperature_c > ch.peak_c:
+            ch.peak_c = ch.model.temperature_c
+        R = ch.model.resistance_ohm
+        amps = ch.model.circuit.current_at(R)
+        if level > 0:
+            ch.ctrl.observe(R, amps, dur_us * 1e-6, ch.model.time_s)
+        marks.append((at_us, at_us + dur_us, level * amps, _STATE_CODE[ch.ctrl.state]))
 
-    def _push(self, t: np.ndarray, cols: list[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> None:
+    def _close_pulse(self, ch: _Channel) -> None:
+        """The next pulse starts (or the train stops): the last pulse's own peak is known."""
+        if ch.open_pulse is not None:
+            t, x0, x1 = ch.open_pulse
+            x2 = ch.model.displacement_m
+            ch.log.append((t, min(x1 - x0, x1 - x2), max(x0, x1, x2) - min(x0, x1, x2)))
+            ch.open_pulse = None
+
+    def _run_channel(self, ch: _Channel, t0_us: int, n: int, rec: list, marks: list) -> None:
+        ctrl = ch.ctrl
+        cursor = 0
+        if ch.carry_us > 0:
+            on = min(ch.carry_us, n)
+            self._piece(ch, on, 1.0, rec, marks, 0)
+            ch.carry_us -= on
+            cursor = on
+            if ch.carry_us == 0 and ch.open_pulse is not None:
+                t, x0, _ = ch.open_pulse
+                ch.open_pulse = (t, x0, ch.model.displacement_m)
+        while cursor < n:
+            step = min(n - cursor, _PIECE_US[ctrl.state])
+            want = ctrl.drive if ctrl.pulses_on else Drive.off()
+            if want != ch.scheduled:
+                if want.is_off:
+                    self._close_pulse(ch)
+                    ch.sched.set_drive(want)
+                else:
+                    plan = ctrl.plan(want)
+                    ch.sched.set_drive(Drive(want.pulse_frequency_hz, max(plan.pulse_width_s, 1e-6)))
+                ch.scheduled = want
+            starts, _, _ = ch.sched.next_block(step)
+            pos = 0
+            for s in (starts if isinstance(starts, list) else starts.tolist()):
+                if s < pos:  # a carried pulse still running
+                    continue
+                self._piece(ch, s - pos, ctrl.bias_level, rec, marks, cursor + pos)
+                self._close_pulse(ch)
+                ctrl.update(ch.model.time_s)
+                plan = ctrl.plan(want)
+                width_us = max(1, int(round(plan.pulse_width_s * _US)))
+                ch.width_s, ch.current_a = width_us * 1e-6, ch.model.current_a
+                x0 = ch.model.displacement_m
+                on = min(width_us, step - s)
+                self._piece(ch, on, 1.0, rec, marks, cursor + s)
+                ch.open_pulse = ((t0_us + cursor + s) * 1e-6, x0, ch.model.displacement_m)
+                if width_us > on:
+                    ch.carry_us = width_us - on
+                pos = s + on
+            self._piece(ch, step - pos, ctrl.bias_level if ctrl.state != "warming" or ctrl.warming_allowed() else 0.0,
+                        rec, marks, cursor + pos)
+            cursor += step
+            if not starts:
+                ctrl.update(ch.model.time_s)
+
+    def _push(self, t: np.ndarray, cols: list[tuple[np.ndarray, ...]]) -> None:
         m = t.size
         if m >= self._size:
             t = t[-self._size :]
@@ -257,10 +364,9 @@ class SimulatedOutput(OutputBase):
             m = self._size
         idx = (self._count + np.arange(m)) % self._size
         self._buf_t[idx] = t
-        for c, (cur, T, d) in enumerate(cols):
-            self._buf[c, 0, idx] = cur
-            self._buf[c, 1, idx] = T
-            self._buf[c, 2, idx] = d
+        for c, col in enumerate(cols):
+            for row, values in enumerate(col):
+                self._buf[c, row, idx] = values
         self._count += m
 
     # -- reading
@@ -270,6 +376,24 @@ class SimulatedOutput(OutputBase):
         """Simulated time so far [s]."""
         return self._t_us * 1e-6
 
+    def peak_temperature_c(self, channel: int = 0) -> float:
+        """Highest temperature [deg C] a channel's wire reached since the last :meth:`reset_peak`."""
+        with self._lock:
+            return self._chans[channel].peak_c
+
+    def reset_peak(self) -> None:
+        """Start the peak temperatures afresh from the wires' temperatures now."""
+        with self._lock:
+            for ch in self._chans:
+                ch.peak_c = ch.model.temperature_c
+
+    def pulse_log(self, channel: int = 0) -> list[tuple[float, float, float]]:
+        """Every recent pulse of a channel whose period has ended: ``(start [s],
+        own rise [m], swing [m])``; the rise is how far the pulse's displacement
+        peak stands above both its start and the next pulse's start."""
+        with self._lock:
+            return list(self._chans[channel].log)
+
     def traces(self, seconds: float = 2.0) -> dict[str, Any]:
         """The last ``seconds`` of traces as plain lists (JSON-ready).
 
@@ -278,32 +402,39 @@ class SimulatedOutput(OutputBase):
         dict
             ``time_s`` (simulated time [s]) and ``channels``: one dict per channel
             with ``current_a`` [A] (max over each trace step), ``temperature_c``
-            [deg C] and ``displacement_um`` [um], plus ``drive`` (the drive applied).
+            [deg C], ``displacement_um`` [um], ``state`` (one of ``states``
+            per step), plus ``drive`` (the drive applied).
         """
         with self._lock:
             m = min(self._count, self._size, max(0, int(round(seconds * self.trace_rate_hz))))
             idx = (self._count - m + np.arange(m)) % self._size
-            out: dict[str, Any] = {"time_s": self._buf_t[idx].tolist(), "channels": []}
+            out: dict[str, Any] = {"time_s": self._buf_t[idx].tolist(), "states": list(STATES), "channels": []}
             for c in range(self.channels):
                 out["channels"].append(
                     {
                         "current_a": self._buf[c, 0, idx].tolist(),
                         "temperature_c": self._buf[c, 1, idx].tolist(),
                         "displacement_um": (self._buf[c, 2, idx] * 1e6).tolist(),
+                        "state": [STATES[int(s)] for s in self._buf[c, 3, idx]],
                         "drive": self._drives[c].to_dict(),
                     }
                 )
             return out
 
     def state(self) -> list[dict[str, Any]]:
-        """Each channel's present wire state (temperature [deg C], martensite, displacement [um], drive)."""
+        """Each channel now: controller state, temperature [deg C], martensite fraction,
+        displacement [um], pulse current [mA] and width [ms], the drive."""
         with self._lock:
             return [
                 {
-                    "temperature_c": m.temperature_c,
-                    "martensite_fraction": m.martensite_fraction,
-                    "displacement_um": m.displacement_m * 1e6,
+                    "state": ch.ctrl.state,
+                    "temperature_c": ch.model.temperature_c,
+                    "martensite_fraction": ch.model.martensite_fraction,
+                    "displacement_um": ch.model.displacement_m * 1e6,
+                    "current_ma": ch.current_a * 1e3,
+                    "pulse_width_ms": ch.width_s * 1e3,
+                    "bias_level": ch.ctrl.bias_level,
                     "drive": d.to_dict(),
                 }
-                for m, d in zip(self._models, self._drives)
+                for ch, d in zip(self._chans, self._drives)
             ]
