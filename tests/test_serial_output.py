@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import json
 import os
 import select
@@ -60,7 +62,8 @@ def wait_for(predicate, timeout_s: float = 10.0) -> bool:
 
 
 def test_apply_round_trip(emu):
-    with SerialOutput(emu.device) as out:
+    # The transport alone: no planning, no envelope.
+    with SerialOutput(emu.device, envelope=Identity()) as out:
         assert out.connected
         sent = out.apply([Drive(120.0, 400e-6), Drive(250.0, 200e-6, 0.5)])
         assert [(d.pulse_frequency_hz, d.pulse_width_s) for d in sent] == [(120.0, 400e-6), (250.0, 200e-6)]
@@ -91,13 +94,19 @@ def test_every_drive_passes_the_envelope(emu):
 
 
 def test_the_default_envelope_is_the_wire_models(emu):
-    from tactilize.actuators.sma import SafetyEnvelope
+    from tactilize.actuators.sma import SafetyEnvelope, WireController
 
     with SerialOutput(emu.device) as out:
         assert isinstance(out.envelope, SafetyEnvelope)
-        sent = out.apply([Drive(250.0, 1e-3)])  # 25 % duty would overheat the wire
-        assert sent[0].clamped == ("envelope",)
-        assert sent[0].pulse_width_s == pytest.approx(out.envelope.apply(Drive(250.0, 1e-3)).pulse_width_s)
+        sent = out.apply([Drive(250.0, 1e-3), Drive(100.0, 3e-4, 1.0, (), 0.5)])  # 25 % duty would overheat the wire
+        # placed at the top of the felt band, within the envelope, switch fully on
+        assert sent[0].clamped == ("band",) and sent[0].amplitude == 1.0
+        assert out.envelope.allows(sent[0]) and out.envelope.allows(sent[1])
+        planner = WireController(out.envelope.spec, out.envelope.circuit, out.envelope, closed_loop=False)
+        power = out.envelope.circuit.power_at(out.envelope.spec.resistance_martensite_ohm)
+        assert sent[0].pulse_width_s * power == pytest.approx(planner.band_j(250.0)[1], rel=1e-9)
+        lo, hi = planner.band_j(100.0)
+        assert sent[1].pulse_width_s * power == pytest.approx(math.sqrt(lo * hi), rel=1e-9)
         assert out.status().channels[0].pulse_width_s == pytest.approx(sent[0].pulse_width_s, abs=1e-9)
 
 

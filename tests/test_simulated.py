@@ -26,21 +26,24 @@ def rising_edges(x) -> int:
     return int(np.count_nonzero(on[1:] & ~on[:-1]))
 
 
-def test_apply_passes_every_drive_through_the_envelope(envelope):
+def test_apply_passes_every_drive_through_the_controller_and_the_envelope(envelope):
     with SimulatedOutput(SPEC, envelope=envelope, start=False) as out:
         assert isinstance(out, Output)
-        hot = Drive(50.0, 3e-3)  # 15 % duty
-        applied = out.apply([hot, Drive(50.0, 1e-3)])
-        assert "envelope" in applied[0].clamped
-        assert applied[0].pulse_width_s == pytest.approx(envelope.max_pulse_width_s(50.0, SPEC.rated_current_a))
-        assert applied[1] == Drive(50.0, 1e-3)
+        hot = Drive(50.0, 3e-3)  # 15 % duty, no strength: placed in the band by its heat
+        applied = out.apply([hot, Drive(50.0, 1e-3, 1.0, (), 0.5)])
+        assert "band" in applied[0].clamped
+        ctrl = out.controllers[0]
+        lo, hi = ctrl.band_j(50.0)
+        power = out.circuit.power_at(SPEC.resistance_martensite_ohm)
+        assert applied[0].pulse_width_s * power == pytest.approx(hi, rel=0.02)
+        assert lo * 0.98 <= applied[1].pulse_width_s * power <= hi * 1.02
+        assert applied[0].pulse_width_s * power <= envelope.max_pulse_energy_j(50.0)
         # a shorter list turns the other channel off
         assert out.apply([Drive(50.0, 1e-3)])[1].is_off
 
 
 def test_simulated_wire_follows_and_traces_show_it(envelope):
-    lo, hi = envelope.follow_band_s(50.0, SPEC.rated_current_a)
-    d = Drive(50.0, math.sqrt(lo * hi))
+    d = Drive(50.0, 1e-3, 1.0, (), 0.5)
     with SimulatedOutput(SPEC, envelope=envelope, start=False, trace_seconds=2.0, trace_rate_hz=2000) as out:
         out.apply([d, Drive.off()])
         for _ in range(350):  # 7 s in 20 ms ticks, as the thread would
@@ -50,31 +53,38 @@ def test_simulated_wire_follows_and_traces_show_it(envelope):
         t = np.array(tr["time_s"])
         assert t.size == 2000 and np.all(np.diff(t) > 0) and t[-1] == pytest.approx(7.0)
         ch0, ch1 = tr["channels"]
-        # 50 pulses in the last second, each marked at the rated current
-        on = np.array(ch0["current_a"]) > 0
-        assert rising_edges(ch0["current_a"]) + int(on[0]) == 50
-        assert max(ch0["current_a"]) == pytest.approx(SPEC.rated_current_a)
+        # 50 pulses in the last second, each marked near the circuit's current
+        cur = np.array(ch0["current_a"])
+        pulses = cur > 0.3
+        assert rising_edges(pulses) + int(pulses[0]) == 50
+        assert cur.max() == pytest.approx(out.circuit.current_at(SPEC.resistance_at(0.8)), rel=0.03)
+        # between pulses the standby bias is a small chopped current
+        assert 0 < np.median(cur[~pulses]) < 0.05
         disp = np.array(ch0["displacement_um"])
-        # one displacement peak per pulse: the trace rises 50 times by more than 0.01 um
         rises = np.diff(disp)
-        assert disp.max() - disp.min() > 0.3
+        assert disp.max() - disp.min() > 0.5
         peaks = np.flatnonzero((rises[:-1] > 0) & (rises[1:] <= 0))
         assert 45 <= peaks.size <= 55
         assert SPEC.martensite_finish_c < np.mean(ch0["temperature_c"]) < SPEC.austenite_finish_c
-        # the idle channel stays at ambient and still
+        assert set(ch0["state"]) == {"vibrating"}
+        # every pulse of the last second has its own peak of at least 0.5 um
+        log = [p for p in out.pulse_log(0) if p[0] > 6.0]
+        assert len(log) >= 45 and all(rise >= 0.5e-6 for _, rise, _ in log)
+        # the idle channel was never driven: it stays off, at ambient and still
         assert max(ch1["current_a"]) == 0 and np.ptp(ch1["displacement_um"]) == 0
         assert ch1["temperature_c"][-1] == pytest.approx(SPEC.ambient_c)
+        assert set(ch1["state"]) == {"off"}
 
 
 def test_reapplying_the_same_drive_keeps_the_phase(envelope):
-    d = Drive(100.0, 0.5e-3)
+    d = Drive(100.0, 0.5e-3, 1.0, (), 0.5)
     with SimulatedOutput(SPEC, envelope=envelope, start=False, trace_seconds=1.0, trace_rate_hz=5000) as out:
         out.apply([d, d])
         for _ in range(60):  # the page re-sends the drive every frame
             out.advance(1 / 60)
             out.apply([d, d])
         tr = out.traces(0.9)
-        cur = np.array(tr["channels"][0]["current_a"]) > 0
+        cur = np.array(tr["channels"][0]["current_a"]) > 0.3
         t = np.array(tr["time_s"])
         onsets = t[1:][cur[1:] & ~cur[:-1]]
         # one pulse every 10 ms, never restarted by the repeated apply
@@ -94,6 +104,7 @@ def test_stop_turns_everything_off_and_the_wire_cools(envelope):
         st = out.state()
         assert all(s["drive"]["pulse_frequency_hz"] == 0 for s in st)
         assert max(out.traces(2.0)["channels"][0]["current_a"][-2000:]) == 0
+        assert all(s["state"] == "off" for s in st)
         # 3 s of cooling with tau ~ 0.53 s: within a few per cent of ambient rise
         rise = st[0]["temperature_c"] - SPEC.ambient_c
         assert rise < 0.05 * (warm - SPEC.ambient_c)

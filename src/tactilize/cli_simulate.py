@@ -42,10 +42,13 @@ def simulate_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     if opt["direction_deg"] is not None and not math.isfinite(opt["direction_deg"]):
         raise TactilizeError("--direction", f"must be a finite number, got {opt['direction_deg']}")
     if opt["texture_id"] is not None:
-        from .textures import get_texture
+        from .textures import get_texture, texture_ids
 
         source = opt["texture_id"]
-        img = get_texture(source).image
+        try:
+            img = get_texture(source).image
+        except KeyError:
+            raise TactilizeError(f"--texture {source}", f"no such texture (known: {', '.join(texture_ids())})") from None
     else:
         from .image import load_image
 
