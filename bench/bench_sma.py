@@ -8,17 +8,18 @@ the paper's 300 Hz drives use) on 10 samples, 10 % resolution.
 
 Measured, for 300 Hz / 150 us pulses at the rated current (the densest drive):
 
-* ``WireModel.run`` over the pulse segments (what the envelope and the
-  real-time output use), no traces;
+* ``WireModel.run`` over the pulse segments, no traces;
 * ``simulate_drive`` (exact edges, traces sampled at 5 us);
 * ``simulate`` of a sampled current at 5 us (run-length encoding + traces);
-* ``SimulatedOutput.advance`` of two channels in 20 ms ticks with 2 kHz traces;
+* ``SimulatedOutput.advance`` of two channels in 20 ms ticks with 2 kHz traces,
+  each under its operating-point controller (a piece of current per pulse and
+  per gap, the resistance read after each, the loop closed per pulse);
 
 against references measured in the same run: a pure-Python forward-Euler loop at
 the same 5 us step (what a naive integrator costs; run for 0.2 s and scaled), and
 ``np.interp`` of one trace onto the 5 us grid (the floor cost of returning traces).
-Goal (issue 3): >= 100 x real time.  Also prints the envelope's build time
-(without cache) and the cost of ``envelope.apply``.
+Goal (issue 3): >= 100 x real time.  Also prints the cost of ``envelope.apply``
+(closed-form since the envelope is in energy: nothing to build or cache).
 
 Run: python bench/bench_sma.py [--seconds S]
 """
@@ -33,7 +34,7 @@ import time
 import numpy as np
 
 import tactilize as tz
-from tactilize.actuators.sma import DEFAULT_DT_S, WireModel, WireSpec, build_envelope, simulate, simulate_drive
+from tactilize.actuators.sma import DEFAULT_DT_S, Circuit, WireModel, WireSpec, build_envelope, simulate, simulate_drive
 from tactilize.actuators.simulated import SimulatedOutput
 
 
@@ -76,18 +77,18 @@ def main() -> None:
     n_periods = int(secs * f)
 
     def run_model():
-        WireModel(spec).run([w, 1 / f - w] * n_periods, [cur, 0.0] * n_periods)
+        WireModel(spec, Circuit.ideal_current(cur)).run([w, 1 / f - w] * n_periods, [1.0, 0.0] * n_periods)
 
     drive = tz.Drive(f, w)
     current = tz.pulse_train(drive, secs, 1 / dt) * cur
 
     t_model = timed(run_model)
-    t_drive = timed(lambda: simulate_drive(drive, secs, spec, dt_s=dt))
+    t_drive = timed(lambda: simulate_drive(drive, secs, spec, current_a=cur, dt_s=dt))
     t_sim = timed(lambda: simulate(current, dt, spec))
 
     env = build_envelope(spec)
     out = SimulatedOutput(spec, envelope=env, start=False)
-    out.apply([drive, drive])
+    out.apply([tz.Drive(f, w, 1.0, (), 0.5)] * 2)
 
     def advance():
         for _ in range(int(secs / 0.02)):
@@ -116,16 +117,13 @@ def main() -> None:
     for name, t in rows:
         print(f"  {name:44} {secs / t:12.0f} {t_euler / t:9.0f}")
 
-    t0 = time.perf_counter()
-    build_envelope(spec, use_cache=False)
-    t_build = time.perf_counter() - t0
     d = tz.Drive(120.0, 0.9e-3)
     n = 20000
     t0 = time.perf_counter()
     for _ in range(n):
         env.apply(d)
     t_apply = (time.perf_counter() - t0) / n
-    print(f"  envelope build (no cache): {t_build:.1f} s; envelope.apply: {t_apply * 1e6:.1f} us")
+    print(f"  envelope.apply: {t_apply * 1e6:.1f} us")
 
 
 if __name__ == "__main__":

@@ -39,6 +39,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from ...errors import WireError
 from .wire import WireSpec
 
@@ -166,6 +168,13 @@ class Circuit:
         if self.kind == "current":
             return min(self.current_a, max(0.0, self.supply_v - self.headroom_v) / (self.source_ohm + wire_ohm))
         return self.supply_v / (self.source_ohm + wire_ohm)
+
+    def currents_at(self, wire_ohm: np.ndarray) -> np.ndarray:
+        """:meth:`current_at` over an array of resistances [ohm] -> [A]."""
+        r = np.asarray(wire_ohm, dtype=float)
+        if self.kind == "current":
+            return np.minimum(self.current_a, max(0.0, self.supply_v - self.headroom_v) / (self.source_ohm + r))
+        return self.supply_v / (self.source_ohm + r)
 
     def power_at(self, wire_ohm: float) -> float:
         """Heat [W] into the wire while the switch conducts: I^2 R."""

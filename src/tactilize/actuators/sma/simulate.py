@@ -328,8 +328,7 @@ def simulate_drive(
         steps = np.bincount(on_idx, minlength=n + 1)[: n + 1] - np.bincount(off_idx, minlength=n + 1)[: n + 1]
         on_grid = np.cumsum(steps[:n]).astype(float)
     level_grid = np.where(on_grid > 0, drive.amplitude, bias_level)
-    current = level_grid * np.array([circ.current_at(r) for r in spec.resistance_at(xi[:-1])]) if n <= 20000 else \
-        level_grid * np.vectorize(circ.current_at)(spec.resistance_at(xi[:-1]))
+    current = level_grid * circ.currents_at(spec.resistance_at(xi[:-1]))
     return SimulationResult(
         time_s=t,
         current_a=current,

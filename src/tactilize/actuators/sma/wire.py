@@ -21,6 +21,7 @@ import hashlib
 import json
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 from ...errors import WireError
@@ -156,47 +157,47 @@ class WireSpec:
     def replace(self, **changes: Any) -> "WireSpec":
         return dataclasses.replace(self, **changes)
 
-    # -- derived quantities (SI)
+    # -- derived quantities (SI); cached, since the controller reads them per pulse
 
-    @property
+    @cached_property
     def cross_section_m2(self) -> float:
         return math.pi * self.diameter_m**2 / 4
 
-    @property
+    @cached_property
     def volume_m3(self) -> float:
         return self.cross_section_m2 * self.length_m
 
-    @property
+    @cached_property
     def surface_m2(self) -> float:
         """Lateral surface [m^2] (the ends are clamped, not cooled by air)."""
         return math.pi * self.diameter_m * self.length_m
 
-    @property
+    @cached_property
     def heat_capacity_j_k(self) -> float:
         """rho c V [J/K]."""
         return self.density_kg_m3 * self.specific_heat_j_kg_k * self.volume_m3
 
-    @property
+    @cached_property
     def conductance_w_k(self) -> float:
         """h A_s [W/K]."""
         return self.convection_w_m2_k * self.surface_m2
 
-    @property
+    @cached_property
     def latent_j(self) -> float:
         """rho V L_h [J]: heat absorbed by a full martensite -> austenite transformation."""
         return self.density_kg_m3 * self.volume_m3 * self.latent_heat_j_kg
 
-    @property
+    @cached_property
     def time_constant_s(self) -> float:
         """Thermal time constant rho c V / (h A_s) [s] outside the transformation band."""
         return self.heat_capacity_j_k / self.conductance_w_k
 
-    @property
+    @cached_property
     def resistance_martensite_ohm(self) -> float:
         """Resistance of the relaxed (all martensite) wire [ohm]."""
         return self.resistivity_martensite_ohm_m * self.length_m / self.cross_section_m2
 
-    @property
+    @cached_property
     def resistance_austenite_ohm(self) -> float:
         """Resistance of the contracted (all austenite) wire [ohm]."""
         return self.resistivity_austenite_ohm_m * self.length_m / self.cross_section_m2
@@ -216,7 +217,7 @@ class WireSpec:
         RA, RM = self.resistance_austenite_ohm, self.resistance_martensite_ohm
         return min(1.0, max(0.0, (RA - resistance_ohm) / (RA - RM)))
 
-    @property
+    @cached_property
     def stroke_m(self) -> float:
         """Pin displacement [m] of a full transformation: gain * L * eps_L."""
         return self.lever_gain * self.length_m * self.max_strain
