@@ -276,12 +276,12 @@ def test_retry_failed_replaces_error_rows(tmp_path):
 def test_a_worker_that_dies_costs_error_rows_not_the_batch(shop, tmp_path, monkeypatch):
     import os
 
-    import tactilize.catalog as catalog
+    import tactilize.catalog.analysis as analysis
 
     root, bad = shop
     items = [it for it in discover(root) if it.id not in bad][:24]
     victim = items[5].id
-    real = catalog.analyse_item
+    real = analysis.analyse_item
 
     def fragile(item, settings):
         if item.id == victim:
@@ -289,7 +289,7 @@ def test_a_worker_that_dies_costs_error_rows_not_the_batch(shop, tmp_path, monke
         return real(item, settings)
 
     # The pool forks after this, so its workers inherit the patched function.
-    monkeypatch.setattr(catalog, "analyse_item", fragile)
+    monkeypatch.setattr(analysis, "analyse_item", fragile)
     summary = run_batch(items, tmp_path / "die.parquet", workers=2, chunk_size=2)
     df = read_catalog(tmp_path / "die.parquet")
     assert len(df) == len(items) == summary.ok + summary.failed
