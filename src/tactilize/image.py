@@ -20,7 +20,7 @@ import numpy as np
 
 from .errors import ImageError
 
-__all__ = ["TextureImage", "load_image", "DEFAULT_DPI", "DEFAULT_MAX_PIXELS", "DRAFT_MIN_SIDE_PX", "METRES_PER_INCH"]
+__all__ = ["DEFAULT_DPI", "DEFAULT_MAX_PIXELS", "DRAFT_MIN_SIDE_PX", "METRES_PER_INCH", "TextureImage", "load_image"]
 
 METRES_PER_INCH = 0.0254
 #: a CSS pixel is 1/96 inch by definition (FACTS.md section 5)
@@ -59,7 +59,7 @@ class TextureImage:
     Immutable; equal only to itself.
     """
 
-    __slots__ = ("_levels", "_pixels", "pitch_m", "source", "decode_scale")
+    __slots__ = ("_levels", "_pixels", "decode_scale", "pitch_m", "source")
 
     _levels: np.ndarray | None
     _pixels: np.ndarray | None
@@ -75,7 +75,7 @@ class TextureImage:
     @classmethod
     def from_levels(
         cls, levels: np.ndarray, pitch_m: tuple[float, float], source: str = "<array>", decode_scale: int = 1
-    ) -> "TextureImage":
+    ) -> TextureImage:
         """An image from 8-bit grey levels (uint8, 0 black, 255 white), converted lazily."""
         if levels.dtype != np.uint8 or levels.ndim != 2:
             raise TypeError(f"levels must be a 2-D uint8 array, got {levels.dtype} {levels.shape}")
@@ -131,13 +131,13 @@ class TextureImage:
         """(x, y) pixels per inch."""
         return (METRES_PER_INCH / self.pitch_m[0], METRES_PER_INCH / self.pitch_m[1])
 
-    def with_source(self, source: str) -> "TextureImage":
+    def with_source(self, source: str) -> TextureImage:
         """The same image under another name (for messages)."""
         if self._levels is not None:
             return TextureImage.from_levels(self._levels, self.pitch_m, source, self.decode_scale)
         return TextureImage(self._pixels, self.pitch_m, source, self.decode_scale)  # type: ignore[arg-type]
 
-    def with_pitch(self, pitch_m: float | tuple[float, float]) -> "TextureImage":
+    def with_pitch(self, pitch_m: float | tuple[float, float]) -> TextureImage:
         """The same pixels shown at another pixel pitch [m]."""
         px, py = _pitch_pair(pitch_m, self.source)
         if self._levels is not None:

@@ -50,15 +50,15 @@ from .stores import is_sql_url
 
 __all__ = [
     "ANALYSIS_VERSION",
+    "DEFAULT_SPEEDS_M_S",
+    "FORMAT_VERSION",
+    "IMAGE_SUFFIXES",
     "AnalysisSettings",
     "BatchSummary",
     "Catalog",
     "CatalogError",
     "CatalogItem",
     "CatalogVersionError",
-    "DEFAULT_SPEEDS_M_S",
-    "FORMAT_VERSION",
-    "IMAGE_SUFFIXES",
     "ProgressCallback",
     "StoredFeatures",
     "TerminalProgress",

@@ -28,9 +28,9 @@ from .sources import CatalogItem
 
 __all__ = [
     "ANALYSIS_VERSION",
-    "AnalysisSettings",
     "DEFAULT_SPEEDS_M_S",
     "FORMAT_VERSION",
+    "AnalysisSettings",
     "analyse_chunk",
     "analyse_item",
     "catalog_columns",
@@ -229,6 +229,6 @@ def catalog_columns(settings: AnalysisSettings) -> list[tuple[str, str]]:
     cols = [(key, _KIND_OF[type(value)] if value is not None else "str") for key, value in head.items()]
     cols.append(("seconds", "float"))
     for key, value in probe.items():
-        kind = _KIND_OF[type(value)] if type(value) in _KIND_OF else "float"
+        kind = _KIND_OF.get(type(value), "float")
         cols.append((key, kind))
     return cols

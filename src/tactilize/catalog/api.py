@@ -34,7 +34,7 @@ from ..errors import TactilizeError
 from ..mapping import Drive
 from .reader import Catalog
 
-__all__ = ["catalog_router", "create_catalog_app", "PREFIX"]
+__all__ = ["PREFIX", "catalog_router", "create_catalog_app"]
 
 PREFIX = "/api/catalog"
 

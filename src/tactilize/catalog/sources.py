@@ -19,7 +19,7 @@ from typing import Any
 
 from ..errors import CatalogError
 
-__all__ = ["CatalogItem", "IMAGE_SUFFIXES", "discover"]
+__all__ = ["IMAGE_SUFFIXES", "CatalogItem", "discover"]
 
 #: File name endings taken as images when the source is a folder (case-insensitive).
 IMAGE_SUFFIXES = frozenset(
