@@ -31,6 +31,19 @@ def read_catalog(location: str | os.PathLike, *, table: str = "catalog"):
     ----------
     location : str or path
         The Parquet folder or SQLAlchemy URL given to :func:`run_batch`.
+    table : str
+        Table name for an SQL catalog.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Sorted by id; integer and boolean columns are nullable (an error row
+        has no ``width_px``).  Units as in the column names (see ``docs/batch.md``).
+
+    Raises
+    ------
+    CatalogError
+        Not a catalog, or a table that cannot be read.
     """
     import pandas as pd
 
@@ -219,6 +232,7 @@ class Catalog:
         return (profile or self.profile).drive(self.features_of(row), speed_m_s=speed_m_s)
 
     def close(self) -> None:
+        """Release the database connections (nothing to do for Parquet)."""
         if self.is_sql:
             self._engine.dispose()
 
