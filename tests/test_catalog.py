@@ -276,12 +276,12 @@ def test_retry_failed_replaces_error_rows(tmp_path):
 def test_a_worker_that_dies_costs_error_rows_not_the_batch(shop, tmp_path, monkeypatch):
     import os
 
-    import tactilize.catalog as catalog
+    import tactilize.catalog.analysis as analysis
 
     root, bad = shop
     items = [it for it in discover(root) if it.id not in bad][:24]
     victim = items[5].id
-    real = catalog.analyse_item
+    real = analysis.analyse_item
 
     def fragile(item, settings):
         if item.id == victim:
@@ -289,7 +289,7 @@ def test_a_worker_that_dies_costs_error_rows_not_the_batch(shop, tmp_path, monke
         return real(item, settings)
 
     # The pool forks after this, so its workers inherit the patched function.
-    monkeypatch.setattr(catalog, "analyse_item", fragile)
+    monkeypatch.setattr(analysis, "analyse_item", fragile)
     summary = run_batch(items, tmp_path / "die.parquet", workers=2, chunk_size=2)
     df = read_catalog(tmp_path / "die.parquet")
     assert len(df) == len(items) == summary.ok + summary.failed
@@ -456,3 +456,84 @@ def test_map_tiles_sampled_by_default_and_whole_on_request(tmp_path):
     # and a catalog made one way is not continued the other
     with pytest.raises(CatalogError, match="full_map"):
         run_batch(src, tmp_path / "fast.parquet", workers=1, speeds_m_s=SPEEDS_M_S, full_map=True)
+
+
+# ------------------------------------------------------------------ versions
+
+
+def test_every_row_and_the_fingerprint_carry_the_versions(shop, pooled):
+    import tactilize
+    from tactilize.catalog import ANALYSIS_VERSION, FORMAT_VERSION
+
+    _, bad = shop
+    df = read_catalog(pooled[0])
+    assert set(df["tactilize_version"]) == {tactilize.__version__}
+    assert set(df["analysis_version"]) == {ANALYSIS_VERSION}
+    assert df.loc[df["id"].isin(list(bad)), "analysis_version"].notna().all()  # error rows too
+    settings = json.loads((pooled[0] / "_catalog.json").read_text())["settings"]
+    assert (settings["format"], settings["tactilize"], settings["analysis"]) == (3, tactilize.__version__, ANALYSIS_VERSION)
+    assert FORMAT_VERSION == 3  # fc1de98 changed mean_level and i_s; catalogs before it are format 2
+
+
+def _as_previous_version(settings: dict, **versions) -> dict:
+    """The fingerprint the previous version wrote: format 2, no versions recorded."""
+    old = {k: v for k, v in settings.items() if k not in ("tactilize", "analysis")}
+    old["format"] = 2
+    old.update(versions)
+    return old
+
+
+def test_a_catalog_of_another_version_is_refused_with_one_line(tmp_path):
+    import sqlite3
+
+    import pyarrow.parquet as pq
+
+    from tactilize.catalog import CatalogVersionError
+
+    src = tmp_path / "src"
+    src.mkdir()
+    for i in range(3):
+        Image.fromarray(_grating(64, 64, 5 + i, 30 * i, 0.8, i)).save(src / f"p{i}.png")
+    out = tmp_path / "old.parquet"
+    run_batch(list(discover(src))[:2], out, workers=1)
+    # What the previous version left: its fingerprint and rows without version columns.
+    meta = out / "_catalog.json"
+    settings = json.loads(meta.read_text())["settings"]
+    meta.write_text(json.dumps({"settings": _as_previous_version(settings)}))
+    for part in out.glob("part-*.parquet"):
+        pq.write_table(pq.read_table(part).drop(["tactilize_version", "analysis_version"]), part)
+    parts_before = sorted((p.name, p.stat().st_mtime_ns) for p in out.glob("part-*.parquet"))
+
+    with pytest.raises(CatalogVersionError) as exc:
+        run_batch(src, out, workers=1)
+    message = str(exc.value)
+    assert "\n" not in message and message.startswith(str(out))
+    assert "did not record its version" in message and "catalog format 2" in message and "--out" in message
+    assert isinstance(exc.value, CatalogError)  # callers that catch CatalogError still do
+    assert sorted((p.name, p.stat().st_mtime_ns) for p in out.glob("part-*.parquet")) == parts_before  # nothing added
+
+    # The command line: one line on stderr, exit 2, no traceback.
+    res = CliRunner().invoke(main, ["batch", str(src), "--out", str(out), "--workers", "1"])
+    assert res.exit_code == 2 and "Traceback" not in res.stderr
+    assert res.stderr.strip().count("\n") == 0 and "was written by" in res.stderr
+
+    # Another tactilize release, or the same one with another analysis, is refused alike.
+    import tactilize
+
+    for versions, named in (({"tactilize": "0.0.9", "analysis": 2}, "tactilize 0.0.9"), ({"analysis": 1}, "analysis 1")):
+        meta.write_text(json.dumps({"settings": _as_previous_version(settings, format=3, **versions)}))
+        with pytest.raises(CatalogVersionError, match=named):
+            run_batch(src, out, workers=1)
+    assert tactilize.__version__ != "0.0.9"
+
+    # Reading an old catalog still works: only adding to it is refused.
+    assert len(read_catalog(out)) == 2 and Catalog(out).counts()["ok"] == 2
+
+    # An SQL catalog written by the previous version.
+    db = tmp_path / "old.db"
+    run_batch(list(discover(src))[:2], f"sqlite:///{db}", workers=1)
+    with sqlite3.connect(db) as conn:
+        conn.execute("UPDATE catalog_meta SET value = ? WHERE key = 'settings'", (json.dumps(_as_previous_version(settings)),))
+    with pytest.raises(CatalogVersionError, match="did not record its version"):
+        run_batch(src, f"sqlite:///{db}", workers=1)
+    assert len(read_catalog(f"sqlite:///{db}")) == 2

@@ -14,7 +14,7 @@ pytest.importorskip("httpx")
 from fastapi.testclient import TestClient  # noqa: E402
 
 from tactilize.catalog import run_batch  # noqa: E402
-from tactilize.catalog_api import catalog_router, create_catalog_app  # noqa: E402
+from tactilize.catalog.api import catalog_router, create_catalog_app  # noqa: E402
 from tactilize.features import extract_features  # noqa: E402
 from tactilize.image import load_image  # noqa: E402
 from tactilize.mapping import Profile  # noqa: E402

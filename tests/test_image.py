@@ -271,3 +271,77 @@ def test_features_from_levels_equal_features_from_floats():
     from_floats = tz.extract_features(tz.load_image(g8.astype(np.float32) / 255, dpi=300))
     for key, value in from_floats.to_dict().items():
         assert from_levels.to_dict()[key] == pytest.approx(value, rel=1e-5, abs=1e-7), key
+
+
+# ---------------------------------------------------------------- reduced JPEG decode
+
+
+def _grating_jpeg(path, h: int, w: int, *, dpi=None, orientation=None, mode="L"):
+    rows, cols = np.mgrid[0:h, 0:w]
+    grey = (127.5 + 100 * np.cos(2 * np.pi * (cols / 16.0 + rows / 32.0))).astype(np.uint8)
+    im = Image.fromarray(grey, "L").convert(mode)
+    kw = {"quality": 95}
+    if dpi is not None:
+        kw["dpi"] = (dpi, dpi)
+    if orientation is not None:
+        exif = Image.Exif()
+        exif[0x0112] = orientation
+        kw["exif"] = exif.tobytes()
+    im.save(path, **kw)
+    return path
+
+
+@pytest.mark.parametrize(
+    "file_dpi, orientation, kw, target_dpi, scale",
+    [
+        (600, None, {}, 150, 4),  # the file's DPI metadata
+        (None, None, {}, 24, 4),  # no metadata: 96 DPI
+        (None, None, {"dpi": 300}, 150, 2),  # an explicit dpi wins over the file's
+        (600, None, {"width_mm": 21.67}, 150, 2),  # the whole width [mm] wins over the file's 600 DPI: 300 DPI
+        # shown rotated, 128 px wide: 200 DPI, so 1/2 for 75 DPI (the stored 256 px width would say 1/4)
+        (None, 6, {"width_mm": 16.256}, 75, 2),
+        (600, None, {}, 37.5, 8),
+        (600, None, {}, 400, 1),  # a target finer than twice the pitch: no reduction
+    ],
+)
+def test_draft_decode_keeps_the_pitch_rule_of_a_full_decode(tmp_path, file_dpi, orientation, kw, target_dpi, scale):
+    path = _grating_jpeg(tmp_path / "g.jpg", 128, 256, dpi=file_dpi, orientation=orientation, mode="RGB")
+    full = tz.load_image(path, **kw)
+    drafted = tz.load_image(path, draft_pitch_m=METRES_PER_INCH / target_dpi, **kw)
+    assert full.decode_scale == 1 and drafted.decode_scale == scale
+    assert drafted.shape == (-(-full.shape[0] // scale), -(-full.shape[1] // scale))
+    # the picture keeps its displayed size: the same rule, applied to the file's full width
+    assert drafted.width_m == pytest.approx(full.width_m, rel=1e-12)
+    assert drafted.height_m == pytest.approx(full.height_m, rel=1e-12)
+    assert drafted.pitch_m[0] == pytest.approx(scale * full.pitch_m[0], rel=1e-12)
+    assert drafted.pitch_m[0] <= METRES_PER_INCH / target_dpi * (1 + 1e-9)
+    if scale == 1:
+        assert np.array_equal(drafted.analysis_data()[0], full.analysis_data()[0])
+    else:
+        # the same picture, averaged: within a few grey levels of the full decode averaged alike
+        h, w = drafted.shape
+        pooled = full.pixels[: h * scale, : w * scale].reshape(h, scale, w, scale).mean(axis=(1, 3))
+        assert np.abs(drafted.pixels - pooled).mean() < 0.03
+
+
+def test_draft_decode_limits(tmp_path):
+    # a 40 px short side stops at 1/2 (20 px): 1/4 would leave fewer than 16 px
+    small = _grating_jpeg(tmp_path / "small.jpg", 40, 80, dpi=600)
+    assert tz.load_image(small, draft_pitch_m=METRES_PER_INCH / 37.5).decode_scale == 2
+    # CMYK and grey JPEGs reduce too; other formats never do
+    cmyk = _grating_jpeg(tmp_path / "cmyk.jpg", 128, 128, dpi=600, mode="CMYK")
+    assert tz.load_image(cmyk, draft_pitch_m=METRES_PER_INCH / 150).shape == (32, 32)
+    grey = _grating_jpeg(tmp_path / "grey.jpg", 128, 128, dpi=600, mode="L")
+    assert tz.load_image(grey, draft_pitch_m=METRES_PER_INCH / 150).decode_scale == 4
+    png = tmp_path / "g.png"
+    Image.open(grey).save(png, dpi=(600, 600))
+    drafted = tz.load_image(png, draft_pitch_m=METRES_PER_INCH / 150)
+    assert drafted.decode_scale == 1 and drafted.shape == (128, 128)
+    # the reduction survives renaming, re-pitching and pickling
+    import pickle
+
+    img = tz.load_image(grey, draft_pitch_m=METRES_PER_INCH / 150)
+    assert pickle.loads(pickle.dumps(img.with_source("x").with_pitch(1e-4))).decode_scale == 4
+    for bad in (0.0, -1e-4, float("nan")):
+        with pytest.raises(tz.ImageError, match="draft_pitch_m"):
+            tz.load_image(grey, draft_pitch_m=bad)

@@ -254,7 +254,7 @@ def serve(host: str, port: int, output_spec: str, profile_name: str | None, open
 
     routers = []
     if catalog_path is not None:
-        from .catalog_api import catalog_router
+        from .catalog.api import catalog_router
 
         routers.append(catalog_router(catalog_path))  # a bad catalog fails here, before the socket opens
     run(host, port, output_spec, profile_name, open_browser, extra_routers=routers, echo=click.echo, warn=lambda s: click.echo(s, err=True))

@@ -49,3 +49,15 @@ class SignalError(TactilizeError):
 
 class WireError(TactilizeError):
     """A wire specification or simulation request is invalid (unknown preset, non-physical value, bad current)."""
+
+
+class CatalogError(TactilizeError):
+    """A source, manifest, output or scheduler that a batch cannot use."""
+
+
+class CatalogVersionError(CatalogError):
+    """A catalog written by another version of tactilize or of its analysis.
+
+    Resuming it would mix rows computed two ways in one catalog, so a batch
+    refuses; reading it is fine.  The message names both versions.
+    """

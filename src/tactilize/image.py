@@ -3,7 +3,8 @@
 A texture image is a grey float32 array in [0, 1] plus the physical size of a
 pixel on the display [m].  The pitch comes, in order, from an explicit ``dpi``,
 an explicit ``width_mm``, the file's own DPI metadata, and otherwise 96 DPI
-(a CSS pixel, 1/96 inch).
+(a CSS pixel, 1/96 inch).  That rule is written once, in :func:`_display_pitch`,
+and holds for a JPEG decoded at reduced size too (``load_image(draft_pitch_m=...)``).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import numpy as np
 
 from .errors import ImageError
 
-__all__ = ["TextureImage", "load_image", "DEFAULT_DPI", "DEFAULT_MAX_PIXELS", "METRES_PER_INCH"]
+__all__ = ["DEFAULT_DPI", "DEFAULT_MAX_PIXELS", "DRAFT_MIN_SIDE_PX", "METRES_PER_INCH", "TextureImage", "load_image"]
 
 METRES_PER_INCH = 0.0254
 #: a CSS pixel is 1/96 inch by definition (FACTS.md section 5)
@@ -27,6 +28,10 @@ DEFAULT_DPI = 96.0
 #: 64 Mpx: a 8192 x 8192 texture still loads; a decompression bomb does not.
 #: As float32 that is 256 MB, the most one image may cost.
 DEFAULT_MAX_PIXELS = 64 * 1024 * 1024
+
+#: Shortest side a reduced JPEG decode may leave [px]: below this the spectrum has
+#: too few bins to find a texture's peak in.
+DRAFT_MIN_SIDE_PX = 16
 
 # ITU-R BT.601 luma, what Pillow's "L" conversion uses; kept here for float modes.
 _LUMA = np.array([0.299, 0.587, 0.114], dtype=np.float32)
@@ -46,29 +51,36 @@ class TextureImage:
         (x, y) size of one pixel on the display [m].
     source : str
         Where it came from (a path, ``<bytes>``, ``<array>``...), for messages.
+    decode_scale : int
+        1, or 2, 4 or 8 when a JPEG was decoded at that fraction of its size
+        (:func:`load_image` with ``draft_pitch_m``): each pixel then covers
+        that many file pixels a side, and :attr:`pitch_m` is that much larger.
 
     Immutable; equal only to itself.
     """
 
-    __slots__ = ("_levels", "_pixels", "pitch_m", "source")
+    __slots__ = ("_levels", "_pixels", "decode_scale", "pitch_m", "source")
 
     _levels: np.ndarray | None
     _pixels: np.ndarray | None
     pitch_m: tuple[float, float]
     source: str
+    decode_scale: int
 
-    def __init__(self, pixels: np.ndarray, pitch_m: tuple[float, float], source: str = "<array>") -> None:
-        for name, value in (("_levels", None), ("_pixels", pixels), ("pitch_m", tuple(pitch_m)), ("source", source)):
-            object.__setattr__(self, name, value)
+    def __init__(
+        self, pixels: np.ndarray, pitch_m: tuple[float, float], source: str = "<array>", decode_scale: int = 1
+    ) -> None:
+        _set_fields(self, None, pixels, pitch_m, source, decode_scale)
 
     @classmethod
-    def from_levels(cls, levels: np.ndarray, pitch_m: tuple[float, float], source: str = "<array>") -> "TextureImage":
+    def from_levels(
+        cls, levels: np.ndarray, pitch_m: tuple[float, float], source: str = "<array>", decode_scale: int = 1
+    ) -> TextureImage:
         """An image from 8-bit grey levels (uint8, 0 black, 255 white), converted lazily."""
         if levels.dtype != np.uint8 or levels.ndim != 2:
             raise TypeError(f"levels must be a 2-D uint8 array, got {levels.dtype} {levels.shape}")
         img = cls.__new__(cls)
-        for name, value in (("_levels", levels), ("_pixels", None), ("pitch_m", tuple(pitch_m)), ("source", source)):
-            object.__setattr__(img, name, value)
+        _set_fields(img, levels, None, pitch_m, source, decode_scale)
         return img
 
     def __setattr__(self, name: str, value: Any) -> None:
@@ -80,8 +92,8 @@ class TextureImage:
 
     def __reduce__(self) -> tuple[Any, ...]:
         if self._levels is not None:
-            return (TextureImage.from_levels, (self._levels, self.pitch_m, self.source))
-        return (TextureImage, (self._pixels, self.pitch_m, self.source))
+            return (TextureImage.from_levels, (self._levels, self.pitch_m, self.source, self.decode_scale))
+        return (TextureImage, (self._pixels, self.pitch_m, self.source, self.decode_scale))
 
     @property
     def pixels(self) -> np.ndarray:
@@ -119,18 +131,18 @@ class TextureImage:
         """(x, y) pixels per inch."""
         return (METRES_PER_INCH / self.pitch_m[0], METRES_PER_INCH / self.pitch_m[1])
 
-    def with_source(self, source: str) -> "TextureImage":
+    def with_source(self, source: str) -> TextureImage:
         """The same image under another name (for messages)."""
         if self._levels is not None:
-            return TextureImage.from_levels(self._levels, self.pitch_m, source)
-        return TextureImage(self._pixels, self.pitch_m, source)  # type: ignore[arg-type]
+            return TextureImage.from_levels(self._levels, self.pitch_m, source, self.decode_scale)
+        return TextureImage(self._pixels, self.pitch_m, source, self.decode_scale)  # type: ignore[arg-type]
 
-    def with_pitch(self, pitch_m: float | tuple[float, float]) -> "TextureImage":
+    def with_pitch(self, pitch_m: float | tuple[float, float]) -> TextureImage:
         """The same pixels shown at another pixel pitch [m]."""
         px, py = _pitch_pair(pitch_m, self.source)
         if self._levels is not None:
-            return TextureImage.from_levels(self._levels, (px, py), self.source)
-        return TextureImage(self._pixels, (px, py), self.source)  # type: ignore[arg-type]
+            return TextureImage.from_levels(self._levels, (px, py), self.source, self.decode_scale)
+        return TextureImage(self._pixels, (px, py), self.source, self.decode_scale)  # type: ignore[arg-type]
 
     def describe(self) -> dict[str, Any]:
         """Plain summary for reports: pixel size, physical size in mm, dpi."""
@@ -141,6 +153,25 @@ class TextureImage:
             "height_mm": self.height_m * 1e3,
             "dpi": self.dpi[0],
         }
+
+
+def _set_fields(
+    img: TextureImage,
+    levels: np.ndarray | None,
+    pixels: np.ndarray | None,
+    pitch_m: tuple[float, float],
+    source: str,
+    decode_scale: int,
+) -> None:
+    # The class refuses setattr to stay immutable; its own constructors go around that.
+    for name, value in (
+        ("_levels", levels),
+        ("_pixels", pixels),
+        ("pitch_m", tuple(pitch_m)),
+        ("source", source),
+        ("decode_scale", int(decode_scale)),
+    ):
+        object.__setattr__(img, name, value)
 
 
 def _pitch_pair(pitch_m: float | tuple[float, float], source: str) -> tuple[float, float]:
@@ -157,6 +188,7 @@ def load_image(
     dpi: float | None = None,
     width_mm: float | None = None,
     max_pixels: int = DEFAULT_MAX_PIXELS,
+    draft_pitch_m: float | None = None,
 ) -> TextureImage:
     """Load a texture image as grey float32 in [0, 1] with its pixel pitch.
 
@@ -172,6 +204,14 @@ def load_image(
         Displayed width of the whole image [mm] (square pixels).
     max_pixels : int
         Refuse images with more pixels than this (decompression bombs).
+    draft_pitch_m : float, optional
+        Coarsest displayed pixel pitch [m] the caller needs (``0.0254 / 150``
+        for 150 DPI).  A JPEG whose displayed pitch is at least 2, 4 or 8 times
+        finer is decoded at 1/2, 1/4 or 1/8 of its size, in the DCT domain
+        (Pillow's draft mode), keeping at least :data:`DRAFT_MIN_SIDE_PX`
+        pixels on its short side.  The picture keeps its displayed size, so
+        the pitch grows by the same factor (:attr:`TextureImage.decode_scale`).
+        Other formats decode in full.  None: every image decodes in full.
 
     Returns
     -------
@@ -181,38 +221,70 @@ def load_image(
     ------
     ImageError
         Unreadable or not an image, truncated, empty, too large, non-finite
-        values, or a non-positive ``dpi`` / ``width_mm``.
+        values, or a non-positive ``dpi`` / ``width_mm`` / ``draft_pitch_m``.
 
     Notes
     -----
     EXIF orientation is applied, transparency is composited over white and only
-    the first frame of an animation is used.
+    the first frame of an animation is used.  A reduced decode averages away the
+    detail finer than its pixels (libjpeg's DCT scaling is a low-pass filter):
+    frequencies below the new Nyquist limit keep their place, contrast and the
+    spectral intensity fall (``docs/batch.md``).
     """
     name = _source_name(source)
-    if dpi is not None and (not _finite(dpi) or dpi <= 0):
-        raise ImageError(name, f"dpi must be a positive number, got {dpi!r}")
-    if width_mm is not None and (not _finite(width_mm) or width_mm <= 0):
-        raise ImageError(name, f"width_mm must be a positive number, got {width_mm!r}")
+    for key, value in (("dpi", dpi), ("width_mm", width_mm), ("draft_pitch_m", draft_pitch_m)):
+        if value is not None and (not _finite(value) or value <= 0):
+            raise ImageError(name, f"{key} must be a positive number, got {value!r}")
 
+    decode_scale = 1
     if isinstance(source, TextureImage):
-        data, file_dpi = source.analysis_data()[0], source.dpi[0]
+        data, file_dpi, full_width = source.analysis_data()[0], source.dpi[0], None
+        decode_scale = source.decode_scale
     elif isinstance(source, np.ndarray):
-        data, file_dpi = _from_array(source, name, max_pixels), None
+        data, file_dpi, full_width = _from_array(source, name, max_pixels), None, None
     else:
-        data, file_dpi = _from_pillow(source, name, max_pixels)
+        data, file_dpi, full_width = _from_pillow(source, name, max_pixels, dpi, width_mm, draft_pitch_m)
 
-    h, w = data.shape
-    if dpi is not None:
-        pitch = METRES_PER_INCH / dpi
-    elif width_mm is not None:
-        pitch = width_mm * 1e-3 / w
-    elif file_dpi is not None:
-        pitch = METRES_PER_INCH / file_dpi
+    width = data.shape[1]
+    if full_width is None or full_width == width:
+        pitch = _display_pitch(width, file_dpi, dpi, width_mm)
     else:
-        pitch = METRES_PER_INCH / DEFAULT_DPI
+        # Decoded reduced: the rule applies to the picture as the file holds it,
+        # and the picture keeps its displayed size with fewer, larger pixels.
+        pitch = _display_pitch(full_width, file_dpi, dpi, width_mm) * full_width / width
+        decode_scale = round(full_width / width)
     if data.dtype == np.uint8:
-        return TextureImage.from_levels(data, (pitch, pitch), name)
-    return TextureImage(data, (pitch, pitch), name)
+        return TextureImage.from_levels(data, (pitch, pitch), name, decode_scale)
+    return TextureImage(data, (pitch, pitch), name, decode_scale)
+
+
+def _display_pitch(width_px: int, file_dpi: float | None, dpi: float | None, width_mm: float | None) -> float:
+    """Displayed pixel pitch [m] of a picture ``width_px`` pixels wide.
+
+    The one copy of the rule: an explicit ``dpi``, else an explicit ``width_mm``
+    (the whole picture's width [mm]), else the file's DPI metadata, else 96 DPI.
+    """
+    if dpi is not None:
+        return METRES_PER_INCH / dpi
+    if width_mm is not None:
+        return width_mm * 1e-3 / width_px
+    if file_dpi is not None:
+        return METRES_PER_INCH / file_dpi
+    return METRES_PER_INCH / DEFAULT_DPI
+
+
+def _draft_scale(pitch_m: float, draft_pitch_m: float, short_side_px: int) -> int:
+    """Largest reduction, 1, 2, 4 or 8, that keeps the pitch [m] at or below ``draft_pitch_m``."""
+    scale = 1
+    # libjpeg scales by 1/2, 1/4 and 1/8 only.  The 1e-9 lets a pitch that is exactly
+    # half the target (300 DPI shown, 150 asked) through despite rounding.
+    while (
+        scale < 8
+        and pitch_m * scale * 2 <= draft_pitch_m * (1 + 1e-9)
+        and short_side_px // (scale * 2) >= DRAFT_MIN_SIDE_PX
+    ):
+        scale *= 2
+    return scale
 
 
 def _finite(x: Any) -> bool:
@@ -276,7 +348,16 @@ def _from_array(arr: np.ndarray, name: str, max_pixels: int) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.float32)
 
 
-def _from_pillow(source: Any, name: str, max_pixels: int) -> tuple[np.ndarray, float | None]:
+def _from_pillow(
+    source: Any,
+    name: str,
+    max_pixels: int,
+    dpi: float | None = None,
+    width_mm: float | None = None,
+    draft_pitch_m: float | None = None,
+) -> tuple[np.ndarray, float | None, int | None]:
+    """Decode with Pillow: (grey, the file's DPI or None, displayed width of the full-size
+    picture [px] when a reduced decode was considered, else None)."""
     from PIL import Image, ImageOps, UnidentifiedImageError
 
     if isinstance(source, (bytes, bytearray)):
@@ -306,11 +387,18 @@ def _from_pillow(source: Any, name: str, max_pixels: int) -> tuple[np.ndarray, f
             w, h = im.size
             _check_size(h, w, name, max_pixels)
             file_dpi = _file_dpi(im)
-            if im.format == "JPEG" and im.mode in ("RGB", "YCbCr"):
+            full_width = None
+            scale = 1
+            if draft_pitch_m is not None and im.format == "JPEG":
+                # The displayed width is after EXIF rotation (orientations 5 to 8 swap the axes).
+                full_width = h if im.getexif().get(0x0112, 1) in (5, 6, 7, 8) else w
+                scale = _draft_scale(_display_pitch(full_width, file_dpi, dpi, width_mm), draft_pitch_m, min(w, h))
+            if im.format == "JPEG" and (scale > 1 or im.mode in ("RGB", "YCbCr")):
                 # libjpeg hands over its luma plane directly: the same BT.601 weights as
                 # convert("L") (identical pixels), without colour conversion or chroma
-                # upsampling, about 40 % faster.  Full size: draft is not asked to shrink.
-                im.draft("L", im.size)
+                # upsampling, about 40 % faster.  Pillow takes one draft request per image,
+                # so the size reduction, if any, is asked in the same call.
+                im.draft("L", (-(-w // scale), -(-h // scale)))
             im.seek(0)  # first frame of an animation
             im.load()
             # In place: without an orientation tag nothing happens (a new image copies every pixel).
@@ -334,7 +422,7 @@ def _from_pillow(source: Any, name: str, max_pixels: int) -> tuple[np.ndarray, f
         raise ImageError(name, "not enough memory to decode") from None
     finally:
         Image.MAX_IMAGE_PIXELS = saved
-    return grey, file_dpi
+    return grey, file_dpi, full_width
 
 
 def _file_dpi(im: Any) -> float | None:

@@ -30,11 +30,11 @@ from fastapi import APIRouter, FastAPI, Query
 from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, Field
 
-from .catalog import Catalog
-from .errors import TactilizeError
-from .mapping import Drive
+from ..errors import TactilizeError
+from ..mapping import Drive
+from .reader import Catalog
 
-__all__ = ["catalog_router", "create_catalog_app", "PREFIX"]
+__all__ = ["PREFIX", "catalog_router", "create_catalog_app"]
 
 PREFIX = "/api/catalog"
 
@@ -82,6 +82,8 @@ class TactileProfile(BaseModel):
     status: Literal["ok", "error"]
     error: str | None = Field(None, description="Why the image could not be analysed (status 'error').")
     profile: str = Field(description="Profile of the stored drives.")
+    tactilize_version: str | None = Field(None, description="tactilize version that computed the row (null in catalogs of format 2 and earlier).")
+    analysis_version: int | None = Field(None, description="Version of the analysis that computed the row (null in catalogs of format 2 and earlier).")
     image: dict[str, Any] = Field(default_factory=dict, description="width_px, height_px, width_mm, height_mm, pitch_m, decode_scale.")
     features: dict[str, Any] = Field(default_factory=dict, description="Whole-image features (spatial_frequency_per_m, spectral_intensity, ...).")
     texture_map: dict[str, Any] = Field(default_factory=dict, description="How the texture varies across the picture (tile grid summary).")
@@ -105,7 +107,7 @@ class ErrorMessage(BaseModel):
 
 
 _IMAGE_KEYS = ("width_px", "height_px", "width_mm", "height_mm", "pitch_m", "decode_scale")
-_ROW_KEYS = {"id", "path", "status", "error", "profile", "seconds"}
+_ROW_KEYS = {"id", "path", "status", "error", "profile", "seconds", "tactilize_version", "analysis_version"}
 
 
 def _profile_doc(catalog: Catalog, row: dict[str, Any]) -> TactileProfile:
@@ -122,6 +124,8 @@ def _profile_doc(catalog: Catalog, row: dict[str, Any]) -> TactileProfile:
         status=row.get("status") or "error",
         error=row.get("error"),
         profile=str(row.get("profile") or catalog.profile.name),
+        tactilize_version=row.get("tactilize_version"),
+        analysis_version=row.get("analysis_version"),
         image=image,
         features=features,
         texture_map=texture_map,
@@ -142,19 +146,19 @@ def _error(status: int, message: str) -> JSONResponse:
 
 
 def _export_ahap(drv: Drive, duration_s: float) -> dict[str, Any]:
-    from .export import ahap_pattern
+    from ..export import ahap_pattern
 
     return ahap_pattern(drv, duration_s)
 
 
 def _export_android(drv: Drive, duration_s: float) -> dict[str, Any]:
-    from .export import android_waveform
+    from ..export import android_waveform
 
     return android_waveform(drv, duration_s)
 
 
 def _export_wav(drv: Drive, duration_s: float, sample_rate_hz: int) -> bytes:
-    from .export import export_wav
+    from ..export import export_wav
 
     # export_wav writes files; a scratch file keeps the bytes identical to `tactilize export`'s.
     with tempfile.TemporaryDirectory(prefix="tz-wav-") as tmp:

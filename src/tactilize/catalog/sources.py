@@ -1,0 +1,217 @@
+"""What a batch analyses: a folder, a glob, a manifest or one file -> :class:`CatalogItem` list.
+
+Listing never opens an image; a bad *value* in a manifest row travels with its
+item (:attr:`CatalogItem.problem`) and becomes that product's error row, while
+a manifest that cannot be read at all stops the batch before any work starts.
+"""
+
+from __future__ import annotations
+
+import csv
+import glob
+import json
+import math
+import os
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..errors import CatalogError
+
+__all__ = ["IMAGE_SUFFIXES", "CatalogItem", "discover"]
+
+#: File name endings taken as images when the source is a folder (case-insensitive).
+IMAGE_SUFFIXES = frozenset(
+    {".jpg", ".jpeg", ".jpe", ".png", ".bmp", ".gif", ".tif", ".tiff", ".webp", ".pgm", ".ppm", ".pbm", ".pnm", ".tga"}
+)
+
+# Manifest columns that may hold the image's path, in order of preference.
+_PATH_KEYS = ("path", "file", "image", "filename")
+
+
+@dataclass(frozen=True)
+class CatalogItem:
+    """One image to analyse.
+
+    Attributes
+    ----------
+    id : str
+        The product's key in the catalog (unique within a source).
+    path : str
+        Absolute path of the image file (absolute so that workers with another
+        working directory find it).
+    width_mm : float, optional
+        Displayed width of the whole image [mm], from a manifest.
+    dpi : float, optional
+        Displayed pixels per inch, from a manifest.
+    problem : str, optional
+        Why the item cannot be analysed although it was listed (a manifest value
+        that is not a number...): it becomes an error row, not a stopped batch.
+    """
+
+    id: str
+    path: str
+    width_mm: float | None = None
+    dpi: float | None = None
+    problem: str | None = None
+
+
+def discover(source: str | os.PathLike) -> list[CatalogItem]:
+    """List the images of a source, sorted by id.
+
+    Parameters
+    ----------
+    source : str or path
+        * a folder: every file below it (recursively) whose name ends in one of
+          :data:`IMAGE_SUFFIXES`; hidden files and folders are left out; the id is
+          the path relative to the folder, with ``/`` separators;
+        * a glob (``shop/**/*.jpg``; ``**`` recurses): the id is the path relative
+          to the part of the pattern before its first wildcard;
+        * a manifest, ``.csv`` or ``.jsonl``: one image per row with ``path``
+          (or ``file``/``image``), and optionally ``id`` (default: the path as
+          written), ``width_mm`` and ``dpi``; relative paths are relative to the
+          manifest's folder;
+        * a single image file (its name is its id).
+
+    Returns
+    -------
+    list of CatalogItem
+
+    Raises
+    ------
+    CatalogError
+        The source does not exist, matches nothing, or the manifest is malformed
+        (no path column, invalid line, duplicate id).  Bad *values* in a manifest
+        row do not raise: the item carries a ``problem`` and becomes an error row.
+    """
+    text = os.fspath(source)
+    path = Path(text)
+    if path.is_dir():
+        items = _from_folder(path)
+        if not items:
+            raise CatalogError(text, "folder holds no image files (" + ", ".join(sorted(IMAGE_SUFFIXES)) + ")")
+    elif path.is_file() and path.suffix.lower() == ".csv":
+        items = _from_manifest_rows(path, _csv_rows(path))
+    elif path.is_file() and path.suffix.lower() in (".jsonl", ".ndjson"):
+        items = _from_manifest_rows(path, _jsonl_rows(path))
+    elif path.is_file():
+        items = [CatalogItem(path.name, os.path.abspath(path))]
+    elif glob.has_magic(text):
+        items = _from_glob(text)
+        if not items:
+            raise CatalogError(text, "the pattern matches no files")
+    else:
+        raise CatalogError(text, "not found: give a folder, a glob, or a manifest (.csv, .jsonl)")
+    items.sort(key=lambda it: it.id)
+    return items
+
+
+def _visible(rel: Path) -> bool:
+    return not any(part.startswith(".") for part in rel.parts)
+
+
+def _from_folder(root: Path) -> list[CatalogItem]:
+    out = []
+    for p in root.rglob("*"):
+        rel = p.relative_to(root)
+        if p.suffix.lower() in IMAGE_SUFFIXES and _visible(rel) and p.is_file():
+            out.append(CatalogItem(rel.as_posix(), os.path.abspath(p)))
+    return out
+
+
+def _from_glob(pattern: str) -> list[CatalogItem]:
+    # Ids are relative to the literal part of the pattern, so that "shop/**/*.jpg"
+    # gives the same ids as the folder "shop".
+    parts = Path(pattern).parts
+    literal = []
+    for part in parts:
+        if glob.has_magic(part):
+            break
+        literal.append(part)
+    root = Path(*literal) if literal else Path(".")
+    out = []
+    for match in glob.glob(pattern, recursive=True):
+        p = Path(match)
+        if p.is_file():
+            out.append(CatalogItem(Path(os.path.relpath(p, root)).as_posix(), os.path.abspath(p)))
+    return out
+
+
+def _csv_rows(path: Path) -> Iterator[tuple[int, dict[str, Any]]]:
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            reader = csv.DictReader(fh)
+            if not reader.fieldnames:
+                raise CatalogError(str(path), "manifest is empty (no header line)")
+            for n, row in enumerate(reader, start=2):
+                yield n, {str(k).strip().lower(): v for k, v in row.items() if k is not None}
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise CatalogError(str(path), f"cannot read manifest ({exc.__class__.__name__}: {exc})") from None
+
+
+def _jsonl_rows(path: Path) -> Iterator[tuple[int, dict[str, Any]]]:
+    try:
+        with open(path, encoding="utf-8-sig") as fh:
+            for n, line in enumerate(fh, start=1):
+                if not line.strip():
+                    continue
+                try:
+                    obj = json.loads(line)
+                except json.JSONDecodeError as exc:
+                    raise CatalogError(f"{path}:{n}", f"invalid JSON ({exc.msg})") from None
+                if not isinstance(obj, dict):
+                    raise CatalogError(f"{path}:{n}", "each line must be a JSON object")
+                yield n, {str(k).strip().lower(): v for k, v in obj.items()}
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CatalogError(str(path), f"cannot read manifest ({exc.__class__.__name__})") from None
+
+
+def _number(value: Any) -> tuple[float | None, str | None]:
+    """Manifest cell -> (positive float or None, problem or None)."""
+    if value is None or (isinstance(value, str) and not value.strip()):
+        return None, None
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        return None, f"{value!r} is not a number"
+    if not math.isfinite(x) or x <= 0:
+        return None, f"{value!r} is not a positive number"
+    return x, None
+
+
+def _from_manifest_rows(manifest: Path, rows: Iterable[tuple[int, dict[str, Any]]]) -> list[CatalogItem]:
+    base = manifest.parent
+    items: dict[str, CatalogItem] = {}
+    for line, row in rows:
+        where = f"{manifest}:{line}"
+        raw_path = next((row[k] for k in _PATH_KEYS if row.get(k) not in (None, "")), None)
+        raw_id = row.get("id")
+        ident = str(raw_id).strip() if raw_id not in (None, "") else None
+        if raw_path is None and ident is None:
+            raise CatalogError(where, "row has neither an id nor a path")
+        if ident is None:
+            ident = str(raw_path)
+        if ident in items:
+            raise CatalogError(where, f"duplicate id {ident!r}")
+        problems = []
+        if raw_path is None:
+            problems.append("manifest row has no path")
+            full = ""
+        else:
+            p = Path(str(raw_path))
+            full = os.path.abspath(p if p.is_absolute() else base / p)
+        width_mm, bad_w = _number(row.get("width_mm"))
+        dpi, bad_d = _number(row.get("dpi"))
+        if bad_w:
+            problems.append(f"manifest width_mm {bad_w}")
+        if bad_d:
+            problems.append(f"manifest dpi {bad_d}")
+        if width_mm is not None and dpi is not None:
+            problems.append("manifest gives both width_mm and dpi")
+        items[ident] = CatalogItem(ident, full, width_mm, dpi, "; ".join(problems) or None)
+    if not items:
+        raise CatalogError(str(manifest), "manifest lists no images")
+    if not any(it.path for it in items.values()):
+        raise CatalogError(str(manifest), f"manifest has no path column (one of {', '.join(_PATH_KEYS)})")
+    return list(items.values())
