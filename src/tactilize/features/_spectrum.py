@@ -269,8 +269,9 @@ def peak_neighbourhood(spec: np.ndarray, bins: np.ndarray) -> np.ndarray:
     float64 ndarray, shape (B, 3, 3)
         ``out[b, 1 + dy, 1 + dx]`` = |F(row + dy, column + dx)|, rows running
         down.  A bin left of the stored half is read off its mirror (the
-        spectrum of a real image is Hermitian: F(-k) = conj F(k)); DC and bins
-        right of the stored half count as 0.
+        spectrum of a real image is Hermitian: F(-k) = conj F(k)).  DC counts
+        as 0, and so do bins right of the stored half: past the Nyquist
+        frequency they are aliases, not neighbours.
     """
     b, h, nc = spec.shape
     x = bins[:, 0, None, None] + _STEPS[None, None, :]
