@@ -62,7 +62,7 @@ def test_spectral_intensity_rises_with_contrast(make_grating):
     ]
     assert all(0.0 < v <= 1.0 for v in values)
     assert values == sorted(values) and len(set(values)) == len(values)
-    # FACTS.md section 1: a strong grating reads about 0.9.
+    # docs/references.md, section 1 (reading of i_s): a strong grating reads about 0.9.
     assert values[-1] > 0.85
 
 

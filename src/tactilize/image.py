@@ -22,7 +22,7 @@ from .errors import ImageError
 __all__ = ["TextureImage", "load_image", "DEFAULT_DPI", "DEFAULT_MAX_PIXELS", "METRES_PER_INCH"]
 
 METRES_PER_INCH = 0.0254
-#: a CSS pixel is 1/96 inch by definition (FACTS.md section 5)
+#: a CSS pixel is 1/96 inch by definition: docs/references.md, section 5 (CSS pixel)
 DEFAULT_DPI = 96.0
 #: 64 Mpx: a 8192 x 8192 texture still loads; a decompression bomb does not.
 #: As float32 that is 256 MB, the most one image may cost.
