@@ -12,8 +12,6 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-import pytest
-
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCES = ROOT / "docs" / "references.md"
 TEXT_SUFFIXES = {".py", ".pyi", ".md", ".toml", ".js", ".mjs", ".html", ".css", ".txt", ".json", ".cfg", ".ini"}
