@@ -112,7 +112,8 @@ def test_pairwise_wilcoxon_holm_and_effect_sizes(result):
         assert r["rbc"] == pytest.approx(_rank_biserial(x, y))
         raw.append(ref.pvalue)
     assert [r["p_holm"] for r in pw] == pytest.approx(list(_holm(raw)))
-    # With n = 6 the smallest exact two-sided p is 2 / 2^6 (FACTS.md section 7).
+    # With n = 6 the smallest exact two-sided p is 2 / 2^6:
+    # docs/references.md, section 7 (smallest Wilcoxon p).
     assert min(r["p"] for r in pw) == pytest.approx(2 / 2**6)
 
 

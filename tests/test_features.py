@@ -1,4 +1,4 @@
-"""The features package: the dominant spatial frequency, i_s, orientation and the extra descriptors."""
+"""features.py: the dominant spatial frequency, i_s, orientation and the extra descriptors."""
 
 from __future__ import annotations
 
@@ -62,7 +62,7 @@ def test_spectral_intensity_rises_with_contrast(make_grating):
     ]
     assert all(0.0 < v <= 1.0 for v in values)
     assert values == sorted(values) and len(set(values)) == len(values)
-    # docs/references.md, section 1: a strong grating reads about 0.9.
+    # docs/references.md, section 1 (reading of i_s): a strong grating reads about 0.9.
     assert values[-1] > 0.85
 
 
@@ -282,85 +282,3 @@ def test_mean_level_is_the_plain_mean_of_an_uneven_picture():
     assert feat.mean_level == pytest.approx(float(img.mean()), rel=1e-6)
     levels = np.round(img * 255).astype(np.uint8)
     assert tz.extract_features(tz.load_image(levels, dpi=300)).mean_level == pytest.approx(levels.mean() / 255, rel=1e-6)
-
-
-def _hann(n: int) -> np.ndarray:
-    """The periodic Hann window of n points, written out."""
-    return 0.5 - 0.5 * np.cos(2 * np.pi * np.arange(n) / n)
-
-
-@pytest.mark.parametrize("shape", [(64, 64), (48, 75), (33, 40), (128, 96)])
-def test_periodicity_is_the_power_of_the_peak_and_its_mirror_in_the_full_spectrum(shape):
-    # The plain definition: over NumPy's full fft2 of the windowed, mean-removed image,
-    # the power in the 3 x 3 bins around the strongest bin and around its mirror -k,
-    # over the total AC power.
-    rng = np.random.default_rng(sum(shape))
-    h, w = shape
-    yy, xx = np.mgrid[0:h, 0:w]
-    img = np.clip(0.45 + 0.2 * np.cos(2 * np.pi * (0.11 * xx - 0.07 * yy)) + 0.1 * rng.standard_normal(shape), 0, 1)
-    power = np.abs(np.fft.fft2((img - img.mean()) * np.outer(_hann(h), _hann(w)))) ** 2
-    power[0, 0] = 0.0
-    iy, ix = np.unravel_index(np.argmax(power), power.shape)
-
-    def block(r: int, c: int) -> float:
-        return float(power[np.ix_(np.arange(r - 1, r + 2) % h, np.arange(c - 1, c + 2) % w)].sum())
-
-    expected = min(1.0, (block(iy, ix) + block(-iy, -ix)) / power.sum())
-    feat = analyse_stack(img, (1e-4, 1e-4))[0]
-    assert feat.periodicity == pytest.approx(expected, rel=1e-5)
-
-
-@pytest.mark.parametrize("cycles", [(7.3, 4.6), (11.5, -3.2), (5.05, 9.8), (20.0, 0.5)])
-def test_off_bin_peak_amplitude_and_i_s_follow_their_definitions(cycles):
-    # A tone between bins: its wave vector is refined to the true one, its amplitude is
-    # 2 |DTFT| / (N * coherent gain) of the windowed image at that wave vector (the
-    # plain definition, a sum over every pixel), and i_s is the paper's formula with
-    # |F(k*)| = 255 A N / 2 and |F(0)| = 255 mean N (docs/references.md, section 1).
-    h, w = 64, 80
-    fx, fy_down = cycles
-    yy, xx = np.mgrid[0:h, 0:w]
-    img = 0.45 + 0.3 * np.cos(2 * np.pi * (fx * xx / w + fy_down * yy / h) + 0.4)
-    feat = analyse_stack(img, (1e-4, 1e-4))[0]
-    kx, ky_up = feat.wave_vector_per_px
-    # the tone's mirror is an equal peak: either sign of the wave vector is the tone
-    sign = 1.0 if kx * fx + (-ky_up) * fy_down >= 0 else -1.0
-    assert sign * kx * w == pytest.approx(fx, abs=1e-5)
-    assert -sign * ky_up * h == pytest.approx(fy_down, abs=1e-5)
-    phase = np.exp(-2j * np.pi * (kx * xx - ky_up * yy))
-    dtft = abs(np.sum(np.outer(_hann(h), _hann(w)) * (img - img.mean()) * phase))
-    amplitude = 2 * dtft / (h * w * 0.25)
-    assert feat.peak_amplitude == pytest.approx(amplitude, rel=1e-5)
-    n = h * w
-    i_s = math.log1p(255 * amplitude * n / 2) / math.log1p(255 * img.mean() * n)
-    assert feat.spectral_intensity == pytest.approx(i_s, rel=1e-6)
-
-
-@pytest.mark.parametrize("d", [-0.5, -0.31, -0.1, 0.0, 0.07, 0.25, 0.49, 0.5])
-def test_hann_offset_and_response_recover_a_tone_between_bins(d):
-    # NumPy's DFT of a Hann-windowed complex tone d bins past bin 9 of 64: the
-    # three magnitudes around the peak give d back, and the window's response at d
-    # accounts for the peak's height N/2 * |W(d)|.
-    from tactilize.features._spectrum import hann_offset, hann_response
-
-    n = 64
-    spectrum = np.abs(np.fft.fft(_hann(n) * np.exp(2j * np.pi * (9 + d) * np.arange(n) / n)))
-    before, peak, after = (np.array([v]) for v in spectrum[8:11])
-    offset = hann_offset(before, peak, after)
-    assert offset[0] == pytest.approx(d, abs=1e-6)
-    assert peak[0] / (n / 2 * hann_response(offset)[0]) == pytest.approx(1.0, abs=1e-6)
-
-
-def test_radial_keyword_keeps_the_profile():
-    img = tz.load_image(grating_array((64, 64), 800.0, 0.0, 300), dpi=300)
-    assert tz.extract_features(img, radial=True).radial is not None
-    assert tz.extract_features(img).radial is None
-
-
-def test_importing_features_loads_no_compiled_code():
-    # numba takes a few tenths of a second to import: only the first analysis pays it.
-    import subprocess
-    import sys
-
-    code = "import sys, tactilize.features; print('numba' in sys.modules)"
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
-    assert out == "False"

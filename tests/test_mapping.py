@@ -35,8 +35,8 @@ WIDE_OPEN = ActuatorLimits(name="test", min_frequency_hz=0, max_frequency_hz=1e6
 
 
 def test_paper_alpha_values_from_facts():
-    # FACTS.md section 1: alpha(0) = 0.237, alpha(60) = 1.55, alpha(120) = 2.86 (v in mm/s),
-    # given to three digits.
+    # docs/references.md, section 1 (values of the laws): alpha(0) = 0.237, alpha(60) = 1.55,
+    # alpha(120) = 2.86 (v in mm/s), given to three digits.
     assert PAPER.speed(0.0) == pytest.approx(0.237, abs=1e-3)
     assert PAPER.speed(0.060) == pytest.approx(1.55, abs=5e-4)
     assert PAPER.speed(0.120) == pytest.approx(2.86, abs=5e-3)
@@ -61,7 +61,8 @@ def test_paper_law_composition_without_limits():
 
 
 def test_paper_at_60_mm_s_is_clamped_visibly():
-    # FACTS.md: at 60 mm/s the paper's law asks for more than 300 Hz for most images.
+    # At 60 mm/s the paper's law asks for more than 300 Hz for most images:
+    # docs/references.md, section 1 (values of the laws).
     d = PAPER.drive(Feat(799, 0.874), speed_m_s=0.060)
     assert d.pulse_frequency_hz == 300.0
     assert "max_frequency_hz" in d.clamped

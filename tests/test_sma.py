@@ -35,7 +35,7 @@ def envelope():
 
 
 def test_preset_matches_the_facts_sheet():
-    # docs/references.md section 2: 226 / 181 ohm per metre, tau 0.3 .. 0.6 s, 0.68 J/m latent.
+    # docs/references.md, section 2: 226 / 181 ohm per metre, tau 0.3 .. 0.6 s, 0.68 J/m latent.
     per_m = SPEC.replace(length_m=1.0)
     assert per_m.resistance_austenite_ohm == pytest.approx(226, rel=0.01)
     assert per_m.resistance_martensite_ohm == pytest.approx(181, rel=0.01)
@@ -67,7 +67,12 @@ def test_bad_wire_requests_raise_one_error_type():
 
 
 def euler_reference(spec: WireSpec, drive: Drive, current_a: float, T0: float, xi0: float, t_end: float, dt: float):
-    """Forward Euler on the equations of docs/references.md section 2 in their C_eff form, 1 us steps, voltage source."""
+    """Forward Euler on the heat balance in its C_eff form, 1 us steps, voltage source.
+
+    References
+    ----------
+    .. [1] docs/references.md, section 2 (heat balance).
+    """
     C, hA, Lat, Ta = spec.heat_capacity_j_k, spec.conductance_w_k, spec.latent_j, spec.ambient_c
     RA, RM = spec.resistance_austenite_ohm, spec.resistance_martensite_ohm
     As, Af, Ms, Mf = spec.austenite_start_c, spec.austenite_finish_c, spec.martensite_start_c, spec.martensite_finish_c
@@ -150,7 +155,7 @@ def test_energy_is_conserved_within_one_percent(circuit):
     res = simulate_drive(Drive(50.0, 1.1e-3), 3.0, SPEC, circuit=circ, bias_level=0.02, dt_s=dt)
     xi = res.martensite_fraction
     assert xi.min() < 0.9  # it did transform, so the latent term matters
-    # Independent accounts from the traces: I^2 R with R mixed from the phases.
+    # Independent accounts from the traces: I^2 R with R mixed from the phases (docs/references.md, section 2).
     R = SPEC.resistance_austenite_ohm + (SPEC.resistance_martensite_ohm - SPEC.resistance_austenite_ohm) * 0.5 * (xi[1:] + xi[:-1])
     on = res.current_a > 0
     level = np.where(res.current_a > 0.5 * res.current_a.max(), 1.0, 0.02)
@@ -202,7 +207,7 @@ def test_too_much_duty_holds_the_wire_contracted():
 
 
 def test_weak_current_stays_cold():
-    # docs/references.md section 2 (operating point): 120 mA at 5 % duty keeps the wire near 29 C.
+    # docs/references.md, section 2 (operating point): 120 mA at 5 % duty keeps the wire near 29 C.
     res = simulate_drive(Drive(50.0, 1e-3), 4.0, SPEC, current_a=0.12)
     s = res.summary()
     assert 27 < s["mean_temperature_c"] < 31

@@ -9,7 +9,7 @@ coils, LRAs, phone motors).  Pass ``drive = envelope.apply(drive)`` first to
 export what the simulated wire would get.
 
 Phone formats cannot carry a pulse train at full resolution, so they carry what
-such actuators can render (FACTS.md section 6):
+such actuators can render [1]_:
 
 * AHAP: at 65 Hz and above, continuous events whose sharpness maps the pulse
   frequency linearly onto 0..1 over 65..300 Hz and whose intensity is the
@@ -23,6 +23,10 @@ such actuators can render (FACTS.md section 6):
   for the duration (the motor supplies the frequency).  An ``envelope`` list of
   ``(amplitude 0..1, frequency_hz, duration_ms)`` control points for the
   API 36 envelope builder carries the frequency too.
+
+References
+----------
+.. [1] docs/references.md, section 6 (haptic file formats).
 """
 
 from __future__ import annotations
@@ -55,7 +59,8 @@ __all__ = [
 ]
 
 FORMATS = ("wav", "csv", "json", "ahap", "android")
-#: FACTS.md section 6: AHAP sharpness 0..1 is commonly mapped to 65..300 Hz.
+#: AHAP sharpness 0..1 is commonly mapped to 65..300 Hz:
+#: docs/references.md, section 6 (AHAP sharpness and frequency).
 SHARPNESS_LOW_HZ = 65.0
 SHARPNESS_HIGH_HZ = 300.0
 #: Duty ratio rendered at full intensity (the paper profile's max_duty_ratio).

@@ -23,7 +23,7 @@ from .errors import ImageError
 __all__ = ["DEFAULT_DPI", "DEFAULT_MAX_PIXELS", "DRAFT_MIN_SIDE_PX", "METRES_PER_INCH", "TextureImage", "load_image"]
 
 METRES_PER_INCH = 0.0254
-#: a CSS pixel is 1/96 inch by definition (FACTS.md section 5)
+#: a CSS pixel is 1/96 inch by definition: docs/references.md, section 5 (CSS pixel)
 DEFAULT_DPI = 96.0
 #: 64 Mpx: a 8192 x 8192 texture still loads; a decompression bomb does not.
 #: As float32 that is 256 MB, the most one image may cost.

@@ -1,6 +1,6 @@
 """Pulse trains: one-shot arrays, a streaming phase-continuous synthesiser, two channels.
 
-A pulse train is the paper's drive signal (FACTS.md section 1): rectangular pulses
+A pulse train is the paper's drive signal [1]_: rectangular pulses
 of width ``p_w`` [s] repeated at ``f_p`` [Hz], height = the drive's amplitude.
 
 Sample resolution, exactly
@@ -30,14 +30,19 @@ Positions are exact (fractional) and rounded half up when a pulse starts, so at
 sample resolution two starts are at least ``floor(period * fs)`` samples apart,
 the same spacing a steady train has.
 
-Two channels (the pen's two actuators, FACTS.md section 4)
-----------------------------------------------------------
+Two channels (the pen's two actuators)
+--------------------------------------
 :func:`pen_channels` places a phantom actuator by the energy model
 ``A1 = sqrt(1 - beta) Av, A2 = sqrt(beta) Av`` with ``beta`` from the stroke
 direction; :class:`PenStream` renders both channels, either as that phantom
 (continuous) or as apparent movement: bursts of ``burst_s`` on the leading
 channel, then on the other one stimulus-onset-asynchrony ``SOA = 0.32 d + 47.3 ms``
-later (:func:`soa_s`), the leading channel chosen by the stroke direction.
+later (:func:`soa_s`), the leading channel chosen by the stroke direction [2]_.
+
+References
+----------
+.. [1] docs/references.md, section 1 (drive signal).
+.. [2] docs/references.md, section 4 (phantom sensation, apparent movement).
 """
 
 from __future__ import annotations
@@ -62,9 +67,9 @@ __all__ = [
     "DEFAULT_SAMPLE_RATE_HZ",
 ]
 
-#: What sound-card haptics rigs play (FACTS.md section 6).
+#: What sound-card haptics rigs play: docs/references.md, section 6 (WAV at 48 kHz).
 DEFAULT_SAMPLE_RATE_HZ = 48_000
-#: FACTS.md section 4 (Israr and Poupyrev 2011): SOA = 0.32 d + 47.3 ms.
+#: SOA = 0.32 d + 47.3 ms (Israr and Poupyrev 2011): docs/references.md, section 4 (apparent movement).
 SOA_SLOPE = 0.32
 SOA_OFFSET_S = 47.3e-3
 
@@ -325,7 +330,7 @@ class PulseStream:
 
 
 def phantom_amplitudes(beta: float, amplitude: float = 1.0) -> tuple[float, float]:
-    """Energy model of the phantom sensation (FACTS.md section 4).
+    """Energy model of the phantom sensation [1]_.
 
     Parameters
     ----------
@@ -338,6 +343,10 @@ def phantom_amplitudes(beta: float, amplitude: float = 1.0) -> tuple[float, floa
     -------
     (A1, A2) : tuple of float
         ``sqrt(1 - beta) A_v`` and ``sqrt(beta) A_v``, so ``A1^2 + A2^2 = A_v^2``.
+
+    References
+    ----------
+    .. [1] docs/references.md, section 4 (phantom sensation).
     """
     if not math.isfinite(beta) or not 0.0 <= beta <= 1.0:
         raise SignalError("<beta>", f"phantom position must be in [0, 1], got {beta!r}")
@@ -357,9 +366,13 @@ def phantom_beta(direction_rad: float, axis_rad: float = 0.0) -> float:
 
 
 def soa_s(burst_s: float) -> float:
-    """Stimulus onset asynchrony [s] for apparent movement: 0.32 d + 47.3 ms (FACTS.md section 4).
+    """Stimulus onset asynchrony [s] for apparent movement: 0.32 d + 47.3 ms [1]_.
 
     Validated for bursts of 40 .. 160 ms; outside that range the law is extrapolated.
+
+    References
+    ----------
+    .. [1] docs/references.md, section 4 (apparent movement).
     """
     if not isinstance(burst_s, (int, float)) or not math.isfinite(burst_s) or burst_s <= 0:
         raise SignalError("<burst>", f"burst duration must be a finite number > 0 s, got {burst_s!r}")

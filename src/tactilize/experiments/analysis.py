@@ -1,4 +1,4 @@
-"""Analysis of 1..7 ratings from within-subject experiments (FACTS.md section 7).
+"""Analysis of 1..7 ratings from within-subject experiments [1]_.
 
 For each protocol and question:
 
@@ -14,6 +14,10 @@ formulas.  Ratings are first averaged per participant and condition (over
 images and repetitions), because the tests assume one value per cell;
 participants who did not rate every condition are left out of the tests (not of
 the descriptives) and the count of those used is reported.
+
+References
+----------
+.. [1] docs/references.md, section 7 (statistics for ratings).
 """
 
 from __future__ import annotations

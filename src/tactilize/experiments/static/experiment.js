@@ -249,7 +249,8 @@ surface.addEventListener("pointerup", up);
 surface.addEventListener("pointercancel", up);
 
 function onMove(ev) {
-  // Coalesced events carry every tablet sample with its own timestamp (FACTS.md section 5).
+  // Coalesced events carry every tablet sample with its own timestamp:
+  // docs/references.md, section 5 (Pointer Events).
   const evs = ev.getCoalescedEvents ? ev.getCoalescedEvents() : [];
   const list = evs.length ? evs : [ev];
   const rect = surface.getBoundingClientRect();
