@@ -286,7 +286,7 @@ def _circuit_option(circuit: str, spec: Any):
 
 
 _WIRE_HELP = "Wire preset: 50um, 75um (the paper's) or 100um."
-_CIRCUIT_HELP = "Driver circuit: aa-resistor (default), usb-resistor, aa-sink, aa-direct (docs/hardware.md)."
+_CIRCUIT_HELP = "Driver circuit: aa-resistor (default), usb-resistor, aa-sink, aa-direct (docs/signals-and-wire.md)."
 
 
 @main.command("simulate")

@@ -1,6 +1,6 @@
 """The laws that turn texture features and stroking speed into pulse drives.
 
-The paper (see ``FACTS.md`` section 1) drives each actuator with
+The paper (docs/references.md, section 1 (the two laws)) drives each actuator with
 
     f_p = alpha(v_p) * g(f_s)        pulse frequency [Hz]
     p_w = h(i_s)                     pulse width [s]
@@ -212,10 +212,10 @@ class ActuatorLimits:
     # The paper: "vibration up to 300 Hz is generated" by the pin actuator.
     max_frequency_hz: float = 300.0
     # Shorter pulses than a few tens of microseconds do not heat a 75 um wire
-    # measurably (FACTS.md section 2: 1 ms at 0.42 A gives ~1.7 K).
+    # measurably (docs/references.md, section 2 (operating point): 1 ms at 0.42 A gives ~1.7 K).
     min_pulse_width_s: float = 20e-6
     max_pulse_width_s: float = 2e-3
-    # FACTS.md section 2: SMA micro-vibration is driven at duty ratios of a few
+    # docs/references.md, section 2 (duty ratio in practice): SMA micro-vibration is driven at duty ratios of a few
     # per cent; above ~10 % the mean temperature leaves the transformation band.
     max_duty_ratio: float = 0.10
 
@@ -354,7 +354,7 @@ class ConstantSpeed(_LawBase):
 @dataclass(frozen=True)
 class ProportionalSpeed(_LawBase):
     """alpha(v) = gain * v, v in m/s.  With g linear (k1 = 1) this is the physics of
-    a stylus on a grating, f = v * f_s (FACTS.md section 3)."""
+    a stylus on a grating, f = v * f_s (docs/references.md, section 3 (stylus on a grating))."""
 
     gain_per_m_s: float = 1.0
 
@@ -471,7 +471,7 @@ class NoDirection(_LawBase):
 @dataclass(frozen=True)
 class ProjectedSpeed(_LawBase):
     """Beyond the paper: only the stroke's component along the texture's wave
-    vector counts, v_eff = v * |cos(stroke - wave)| (FACTS.md section 3: a stylus
+    vector counts, v_eff = v * |cos(stroke - wave)| (docs/references.md, section 3 (stylus on a grating): a stylus
     on a grating feels v * f_s * |cos|).  Isotropic textures (anisotropy below
     ``min_anisotropy``) keep the full speed, since they have no direction."""
 

@@ -47,9 +47,9 @@ from .wire import WireSpec
 __all__ = ["Circuit", "circuit_names", "SWITCH_OHM", "SENSE_OHM"]
 
 #: On-resistance [ohm] of a logic-level N-MOSFET fully on at the Pico's 3.3 V gate
-#: drive (parts of the AO3400 class: about 30 .. 50 mOhm at V_GS = 2.5 .. 4.5 V).
+#: drive (docs/references.md, section 8 (logic-level switch)).
 SWITCH_OHM = 0.05
-#: The current-sense resistor in each channel's return path [ohm] (docs/hardware.md).
+#: The current-sense resistor in each channel's return path [ohm] (docs/signals-and-wire.md).
 SENSE_OHM = 0.1
 #: Two alkaline AA cells, new: 1.5 V and about 0.15 ohm each (docs/references.md, section 8).
 AA_PAIR_V = 3.0
@@ -81,7 +81,7 @@ class Circuit:
 
     Notes
     -----
-    Use :meth:`preset` for the circuits of ``docs/hardware.md``.
+    Use :meth:`preset` for the circuits of ``docs/signals-and-wire.md``.
     """
 
     name: str = "custom"
@@ -112,7 +112,7 @@ class Circuit:
 
     @classmethod
     def preset(cls, name: str, wire: WireSpec | str | None = None, **changes: Any) -> "Circuit":
-        """A circuit of ``docs/hardware.md`` sized for a wire.
+        """A circuit of ``docs/signals-and-wire.md`` sized for a wire.
 
         ``aa-resistor`` (the default): two AA cells, a series resistor sized so the
         relaxed wire takes the wire's ``rated_current_a``, the MOSFET, the sense

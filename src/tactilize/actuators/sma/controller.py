@@ -18,7 +18,7 @@ What it decides, per channel
   wire cannot run hot and stay contracted).  The drive's ``strength`` (from the
   profile's width law, :meth:`Profile.drive`) times its ``amplitude`` is that
   position, spaced geometrically: amplitude discrimination goes in decibels
-  (docs/references.md, section 3).  A drive without a strength is placed where
+  (docs/references.md, section 3 (amplitude discrimination)).  A drive without a strength is placed where
   its own heat falls, clipped into the band.
 * A **standby bias** (the switch chopped at tens of kHz, far too fast for the
   wire to follow) supplies the rest of the holding heat.  While the pen is down

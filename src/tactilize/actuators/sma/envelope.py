@@ -6,7 +6,7 @@ current: the heat of one pulse is ``E = a w P_hi`` where ``P_hi`` is the most
 the switched-on circuit can put into this wire at any of its resistances
 (:meth:`Circuit.max_power_w`) and ``a`` the fraction of the pulse the switch
 conducts.  Two bounds, both from the lumped heat balance
-(docs/references.md, section 2, "Safety"):
+(docs/references.md, section 2 (safety envelope)):
 
 * the mean temperature in the periodic state is exactly
   ``T_amb + P_mean / (h A_s)`` (over a period the latent heat cancels), with

@@ -37,8 +37,8 @@ DEFAULT_DT_S = 5e-6
 #: A pulse "is followed" when it produces its own displacement peak at least this
 #: high [m]: above the displacement at its start and at the next pulse's start.
 #: 0.5 um: the vibrotactile detection threshold of the fingertip in the
-#: Pacinian range is a fraction of a micrometre, and the paper's pin amplifies
-#: the wire's own motion (docs/references.md, sections 2 and 3).
+#: Pacinian range is a fraction of a micrometre (docs/references.md, section 3
+#: (detection threshold)), and the paper's pin amplifies the wire's own motion.
 FOLLOW_THRESHOLD_M = 0.5e-6
 
 

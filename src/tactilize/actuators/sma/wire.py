@@ -11,7 +11,7 @@ Units: SI (metres, seconds, ohms, joules), temperatures in degrees Celsius
 
 References
 ----------
-docs/references.md, section 2 (the SMA micro-wire) for every material value.
+docs/references.md, section 2 (material constants) for every material value.
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ class WireSpec:
         Wire diameter [m]; the paper's is 75 um.
     length_m : float
         Active length [m].  Default 3 mm: a pin actuator in a pen grip is a few
-        mm long, and the operating point in docs/references.md section 2 is
+        mm long, and the operating point in docs/references.md, section 2 is
         worked out for 3 mm.
     density_kg_m3, specific_heat_j_kg_k, latent_heat_j_kg : float
         6450 kg/m^3, 837 J/(kg K), 24.2 kJ/kg (datasheet values).
