@@ -8,16 +8,9 @@ import numpy as np
 import pytest
 
 from tactilize.mapping import Drive, Profile
-from tactilize.pen import (
-    DEFAULT_M_PER_CSS_PX,
-    PenRenderer,
-    PenSample,
-    StrokeTracker,
-    _Recorder,
-    sample_error,
-    samples_from_css,
-)
-from tactilize.textures import builtin_map
+from tactilize.data import builtin_map
+from tactilize.pen import PenRenderer, PenSample, StrokeTracker, _Recorder
+from tactilize.web.rows import DEFAULT_M_PER_CSS_PX, sample_error, samples_from_css
 
 
 def line_stroke(speed_m_s, direction_rad=0.0, rate_hz=240.0, duration_s=0.3, start=(0.01, 0.02), t0=0.0, jitter_m=0.0, seed=0):
@@ -352,7 +345,7 @@ def test_slow_stroke_on_whole_pixels():
 
 
 def test_unchanged_drive_is_not_resent(corduroy, monkeypatch):
-    import tactilize.pen as pen_mod
+    import tactilize.pen.renderer as pen_mod
 
     clock = [100.0]
     monkeypatch.setattr(pen_mod.time, "monotonic", lambda: clock[0])

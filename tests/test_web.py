@@ -16,10 +16,10 @@ from fastapi import APIRouter
 from fastapi.testclient import TestClient
 
 from tactilize.mapping import Drive, Profile
-from tactilize.pen import DEFAULT_M_PER_CSS_PX
-from tactilize.textures import png_bytes
+from tactilize.data import png_bytes
 from tactilize.web import create_app
 from tactilize.web import session as session_mod
+from tactilize.web.rows import DEFAULT_M_PER_CSS_PX
 from tactilize.web.serve import bind_socket, is_loopback
 
 
