@@ -37,7 +37,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from .renderer import PenRenderer, RenderResult, _Recorder, default_splitter
+from .renderer import PenRenderer, RenderResult, default_splitter
+from .renderer import _Recorder as _Recorder  # the server's last-resort output, used by web/
 from .samples import PenSample, is_trackable
 from .tracker import StrokeState, StrokeTracker
 
