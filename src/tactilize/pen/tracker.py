@@ -181,7 +181,7 @@ class StrokeTracker:
             return True
         t_s = sample.t_s
         cand = self._candidate
-        last = cand or buf[-1]
+        last = cand if cand is not None else buf[-1]
         dt = t_s - last.t_s
         if dt <= 0:
             if dt == 0 and sample.x_m == last.x_m and sample.y_m == last.y_m:
