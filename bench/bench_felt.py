@@ -32,7 +32,7 @@ import time
 
 import tactilize as tz
 from tactilize.actuators.sma import FOLLOW_THRESHOLD_M, Circuit, WireSpec, feel, simulate_drive
-from tactilize.textures import get_texture, texture_ids
+from tactilize.data import get_texture, texture_ids
 
 SPEEDS_MM_S = (10, 20, 40, 60, 100, 160)
 

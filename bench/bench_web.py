@@ -200,7 +200,8 @@ def pipeline_only(n, batch=4, interval_s=0.004):
     as cold as in the server."""
     from tactilize.actuators.factory import open_output
     from tactilize.web.app import ServerState
-    from tactilize.web.session import PenSession, _dumps
+    from tactilize.web.encode import dumps
+    from tactilize.web.session import PenSession
     from tactilize.mapping import Profile
 
     out = open_output("simulated")
@@ -216,7 +217,7 @@ def pipeline_only(n, batch=4, interval_s=0.004):
             text = json.dumps({"type": "samples", "seq": k, "samples": rows})
             s = time.perf_counter_ns()
             sess.handle(text)
-            _dumps(sess.render_pending())
+            dumps(sess.render_pending(), compact=True)
             times.append(time.perf_counter_ns() - s)
             if interval_s:
                 time.sleep(interval_s)

@@ -174,7 +174,7 @@ def steady_drives(page, seq_from):
 
 def expected_frequency(texture_id, speed_mm_s, profile="paper"):
     from tactilize.mapping import Profile
-    from tactilize.textures import builtin_map
+    from tactilize.data import builtin_map
 
     feat = builtin_map(texture_id).whole
     return Profile.preset(profile).drive(feat, speed_mm_s / 1e3).pulse_frequency_hz
@@ -354,7 +354,7 @@ def test_profile_picker_and_audio(page):
 
 
 def test_upload_through_the_page(page, tmp_path):
-    from tactilize.textures import png_bytes
+    from tactilize.data import png_bytes
 
     x = np.arange(300)
     stripes = (127 + 100 * np.cos(2 * np.pi * x / 12))[None, :].repeat(200, axis=0).astype(np.uint8)

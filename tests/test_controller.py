@@ -25,7 +25,7 @@ from tactilize.mapping import (
     Profile,
     preset_names,
 )
-from tactilize.textures import get_texture, texture_ids
+from tactilize.data import get_texture, texture_ids
 
 SPEC = WireSpec.preset("75um")
 SPEEDS_MM_S = (10, 20, 40, 60, 100, 160)

@@ -217,6 +217,18 @@ def test_run_beyond_loopback_forces_and_prints_a_token(tmp_path, monkeypatch):
     assert not any("token=" in line for line in lines)
 
 
+def test_an_empty_host_binds_every_interface_so_a_token_is_forced(tmp_path, monkeypatch):
+    # The experiments' own is_loopback called "" loopback: no token on a server
+    # that the standalone path (uvicorn) binds to every interface.
+    import tactilize.web.serve as pen_serve
+    from tactilize.experiments import web
+
+    monkeypatch.setattr(pen_serve, "serve", lambda *a, echo=print, **kw: echo("tactilize: serving at http://0.0.0.0:4321/"))
+    lines = []
+    web.serve_flow("alpha-law", str(tmp_path / "t.sqlite3"), host="", port=4321, echo=lines.append)
+    assert any("token=" in line for line in lines)
+
+
 def test_simulation_is_resumable_and_never_duplicates(tmp_path):
     from tactilize.experiments.simulate import simulate
 

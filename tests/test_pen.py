@@ -8,16 +8,9 @@ import numpy as np
 import pytest
 
 from tactilize.mapping import Drive, Profile
-from tactilize.pen import (
-    DEFAULT_M_PER_CSS_PX,
-    PenRenderer,
-    PenSample,
-    StrokeTracker,
-    _Recorder,
-    sample_error,
-    samples_from_css,
-)
-from tactilize.textures import builtin_map
+from tactilize.data import builtin_map
+from tactilize.pen import PenRenderer, PenSample, StrokeTracker, _Recorder, is_trackable
+from tactilize.web.rows import DEFAULT_M_PER_CSS_PX, sample_error, samples_from_css
 
 
 def line_stroke(speed_m_s, direction_rad=0.0, rate_hz=240.0, duration_s=0.3, start=(0.01, 0.02), t0=0.0, jitter_m=0.0, seed=0):
@@ -170,6 +163,14 @@ def test_single_glitch_is_discarded():
     assert tr.state.speed_m_s == pytest.approx(0.05)
 
 
+def test_trackable_means_finite_time_and_position():
+    assert is_trackable(PenSample(0.0, 0.01, 0.02, None, math.nan, math.inf))  # pressure and tilt are not needed
+    for bad in (math.nan, math.inf, -math.inf):
+        assert not is_trackable(PenSample(bad, 0.0, 0.0))
+        assert not is_trackable(PenSample(0.0, bad, 0.0))
+        assert not is_trackable(PenSample(0.0, 0.0, bad))
+
+
 def test_memory_is_bounded_at_any_rate():
     tr = StrokeTracker(max_samples=64)
     tr.extend(line_stroke(0.05, 0.0, rate_hz=20000.0, duration_s=0.5))
@@ -197,23 +198,6 @@ def test_tablet_like_stroke():
     assert 55 < np.mean(mid) < 85
     assert speeds[5] < 25 and speeds[-1] < 25
     assert tr.state.pressure == pytest.approx(rows[-1][3])
-
-
-def test_sample_rows_are_validated():
-    assert sample_error([1.0, 2.0, 3.0]) is None
-    assert sample_error([1.0, 2.0, 3.0, None, 0, 0]) is None
-    assert "array" in sample_error({"t": 1})
-    assert "3 to 6" in sample_error([1.0, 2.0])
-    assert "finite" in sample_error([1.0, float("nan"), 3.0])
-    assert "finite" in sample_error([1.0, "2", 3.0])
-    assert "finite" in sample_error([True, 2.0, 3.0])
-    assert "pressure" in sample_error([1.0, 2.0, 3.0, 1.5])
-
-
-def test_css_conversion_uses_calibration():
-    rows = [[1000.0, 100.0, 50.0, 0.3, 10.0, -20.0]]
-    (s,) = samples_from_css(rows, 0.5e-3)
-    assert (s.t_s, s.x_m, s.y_m, s.pressure, s.tilt_x_deg, s.tilt_y_deg) == (1.0, 0.05, 0.025, 0.3, 10.0, -20.0)
 
 
 # ------------------------------------------------------------------- renderer
@@ -352,7 +336,7 @@ def test_slow_stroke_on_whole_pixels():
 
 
 def test_unchanged_drive_is_not_resent(corduroy, monkeypatch):
-    import tactilize.pen as pen_mod
+    import tactilize.pen.renderer as pen_mod
 
     clock = [100.0]
     monkeypatch.setattr(pen_mod.time, "monotonic", lambda: clock[0])
@@ -422,3 +406,25 @@ def test_default_split_is_phantom_only_where_amplitude_is_intensity():
     assert SimulatedOutput.amplitude_is_intensity is False
     sma = default_splitter(SimulatedOutput(start=False))(drive, 2, diagonal)
     assert sma == [drive, drive]
+
+
+# ------------------------------------------------------------------- the package
+
+
+def test_names_moved_to_web_rows_stay_importable_from_pen():
+    import tactilize.pen as pen
+    from tactilize.web import rows
+
+    assert pen.sample_error is rows.sample_error
+    assert pen.samples_from_css is rows.samples_from_css
+    assert pen.DEFAULT_M_PER_CSS_PX == rows.DEFAULT_M_PER_CSS_PX
+
+
+def test_the_pen_does_not_load_the_web_server():
+    import subprocess
+    import sys
+
+    code = "import sys, tactilize.pen, tactilize.web.rows; print('fastapi' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"
+

@@ -7,7 +7,7 @@ import pytest
 
 from tactilize.features import extract_features
 from tactilize.image import load_image
-from tactilize.textures import TEXTURE_DPI, builtin_map, builtin_textures, get_texture, png_bytes, texture_ids
+from tactilize.data import TEXTURE_DPI, builtin_map, builtin_textures, get_texture, png_bytes, texture_ids
 
 
 @pytest.fixture(scope="module")

@@ -16,10 +16,10 @@ from fastapi import APIRouter
 from fastapi.testclient import TestClient
 
 from tactilize.mapping import Drive, Profile
-from tactilize.pen import DEFAULT_M_PER_CSS_PX
-from tactilize.textures import png_bytes
+from tactilize.data import png_bytes
 from tactilize.web import create_app
 from tactilize.web import session as session_mod
+from tactilize.web.rows import DEFAULT_M_PER_CSS_PX, sample_error, samples_from_css
 from tactilize.web.serve import bind_socket, is_loopback
 
 
@@ -176,6 +176,87 @@ def test_upload_refusals(client):
     Image.new("1", (20000, 20000)).save(buf, format="PNG")
     r = client.post("/api/textures", files={"file": ("bomb.png", buf.getvalue(), "image/png")})
     assert r.status_code == 422 and "too large" in r.json()["error"]
+
+
+# ------------------------------------------------------------------- the pages' sample rows
+
+
+def test_sample_rows_are_validated():
+    assert sample_error([1.0, 2.0, 3.0]) is None
+    assert sample_error([1.0, 2.0, 3.0, None, 0, 0]) is None
+    assert "array" in sample_error({"t": 1})
+    assert "3 to 6" in sample_error([1.0, 2.0])
+    assert "finite" in sample_error([1.0, float("nan"), 3.0])
+    assert "finite" in sample_error([1.0, "2", 3.0])
+    assert "finite" in sample_error([True, 2.0, 3.0])
+    assert "pressure" in sample_error([1.0, 2.0, 3.0, 1.5])
+
+
+def test_css_conversion_uses_calibration():
+    rows = [[1000.0, 100.0, 50.0, 0.3, 10.0, -20.0]]
+    (s,) = samples_from_css(rows, 0.5e-3)
+    assert (s.t_s, s.x_m, s.y_m, s.pressure, s.tilt_x_deg, s.tilt_y_deg) == (1.0, 0.05, 0.025, 0.3, 10.0, -20.0)
+
+
+def test_short_rows_get_no_pressure_and_no_tilt():
+    a, b = samples_from_css([[1000.0, 100.0, 50.0], [1001.0, 100.0, 50.0, 0.25]], 1e-3)
+    assert (a.pressure, a.tilt_x_deg, a.tilt_y_deg) == (None, 0.0, 0.0)
+    assert (b.pressure, b.tilt_x_deg, b.tilt_y_deg) == (0.25, 0.0, 0.0)
+
+
+def test_integers_beyond_any_float_are_refused():
+    assert "finite" in sample_error([10**400, 2.0, 3.0])
+
+
+# ------------------------------------------------------------------- one JSON encoder
+
+
+def test_encoder_writes_nan_as_null_in_both_forms():
+    from tactilize.web.encode import dumps
+
+    doc = {"a": float("nan"), "b": [float("inf"), 1.5], "c": np.float32(np.nan), "d": np.arange(2), "e": (1, 2)}
+    for compact in (True, False):
+        assert json.loads(dumps(doc, compact=compact)) == {"a": None, "b": [None, 1.5], "c": None, "d": [0, 1], "e": [1, 2]}
+    assert "\n" not in dumps(doc, compact=True) and "\n" in dumps(doc)
+    # What orjson refuses takes the json module's path, with the same rules.
+    odd = {1: float("nan"), "big": 2**70}
+    assert json.loads(dumps(odd, compact=True)) == {"1": None, "big": 2**70}
+
+
+def test_cli_and_page_share_the_encoder():
+    import tactilize.cli as cli
+    import tactilize.experiments.cli as experiments_cli
+    from tactilize.web import encode
+
+    assert cli.dumps is encode.dumps is session_mod.dumps is experiments_cli.dumps
+
+
+# ------------------------------------------------------------------- errors
+
+
+def test_any_tactilize_error_a_route_raises_is_answered_not_a_500():
+    from fastapi import FastAPI
+
+    from tactilize.errors import ProfileError, RequestError
+    from tactilize.web.http import ErrorAnsweringRoute
+
+    router = APIRouter(route_class=ErrorAnsweringRoute)
+
+    @router.get("/refused")
+    def refused():
+        raise RequestError("thing", "not today", 409, hint="tomorrow")
+
+    @router.get("/bad")
+    async def bad():
+        raise ProfileError("velvet", "unknown profile")
+
+    app = FastAPI()
+    app.include_router(router)  # a bare app: the routes answer errors themselves
+    with TestClient(app) as c:
+        r = c.get("/refused")
+        assert r.status_code == 409 and r.json() == {"error": "not today", "source": "thing", "hint": "tomorrow"}
+        r = c.get("/bad")
+        assert r.status_code == 422 and r.json() == {"error": "velvet: unknown profile", "source": "velvet"}
 
 
 # ------------------------------------------------------------------- websocket
@@ -379,6 +460,18 @@ def test_disconnect_stops_output(output):
 def test_is_loopback():
     assert is_loopback("127.0.0.1") and is_loopback("localhost") and is_loopback("::1") and is_loopback("127.5.0.1")
     assert not is_loopback("0.0.0.0") and not is_loopback("192.168.1.5") and not is_loopback("example.org")
+
+
+def test_one_loopback_rule_for_the_pen_and_the_experiments():
+    from tactilize.experiments import web as experiments_web
+
+    assert experiments_web.is_loopback is is_loopback
+    # The cases the two copies disagreed on.  The empty host binds every
+    # interface (experiments/web.py called it loopback, so a server bound there
+    # got no experimenter token); other names than localhost may resolve anywhere.
+    assert not is_loopback("")
+    assert not is_loopback("localhost.localdomain") and not is_loopback("ip6-localhost")
+    assert is_loopback("[::1]") and not is_loopback("::") and not is_loopback("[::]")
 
 
 def _serve(*args):

@@ -72,7 +72,7 @@ _EXPORTS = {
     "Catalog": "catalog",
     "StrokeTracker": "pen",
     "PenRenderer": "pen",
-    "builtin_textures": "textures",
+    "builtin_textures": "data",
     "create_app": "web.app",
 }
 

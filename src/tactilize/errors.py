@@ -61,3 +61,26 @@ class CatalogVersionError(CatalogError):
     Resuming it would mix rows computed two ways in one catalog, so a batch
     refuses; reading it is fine.  The message names both versions.
     """
+
+
+class RequestError(TactilizeError):
+    """A request a server refuses (the pen page's, the experiments' routes).
+
+    Parameters
+    ----------
+    source, fault : str
+        As for :class:`TactilizeError`.
+    status : int
+        The HTTP status to answer with.
+    **detail
+        More JSON-ready fields for the answer.
+    """
+
+    def __init__(self, source: str, fault: str, status: int = 400, **detail: object):
+        super().__init__(source, fault)
+        self.status = int(status)
+        self.detail = detail
+
+    def to_dict(self) -> dict[str, object]:
+        """The answer's body: ``error`` (what is wrong), ``source`` and any detail."""
+        return {"error": self.fault, "source": self.source, **self.detail}

@@ -20,7 +20,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..errors import TactilizeError
+from ..errors import RequestError, TactilizeError
 from .protocols import Protocol
 from .store import ExperimentSession, Store, iso, utcnow
 
@@ -31,16 +31,8 @@ CODE_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,31}$")
 MM_PER_PX_RANGE = (0.05, 1.0)
 
 
-class FlowError(TactilizeError):
+class FlowError(RequestError):
     """A request the flow refuses; ``status`` is the HTTP status to answer with."""
-
-    def __init__(self, source: str, fault: str, status: int = 400, **detail: Any):
-        super().__init__(source, fault)
-        self.status = status
-        self.detail = detail
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"error": self.fault, "source": self.source, **self.detail}
 
 
 @dataclass
@@ -373,7 +365,8 @@ class StrokeHandler:
             self.output.stop()
 
     def handle(self, msg: Any) -> dict[str, Any]:
-        from ..pen import StrokeTracker, sample_error, samples_from_css
+        from ..pen import StrokeTracker
+        from ..web.rows import sample_error, samples_from_css
 
         if not isinstance(msg, dict):
             raise FlowError("stroke", "expected a JSON object", 422)

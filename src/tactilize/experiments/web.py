@@ -20,7 +20,9 @@ sets one whenever the server is bound beyond loopback.  Pass it as
 ``Authorization: Bearer <token>``, ``X-Tactilize-Token`` or ``?token=``.
 
 Every route is a plain function run in FastAPI's thread pool, because the store
-is synchronous; the answer route returns only after the commit.
+is synchronous; the answer route returns only after the commit.  A refusal is
+a :class:`~.flow.FlowError` raised by the route, answered with its status and
+``{"error", "source"}`` (:class:`tactilize.web.http.ErrorAnsweringRoute`).
 """
 
 from __future__ import annotations
@@ -35,6 +37,8 @@ from fastapi import APIRouter, FastAPI, Request, WebSocket, WebSocketDisconnect
 from fastapi.responses import FileResponse, JSONResponse, PlainTextResponse, RedirectResponse, Response
 from starlette.concurrency import run_in_threadpool
 
+from ..web.encode import jsonable
+from ..web.http import ErrorAnsweringRoute, is_loopback
 from .flow import Flow, FlowError
 
 __all__ = ["experiment_router", "create_experiment_app", "serve_flow", "is_loopback", "PREFIX"]
@@ -44,24 +48,8 @@ _STATIC_FILES = {"index.html", "experiment.js", "experiment.css", "admin.html", 
 _TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8", ".css": "text/css; charset=utf-8"}
 
 
-def is_loopback(host: str) -> bool:
-    """True for addresses only this machine can reach."""
-    import ipaddress
-
-    if host in ("localhost", ""):
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        return False
-
-
 def _static_dir():
     return resources.files("tactilize.experiments").joinpath("static")
-
-
-def _error(exc: FlowError) -> JSONResponse:
-    return JSONResponse(exc.to_dict(), status_code=exc.status)
 
 
 async def _json_body(request: Request) -> Any:
@@ -71,22 +59,26 @@ async def _json_body(request: Request) -> Any:
         raise FlowError("request", "the body must be JSON", 400) from None
 
 
+async def _json_object(request: Request) -> dict[str, Any]:
+    body = await _json_body(request)
+    if not isinstance(body, dict):
+        raise FlowError("request", "expected a JSON object", 400)
+    return body
+
+
 def experiment_router(flow: Flow) -> APIRouter:
     """The routes of one protocol's flow, under ``/experiment`` (include as it is)."""
-    router = APIRouter(prefix=PREFIX)
+    router = APIRouter(prefix=PREFIX, route_class=ErrorAnsweringRoute)
 
-    def admin_ok(request: Request) -> bool:
+    def require_admin(request: Request) -> None:
         if not flow.admin_token:
-            return True
+            return
         given = request.headers.get("x-tactilize-token") or request.query_params.get("token") or ""
         auth = request.headers.get("authorization", "")
         if auth.lower().startswith("bearer "):
             given = auth[7:].strip()
-        return hmac.compare_digest(given.encode(), flow.admin_token.encode())
-
-    def denied() -> JSONResponse:
-        return JSONResponse({"error": "experimenter token required (see the server's start-up message)",
-                             "source": "token"}, status_code=401)
+        if not hmac.compare_digest(given.encode(), flow.admin_token.encode()):
+            raise FlowError("token", "experimenter token required (see the server's start-up message)", 401)
 
     # ------------------------------------------------------------ pages
 
@@ -117,69 +109,41 @@ def experiment_router(flow: Flow) -> APIRouter:
 
     @router.post("/api/sessions")
     async def start(request: Request) -> Response:
-        try:
-            body = await _json_body(request)
-            if not isinstance(body, dict):
-                raise FlowError("request", "expected a JSON object", 400)
-            return JSONResponse(await run_in_threadpool(flow.start, body.get("participant_id"), body.get("consent")))
-        except FlowError as exc:
-            return _error(exc)
+        body = await _json_object(request)
+        return JSONResponse(await run_in_threadpool(flow.start, body.get("participant_id"), body.get("consent")))
 
     @router.post("/api/resume")
     async def resume(request: Request) -> Response:
-        try:
-            body = await _json_body(request)
-            if not isinstance(body, dict):
-                raise FlowError("request", "expected a JSON object", 400)
-            return JSONResponse(await run_in_threadpool(flow.resume, body.get("participant_id")))
-        except FlowError as exc:
-            return _error(exc)
+        body = await _json_object(request)
+        return JSONResponse(await run_in_threadpool(flow.resume, body.get("participant_id")))
 
     @router.get("/api/sessions/{token}")
     def state(token: str) -> Response:
-        try:
-            return JSONResponse(flow.state(token))
-        except FlowError as exc:
-            return _error(exc)
+        return JSONResponse(flow.state(token))
 
     @router.post("/api/sessions/{token}/calibration")
     async def calibrate(token: str, request: Request) -> Response:
-        try:
-            body = await _json_body(request)
-            return JSONResponse(await run_in_threadpool(flow.calibrate, token, body))
-        except FlowError as exc:
-            return _error(exc)
+        body = await _json_body(request)
+        return JSONResponse(await run_in_threadpool(flow.calibrate, token, body))
 
     @router.post("/api/sessions/{token}/break")
     async def end_break(token: str, request: Request) -> Response:
-        try:
-            body = await _json_body(request)
-            idx = body.get("trial") if isinstance(body, dict) else None
-            return JSONResponse(await run_in_threadpool(flow.end_break, token, idx))
-        except FlowError as exc:
-            return _error(exc)
+        body = await _json_body(request)
+        idx = body.get("trial") if isinstance(body, dict) else None
+        return JSONResponse(await run_in_threadpool(flow.end_break, token, idx))
 
     @router.post("/api/sessions/{token}/answers")
     async def answers(token: str, request: Request) -> Response:
-        try:
-            body = await _json_body(request)
-            if not isinstance(body, dict):
-                raise FlowError("request", "expected a JSON object", 400)
-            doc = await run_in_threadpool(
-                lambda: flow.submit(token, body.get("trial"), body.get("ratings"),
-                                    response_time_s=body.get("response_time_s"),
-                                    submission_id=body.get("submission_id")))
-            return JSONResponse(doc)
-        except FlowError as exc:
-            return _error(exc)
+        body = await _json_object(request)
+        doc = await run_in_threadpool(
+            lambda: flow.submit(token, body.get("trial"), body.get("ratings"),
+                                response_time_s=body.get("response_time_s"),
+                                submission_id=body.get("submission_id")))
+        return JSONResponse(doc)
 
     @router.get("/api/images/{image_id}.png")
     def image(image_id: str) -> Response:
-        try:
-            return Response(flow.image_png(image_id), media_type="image/png",
-                            headers={"Cache-Control": "max-age=3600"})
-        except FlowError as exc:
-            return _error(exc)
+        return Response(flow.image_png(image_id), media_type="image/png", headers={"Cache-Control": "max-age=3600"})
 
     @router.websocket("/ws/{token}")
     async def pen(ws: WebSocket, token: str) -> None:
@@ -218,15 +182,13 @@ def experiment_router(flow: Flow) -> APIRouter:
 
     @router.get("/api/admin/sessions")
     def admin_sessions(request: Request) -> Response:
-        if not admin_ok(request):
-            return denied()
+        require_admin(request)
         return JSONResponse({"protocol": flow.protocol.to_dict(),
                              "sessions": flow.store.sessions_overview(flow.protocol.name)})
 
     @router.get("/api/admin/export.csv")
     def admin_csv(request: Request) -> Response:
-        if not admin_ok(request):
-            return denied()
+        require_admin(request)
         from .analysis import export_answers
 
         return Response(export_answers(flow.store, "csv", flow.protocol.name), media_type="text/csv",
@@ -234,31 +196,19 @@ def experiment_router(flow: Flow) -> APIRouter:
 
     @router.get("/api/admin/export.json")
     def admin_json(request: Request) -> Response:
-        if not admin_ok(request):
-            return denied()
+        require_admin(request)
         from .analysis import export_answers
 
         return Response(export_answers(flow.store, "json", flow.protocol.name), media_type="application/json")
 
     @router.get("/api/admin/analysis")
     def admin_analysis(request: Request) -> Response:
-        if not admin_ok(request):
-            return denied()
+        require_admin(request)
         from .analysis import analyze
 
-        return JSONResponse(_nan_free(analyze(flow.store, flow.protocol.name)))
+        return JSONResponse(jsonable(analyze(flow.store, flow.protocol.name)))
 
     return router
-
-
-def _nan_free(x: Any) -> Any:
-    if isinstance(x, float):
-        return x if x == x and x not in (float("inf"), float("-inf")) else None
-    if isinstance(x, dict):
-        return {k: _nan_free(v) for k, v in x.items()}
-    if isinstance(x, list):
-        return [_nan_free(v) for v in x]
-    return x
 
 
 def create_experiment_app(protocol, db_url: str | None = None, admin_token: str | None = None) -> FastAPI:

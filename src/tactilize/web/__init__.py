@@ -5,8 +5,31 @@
 ``/ws`` that turns pen samples into drives.  Other parts of tactilize mount
 their own routes with ``create_app(extra_routers=[router])`` or
 ``app.include_router(router)``.
+
+Modules
+-------
+:mod:`.app`      the application, its routes and shared state
+:mod:`.session`  the WebSocket protocol of the pen page
+:mod:`.serve`    binding the socket and running the server
+:mod:`.rows`     the pages' pen sample rows: validation, conversion to SI
+:mod:`.http`     what the pen app and the experiments share: the error
+                 answer, the loopback rule
+:mod:`.encode`   the one JSON encoder (the pages and the CLI)
+
+``create_app`` and ``ServerState`` load the web framework on first use, so
+:mod:`.rows` and :mod:`.encode` stay cheap to import.
 """
 
-from .app import ServerState, create_app
+from __future__ import annotations
+
+from typing import Any
 
 __all__ = ["create_app", "ServerState"]
+
+
+def __getattr__(name: str) -> Any:
+    if name in __all__:
+        from . import app
+
+        return getattr(app, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

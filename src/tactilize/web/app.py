@@ -40,10 +40,11 @@ from fastapi import APIRouter, FastAPI, Request, WebSocket
 from fastapi.responses import FileResponse, JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
 
-from ..errors import ImageError, ProfileError, TactilizeError
-from ..jsonutil import jsonable
+from ..errors import ImageError, ProfileError, RequestError, TactilizeError
 from ..mapping import Profile, preset_names
-from ..pen import DEFAULT_M_PER_CSS_PX
+from .encode import jsonable
+from .http import ErrorAnsweringRoute
+from .rows import DEFAULT_M_PER_CSS_PX
 
 __all__ = ["create_app", "ServerState", "TextureEntry", "MAX_UPLOAD_BYTES", "MAX_UPLOAD_PIXELS"]
 
@@ -160,7 +161,7 @@ class ServerState:
         self.latency_ns: "collections.deque[int]" = collections.deque(maxlen=20_000)
         self.counters: dict[str, int] = collections.Counter()
         self.sessions = 0
-        from ..textures import builtin_textures
+        from ..data import builtin_textures
 
         for t in builtin_textures():
             # The PNG and the map are built lazily (warm() does it at startup
@@ -199,7 +200,7 @@ class ServerState:
         """Validate, analyse and keep an uploaded picture (blocking: run in a thread)."""
         from ..image import load_image
         from ..texturemap import texture_map
-        from ..textures import png_bytes
+        from ..data import png_bytes
 
         name = Path(filename or "upload").name[:80] or "upload"
         img = load_image(data, dpi=dpi, width_mm=width_mm, max_pixels=MAX_UPLOAD_PIXELS)
@@ -250,7 +251,7 @@ class ServerState:
 
 
 def _builtin_entry(t: Any) -> TextureEntry:
-    from ..textures import TEXTURE_SIZE_PX, builtin_map
+    from ..data import TEXTURE_SIZE_PX, builtin_map
 
     return TextureEntry(
         t.id, t.name, t.description, t.width_m, t.height_m, *TEXTURE_SIZE_PX, True,
@@ -359,15 +360,18 @@ def create_app(
     return app
 
 
-def _error(status: int, message: str) -> JSONResponse:
-    return JSONResponse({"error": message}, status_code=status)
-
-
 def _api_router() -> APIRouter:
-    r = APIRouter(prefix="/api")
+    # Handlers refuse a request by raising RequestError.
+    r = APIRouter(prefix="/api", route_class=ErrorAnsweringRoute)
 
     def st(request: Request) -> ServerState:
         return request.app.state.tactilize
+
+    def texture(request: Request, texture_id: str) -> TextureEntry:
+        try:
+            return st(request).texture(texture_id)
+        except KeyError:
+            raise RequestError(texture_id, f"no texture {texture_id!r}", 404) from None
 
     @r.get("/config")
     async def config(request: Request) -> dict[str, Any]:
@@ -390,19 +394,13 @@ def _api_router() -> APIRouter:
 
     @r.get("/textures/{texture_id}.png")
     async def texture_png(texture_id: str, request: Request) -> Response:
-        try:
-            e = st(request).texture(texture_id)
-        except KeyError:
-            return _error(404, f"no texture {texture_id!r}")
+        e = texture(request, texture_id)
         png = await asyncio.get_running_loop().run_in_executor(None, lambda: e.png)
         return Response(png, media_type="image/png", headers={"Cache-Control": "max-age=3600"})
 
     @r.get("/textures/{texture_id}/features")
     async def texture_features(texture_id: str, request: Request) -> Any:
-        try:
-            e = st(request).texture(texture_id)
-        except KeyError:
-            return _error(404, f"no texture {texture_id!r}")
+        e = texture(request, texture_id)
         m = await asyncio.get_running_loop().run_in_executor(None, lambda: e.map)
         return jsonable(
             {
@@ -428,42 +426,40 @@ def _api_router() -> APIRouter:
         try:
             declared = int(request.headers.get("content-length", "0"))
         except ValueError:
-            return _error(400, "bad Content-Length header")
+            raise RequestError("Content-Length", "bad Content-Length header", 400) from None
         if declared > limit:
             s.counters["uploads_refused"] += 1
-            return _error(413, too_large)
+            raise RequestError("upload", too_large, 413)
         body = bytearray()
         async for chunk in request.stream():
             body += chunk
             if len(body) > limit:
                 s.counters["uploads_refused"] += 1
-                return _error(413, too_large)
+                raise RequestError("upload", too_large, 413)
         request._body = bytes(body)  # Starlette's form parser reads the cached body
         try:
             form = await request.form(max_files=1, max_fields=8)
         except Exception as exc:  # malformed multipart: say so, never a 500
-            return _error(400, f"not a valid multipart form ({exc.__class__.__name__})")
+            raise RequestError("upload", f"not a valid multipart form ({exc.__class__.__name__})", 400) from None
         file = form.get("file")
         if file is None or isinstance(file, str):
-            return _error(422, "send the picture as the form field 'file'")
+            raise RequestError("file", "send the picture as the form field 'file'", 422)
         src = Path(file.filename or "upload").name or "upload"
         w_mm, dpi = _number(form.get("width_mm"), "width_mm"), _number(form.get("dpi"), "dpi")
-        for v in (w_mm, dpi):
-            if isinstance(v, str):
-                return _error(422, v)
         if w_mm is not None and dpi is not None:
-            return _error(422, "give width_mm or dpi, not both")
+            raise RequestError("width_mm/dpi", "give width_mm or dpi, not both", 422)
         data = await file.read()
+        # The messages name the file: the page shows them as they are.
         if len(data) > MAX_UPLOAD_BYTES:
             s.counters["uploads_refused"] += 1
-            return _error(413, f"{src}: {too_large}")
+            raise RequestError(src, f"{src}: {too_large}", 413)
         if not data:
-            return _error(422, f"{src}: empty file")
+            raise RequestError(src, f"{src}: empty file", 422)
         try:
             entry = await asyncio.get_running_loop().run_in_executor(None, s.add_upload, data, src, w_mm, dpi)
         except ImageError as exc:
             s.counters["uploads_refused"] += 1
-            return _error(415 if "not an image" in exc.fault else 422, f"{src}: {exc.fault}")
+            raise RequestError(src, f"{src}: {exc.fault}", 415 if "not an image" in exc.fault else 422) from None
         s.counters["uploads"] += 1
         return JSONResponse(entry.describe(), status_code=201)
 
@@ -485,18 +481,24 @@ def _api_router() -> APIRouter:
     return r
 
 
-def _number(text: str | None, name: str) -> float | None | str:
-    """A positive form number, None when absent, or an error message (str)."""
+def _number(text: str | None, name: str) -> float | None:
+    """A positive form number, or None when absent.
+
+    Raises
+    ------
+    RequestError
+        Not a number, or out of its range (422).
+    """
     if text is None or str(text).strip() == "":
         return None
     try:
         v = float(text)
     except ValueError:
-        return f"{name} must be a number, got {text!r}"
+        raise RequestError(name, f"{name} must be a number, got {text!r}", 422) from None
     if not math.isfinite(v) or v <= 0:
-        return f"{name} must be a positive number, got {text!r}"
+        raise RequestError(name, f"{name} must be a positive number, got {text!r}", 422)
     if name == "width_mm" and v > 2000:
-        return f"{name} must be at most 2000 mm, got {text!r}"
+        raise RequestError(name, f"{name} must be at most 2000 mm, got {text!r}", 422)
     if name == "dpi" and not 10 <= v <= 10000:
-        return f"{name} must be between 10 and 10000, got {text!r}"
+        raise RequestError(name, f"{name} must be between 10 and 10000, got {text!r}", 422)
     return v

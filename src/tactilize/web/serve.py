@@ -7,7 +7,6 @@ socket is bound *before* uvicorn starts, so the printed address is the real one
 
 from __future__ import annotations
 
-import ipaddress
 import os
 import socket
 import sys
@@ -16,18 +15,9 @@ import webbrowser
 from typing import Any, Callable, Iterable
 
 from ..errors import TactilizeError
+from .http import is_loopback
 
 __all__ = ["serve", "is_loopback", "bind_socket", "display_available"]
-
-
-def is_loopback(host: str) -> bool:
-    """True when ``host`` only accepts connections from this machine."""
-    if host in ("localhost", "localhost.localdomain", "ip6-localhost"):
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        return False
 
 
 def bind_socket(host: str, port: int) -> socket.socket:

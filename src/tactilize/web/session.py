@@ -63,13 +63,9 @@ from fastapi import WebSocket
 from starlette.websockets import WebSocketDisconnect, WebSocketState
 
 from ..errors import TactilizeError
-from ..jsonutil import dumps
-from ..pen import PenRenderer, sample_error, sample_ok, samples_from_css
-
-try:  # about ten times faster than the json module at writing the drive replies
-    import orjson
-except ImportError:  # pragma: no cover - a dependency, but the stdlib path is kept
-    orjson = None
+from ..pen import PenRenderer
+from .encode import dumps
+from .rows import sample_error, samples_from_css
 
 __all__ = ["websocket_endpoint", "PenSession", "MAX_BATCH", "MAX_PENDING", "MAX_MESSAGE_CHARS", "IDLE_S"]
 
@@ -163,10 +159,9 @@ class PenSession:
         if len(rows) > MAX_BATCH:
             raise _Bad(f"too many samples in one message ({len(rows)}, limit {MAX_BATCH})")
         for i, row in enumerate(rows):
-            if not sample_ok(row):
-                err = sample_error(row)
-                if err is not None:
-                    raise _Bad(f"sample {i}: {err}")
+            err = sample_error(row)
+            if err is not None:
+                raise _Bad(f"sample {i}: {err}")
         if self.texture_id is None:
             raise _Bad("no texture selected: send {'type': 'texture', 'id': ...} first")
         if not rows:
@@ -215,7 +210,7 @@ class PenSession:
             try:
                 profile = st.profile_named(pname)
             except TactilizeError as exc:
-                raise _Bad(f"{exc.source}: {exc.fault}") from None
+                raise _Bad(str(exc)) from None
         # The pen starts a new stroke after any change: a speed estimated in the
         # old millimetres, or a drive for the old picture, must not carry over.
         self.pending.clear()
@@ -307,22 +302,6 @@ class _NoPicture:
         return None
 
 
-def _dumps(doc: dict[str, Any]) -> str:
-    if orjson is not None:
-        # orjson writes a stray NaN as null, as the fallback below does; it
-        # refuses what it does not know (numpy scalars, huge integers, non-str
-        # keys), and those take the stdlib path.
-        try:
-            return orjson.dumps(doc).decode()
-        except TypeError:  # orjson.JSONEncodeError is a TypeError
-            pass
-    # allow_nan=False would raise on a stray NaN; replace instead (JSON has none).
-    try:
-        return json.dumps(doc, allow_nan=False, separators=(",", ":"))
-    except ValueError:
-        return dumps(doc, compact=True)
-
-
 async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
     """Serve one page over its WebSocket until it disconnects."""
     await ws.accept()
@@ -343,7 +322,7 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
         if ws.application_state != WebSocketState.CONNECTED:
             return
         async with send_lock:
-            await ws.send_text(_dumps(doc))
+            await ws.send_text(dumps(doc, compact=True))
 
     async def renderer_task() -> None:
         while not closed.is_set():
@@ -354,7 +333,7 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
             try:
                 msg = session.render_pending()
             except TactilizeError as exc:  # e.g. a profile law refusing a value
-                await send({"type": "error", "message": f"{exc.source}: {exc.fault}"})
+                await send({"type": "error", "message": str(exc)})
                 continue
             if msg is None:
                 continue
@@ -439,7 +418,7 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
 
 def _trace_text(source: Any) -> str | None:
     trace = source()
-    return None if trace is None else _dumps(trace)
+    return None if trace is None else dumps(trace, compact=True)
 
 
 def _wire_source(output: Any):

@@ -1,6 +1,6 @@
 // Calibration: how many millimetres one CSS pixel measures on this screen.
 //
-// A CSS pixel is 1/96 inch only by definition (FACTS.md section 5); real screens
+// A CSS pixel is 1/96 inch only by definition (docs/references.md, section 5); real screens
 // differ.  The user matches an on-screen card to a real ID-1 card (85.60 mm wide).
 // What is stored is mm per *device* pixel, so that browser zoom (which changes
 // devicePixelRatio and the size of a CSS pixel together) keeps the calibration.

@@ -1,4 +1,4 @@
-"""The work behind the CLI's output commands (kept out of cli.py, which only parses).
+"""The work behind the CLI's output commands (kept out of the command definitions, which only parse).
 
 - :func:`hold_drive`: ``tactilize drive ... --output SPEC --hold S``;
 - :func:`run_controller_emulator`: ``tactilize controller-emulator``.
@@ -12,8 +12,8 @@ import sys
 import time
 from typing import Any
 
-from .errors import OutputError
-from .mapping import Drive
+from ..errors import OutputError
+from ..mapping import Drive
 
 __all__ = ["hold_drive", "run_controller_emulator"]
 
@@ -30,7 +30,7 @@ def hold_drive(spec: str, drive: Drive, hold_s: float, channels: int = 2) -> dic
         The output cannot be opened, refuses or does not acknowledge the drive or
         the stop, or lost its connection during the hold.
     """
-    from .actuators.factory import open_output
+    from ..actuators.factory import open_output
 
     out = open_output(spec)
     try:
@@ -75,7 +75,7 @@ def run_controller_emulator(link: str | None = None) -> None:
     Prints the device path as the first line of stdout, then one JSON line per
     output change; everything is flushed at once so a parent process can follow.
     """
-    from .firmware.emulator import ControllerEmulator
+    from ..firmware.emulator import ControllerEmulator
 
     def emit(event: dict[str, Any]) -> None:
         try:

@@ -1,16 +1,17 @@
 """Built-in texture pictures, generated deterministically with numpy.
 
-Seven pictures that span the range of the paper's images (FACTS.md section 1:
-f_s from about 265 to 4217 cycles/m, i_s from 0.21 to 0.93): fine to coarse,
-strongly to weakly periodic, oriented and isotropic, and one whose texture
-changes across the picture.  Each is generated from a fixed seed, so the
+Sample data to try tactilize on, as ``skimage.data`` is for scikit-image.
+Seven pictures that span the range of the paper's images (docs/references.md,
+section 1: f_s from about 265 to 4217 cycles/m, i_s from 0.21 to 0.93): fine to
+coarse, strongly to weakly periodic, oriented and isotropic, and one whose
+texture changes across the picture.  Each is generated from a fixed seed, so the
 pixels (and therefore the features) are identical on every machine and run;
 nothing is downloaded and no licence question arises.
 
 Every picture carries its physical size: it is rendered at :data:`TEXTURE_DPI`
 so that the page can show it at the size the features were measured for.
 
->>> from tactilize.textures import builtin_textures
+>>> from tactilize.data import builtin_textures
 >>> [t.id for t in builtin_textures()]  # doctest: +NORMALIZE_WHITESPACE
 ['corduroy', 'linen', 'canvas', 'dots', 'wood', 'sandpaper', 'patchwork']
 """

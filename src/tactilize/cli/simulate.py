@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from .errors import TactilizeError
+from ..errors import TactilizeError
 
 __all__ = ["simulate_stroke", "simulate_raw", "envelope_table"]
 
@@ -19,7 +19,7 @@ def _finite(name: str, value: float | None, *, positive: bool = True) -> None:
 
 
 def _wire_and_circuit(opt: dict[str, Any]):
-    from .cli import _circuit_option, _wire_option
+    from . import _circuit_option, _wire_option
 
     spec = _wire_option(opt["wire"], opt["length_mm"])
     return spec, _circuit_option(opt["circuit"], spec)
@@ -27,9 +27,9 @@ def _wire_and_circuit(opt: dict[str, Any]):
 
 def simulate_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     """A steady stroke on a texture through the pen's whole path (see ``tactilize simulate``)."""
-    from .actuators.sma import feel
-    from .features import extract_features
-    from .mapping import Profile
+    from ..actuators.sma import feel
+    from ..features import extract_features
+    from ..mapping import Profile
 
     if opt["texture_id"] is not None and opt["image_path"] is not None:
         raise TactilizeError("--texture/--image", "give one of them, not both")
@@ -42,7 +42,7 @@ def simulate_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     if opt["direction_deg"] is not None and not math.isfinite(opt["direction_deg"]):
         raise TactilizeError("--direction", f"must be a finite number, got {opt['direction_deg']}")
     if opt["texture_id"] is not None:
-        from .textures import get_texture, texture_ids
+        from ..data import get_texture, texture_ids
 
         source = opt["texture_id"]
         try:
@@ -50,7 +50,7 @@ def simulate_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
         except KeyError:
             raise TactilizeError(f"--texture {source}", f"no such texture (known: {', '.join(texture_ids())})") from None
     else:
-        from .image import load_image
+        from ..image import load_image
 
         if opt["dpi"] is not None and opt["width_mm"] is not None:
             raise TactilizeError("--dpi/--width-mm", "give one of them, not both")
@@ -90,8 +90,8 @@ def simulate_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
 
 def simulate_raw(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     """One drive exactly as asked, open loop, on an ideal current source."""
-    from .actuators.sma import build_envelope, simulate_drive
-    from .mapping import Drive
+    from ..actuators.sma import build_envelope, simulate_drive
+    from ..mapping import Drive
 
     for name, key in (("frequency", "frequency_hz"), ("pulse-width-ms", "pulse_width_ms"), ("current-ma", "current_ma")):
         if opt[key] is None:
@@ -110,7 +110,7 @@ def simulate_raw(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     drv = Drive(f, width_s)
     result = simulate_drive(drv, duration_s, spec, current_a=current_a)
     summary = result.summary()
-    from .actuators.sma import Circuit
+    from ..actuators.sma import Circuit
 
     env = build_envelope(spec, Circuit.ideal_current(current_a))
     hi = env.max_pulse_width_s(f)
@@ -156,7 +156,7 @@ def simulate_raw(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
 
 def envelope_table(spec: Any, circuit: Any, plot_path: str | None) -> tuple[dict[str, Any], str]:
     """The felt band and the envelope per frequency, as a document and a table."""
-    from .actuators.sma import WireController
+    from ..actuators.sma import WireController
 
     ctrl = WireController(spec, circuit)
     env = ctrl.envelope

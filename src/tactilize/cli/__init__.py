@@ -3,6 +3,9 @@
 Every command that reports takes ``--json`` and then prints exactly one JSON
 document on stdout.  Bad input (any :class:`~tactilize.errors.TactilizeError`)
 prints one line on stderr naming the input and the fault and exits with status 2.
+
+The work behind a few commands lives beside this module: :mod:`.outputs`
+(``drive --output``, ``controller-emulator``) and :mod:`.plots` (``--plot``).
 """
 
 from __future__ import annotations
@@ -14,8 +17,8 @@ from typing import Any
 
 import click
 
-from .errors import TactilizeError
-from .jsonutil import dumps
+from ..errors import TactilizeError
+from ..web.encode import dumps
 
 BAD_INPUT = 2
 
@@ -74,8 +77,8 @@ def main() -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
 def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, as_json: bool) -> None:
     """Measure the texture features of IMAGE(s)."""
-    from .features import extract_features
-    from .image import load_image
+    from ..features import extract_features
+    from ..image import load_image
 
     if dpi is not None and width_mm is not None:
         raise TactilizeError("--dpi/--width-mm", "give one of them, not both")
@@ -122,9 +125,9 @@ def drive(
 ) -> None:
     """The pulse drive for IMAGE stroked at a speed; with --output, also run it on
     an actuator for --hold seconds (exit 0 only when the output acknowledged)."""
-    from .features import extract_features
-    from .image import load_image
-    from .mapping import Profile
+    from ..features import extract_features
+    from ..image import load_image
+    from ..mapping import Profile
 
     if not math.isfinite(speed_mm_s) or speed_mm_s < 0:
         raise TactilizeError("--speed", f"must be a number >= 0 mm/s, got {speed_mm_s}")
@@ -145,7 +148,7 @@ def drive(
         **drv.to_dict(),
     }
     if output_spec is not None:
-        from .cli_outputs import hold_drive
+        from .outputs import hold_drive
 
         doc["output"] = hold_drive(output_spec, drv, 1.0 if hold_s is None else hold_s)
     if as_json:
@@ -176,7 +179,7 @@ def controller_emulator(link: str | None) -> None:
     Prints the device path to open as the first line, then one JSON line per
     output change.  Runs until SIGINT or SIGTERM.
     """
-    from .cli_outputs import run_controller_emulator
+    from .outputs import run_controller_emulator
 
     run_controller_emulator(link)
 
@@ -208,8 +211,8 @@ def batch(
     as_json: bool,
 ) -> None:
     """Analyse every image of SOURCE (folder, glob, or CSV/JSONL manifest) into a catalog; resumes."""
-    from .catalog import TerminalProgress, run_batch
-    from .image import METRES_PER_INCH
+    from ..catalog import TerminalProgress, run_batch
+    from ..image import METRES_PER_INCH
 
     if workers is not None and workers < 1:
         raise TactilizeError("--workers", f"must be at least 1, got {workers}")
@@ -250,11 +253,11 @@ def batch(
 @click.option("--catalog", "catalog_path", default=None, help="Also serve this catalog (Parquet folder or SQLAlchemy URL) at /api/catalog.")
 def serve(host: str, port: int, output_spec: str, profile_name: str | None, open_browser: bool | None, catalog_path: str | None) -> None:
     """Serve the tactile pen page: textures, pen stroke, live drive, simulated wire."""
-    from .web.serve import serve as run
+    from ..web.serve import serve as run
 
     routers = []
     if catalog_path is not None:
-        from .catalog.api import catalog_router
+        from ..catalog.api import catalog_router
 
         routers.append(catalog_router(catalog_path))  # a bad catalog fails here, before the socket opens
     run(host, port, output_spec, profile_name, open_browser, extra_routers=routers, echo=click.echo, warn=lambda s: click.echo(s, err=True))
@@ -265,7 +268,7 @@ def serve(host: str, port: int, output_spec: str, profile_name: str | None, open
 
 def _wire_option(wire: str, length_mm: float | None):
     """The wire named by ``--wire`` (and ``--length-mm``), errors naming the option."""
-    from .actuators.sma import WireSpec
+    from ..actuators.sma import WireSpec
 
     if length_mm is not None and (not math.isfinite(length_mm) or length_mm <= 0):
         raise TactilizeError("--length-mm", f"must be a positive number, got {length_mm}")
@@ -277,7 +280,7 @@ def _wire_option(wire: str, length_mm: float | None):
 
 def _circuit_option(circuit: str, spec: Any):
     """The circuit named by ``--circuit`` for a wire, errors naming the option."""
-    from .actuators.sma import Circuit
+    from ..actuators.sma import Circuit
 
     try:
         return Circuit.preset(circuit, spec)
@@ -317,7 +320,7 @@ def simulate_cmd(**opt: Any) -> None:
     --frequency, --pulse-width-ms and --current-ma instead: one drive exactly as
     asked, open loop, on an ideal current source (no controller, no envelope).
     """
-    from .cli_simulate import simulate_raw, simulate_stroke
+    from .simulate import simulate_raw, simulate_stroke
 
     if opt["texture_id"] is not None or opt["image_path"] is not None:
         doc, text = simulate_stroke(opt)
@@ -337,7 +340,7 @@ def simulate_cmd(**opt: Any) -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
 def envelope_cmd(wire: str, circuit: str, length_mm: float | None, plot_path: str | None, as_json: bool) -> None:
     """The wire's felt band and safety envelope on a circuit, per pulse frequency."""
-    from .cli_simulate import envelope_table
+    from .simulate import envelope_table
 
     spec = _wire_option(wire, length_mm)
     doc, text = envelope_table(spec, _circuit_option(circuit, spec), plot_path)
@@ -369,10 +372,10 @@ def export_cmd(
     as_json: bool,
 ) -> None:
     """Write the drive for IMAGE stroked at a speed as a file (WAV, CSV, JSON, AHAP, Android)."""
-    from .export import FORMATS, export
-    from .features import extract_features
-    from .image import load_image
-    from .mapping import Profile
+    from ..export import FORMATS, export
+    from ..features import extract_features
+    from ..image import load_image
+    from ..mapping import Profile
 
     if fmt.lower() not in FORMATS:
         raise TactilizeError("--format", f"unknown format {fmt!r} (use one of: {', '.join(FORMATS)})")
@@ -406,10 +409,6 @@ def export_cmd(
 
 # ----------------------------------------------------------------- experiment (experiments/)
 
-from .experiments.cli import experiment as _experiment  # noqa: E402  (click only; the package loads lazily)
+from ..experiments.cli import experiment as _experiment  # noqa: E402  (click only; the package loads lazily)
 
 main.add_command(_experiment)
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

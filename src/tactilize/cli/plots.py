@@ -2,14 +2,15 @@
 
 matplotlib is an optional extra (``tactilize[plot]``); without it these raise a
 :class:`~tactilize.errors.TactilizeError` naming the option that asked for a plot.
-The experiments draw their own figures (``tactilize.experiments.figures``).
+Only the CLI draws these, so they live beside it; the experiments draw their
+own figures (``tactilize.experiments.figures``).
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from .errors import TactilizeError
+from ..errors import TactilizeError
 
 __all__ = ["plot_simulation", "plot_envelope"]
 

@@ -1,0 +1,7 @@
+"""``python -m tactilize.cli``: the same as the ``tactilize`` command."""
+
+import sys
+
+from . import main
+
+sys.exit(main())

@@ -1,0 +1,296 @@
+"""The pen's real-time loop: samples in, drives on an output.
+
+:class:`PenRenderer` feeds the :class:`~.tracker.StrokeTracker`, looks the
+texture up under the pen, asks the profile for the drive, splits it over the
+pen's channels and applies it to an :class:`~tactilize.actuators.base.Output`.
+Lifting the pen or leaving the picture stops the output at once.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable, Sequence
+
+from ..mapping import Drive, Profile
+from ..synthesis import pen_channels
+from .samples import PenSample
+from .tracker import StrokeState, StrokeTracker
+
+__all__ = ["RenderResult", "PenRenderer", "default_splitter"]
+
+
+@dataclass(frozen=True)
+class RenderResult:
+    """What the renderer did with a batch of samples.
+
+    Attributes
+    ----------
+    down : bool
+        The pen is on the surface (False after a lift).
+    inside : bool
+        The pen is over the picture.
+    state : StrokeState or None
+        The stroke estimate (None after a lift).
+    features : TextureFeatures or None
+        The texture under the pen (None outside the picture).
+    requested : list of Drive
+        Per channel, what the profile asked for (after the profile's limits).
+    applied : list of Drive
+        Per channel, what the output applied (after its safety envelope); all
+        off when the output was stopped.
+    """
+
+    down: bool
+    inside: bool
+    state: StrokeState | None
+    features: Any
+    requested: list[Drive]
+    applied: list[Drive]
+
+    @property
+    def on(self) -> bool:
+        """True when any channel is driven."""
+        return any(not d.is_off for d in self.applied)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary (SI, plus ``speed_mm_s`` and ``direction_deg`` for display)."""
+        channels = []
+        for req, app in zip(self.requested, self.applied):
+            d = app.to_dict()
+            # The page shows every limit that acted, the profile's and the envelope's.
+            d["clamped"] = sorted(set(req.clamped) | set(app.clamped))
+            d["requested_frequency_hz"] = req.pulse_frequency_hz
+            channels.append(d)
+        st, feat = self.state, self.features
+        direction = st.direction_rad if st is not None else None
+        speed = st.speed_m_s if st is not None else 0.0
+        return {
+            "down": self.down,
+            "inside": self.inside,
+            "on": self.on,
+            "t_s": st.t_s if st is not None else None,
+            "x_m": st.x_m if st is not None else None,
+            "y_m": st.y_m if st is not None else None,
+            "speed_m_s": speed,
+            "speed_mm_s": speed * 1e3,
+            # + 0.0 turns -0.0 into 0.0.
+            "direction_deg": math.degrees(direction) + 0.0 if direction is not None else None,
+            "pressure": st.pressure if st is not None else None,
+            "spatial_frequency_per_m": float(feat.spatial_frequency_per_m) if feat is not None else None,
+            "spectral_intensity": float(feat.spectral_intensity) if feat is not None else None,
+            "channels": channels,
+        }
+
+
+def _equal_channels(drive: Drive, n: int, state: StrokeState | None) -> list[Drive]:
+    return [drive] * n
+
+
+def _phantom_channels(drive: Drive, n: int, state: StrokeState | None) -> list[Drive]:
+    if n != 2:
+        return [drive] * n
+    return pen_channels(drive, state.direction_rad if state is not None else None)
+
+
+def default_splitter(output: Any) -> Callable[[Drive, int, StrokeState | None], list[Drive]]:
+    """How one drive becomes one per channel on ``output``.
+
+    Where an output's amplitude is the felt intensity (voice coils and LRAs on
+    audio), the phantom sensation follows the stroke direction by the energy
+    model.  On the SMA wire the amplitude is the pulse current, and lowering it
+    drops the wire out of its narrow vibrating band (both pins would fall
+    still on a diagonal stroke), so both pins play the texture's drive as in
+    the paper's pen.  Outputs say which with ``amplitude_is_intensity``.
+    """
+    if getattr(output, "amplitude_is_intensity", True):
+        return _phantom_channels
+    return _equal_channels
+
+
+class PenRenderer:
+    """Turns a stream of pen samples into drives on an output, in real time.
+
+    Parameters
+    ----------
+    texture_map : TextureMap
+        The picture under the pen, at the physical size it is shown.
+    profile : Profile
+        The laws (the paper's by default).
+    output : Output
+        Where drives go (the simulated wire, the serial controller, audio...).
+    tracker : StrokeTracker, optional
+        A tracker with non-default settings.
+    channels : int
+        Actuators in the pen (the paper's has two).
+    splitter : callable, optional
+        ``splitter(drive, channels, state) -> list[Drive]``: how one drive
+        becomes one per channel.  By default :func:`default_splitter`: the
+        phantom sensation where the output's amplitude is intensity, the same
+        drive on both pins on the SMA wire.
+    resend_rel : float
+        A drive within this relative difference of the one last applied, on
+        every channel and quantity, is not sent again (0.5 %: twenty times
+        finer than the fingertip's frequency discrimination: docs/references.md,
+        section 3).
+        0 sends every batch.
+    refresh_s : float
+        ...but the output gets the current drive at least this often [s], so a
+        safety envelope that depends on the wire's state is asked again.
+
+    Notes
+    -----
+    One drive is computed per :meth:`feed` call, from the latest estimate: a
+    batch of coalesced samples is one display frame, and the newest sample is
+    the one that matters (older ones only improve the speed estimate).
+    """
+
+    def __init__(
+        self,
+        texture_map: Any,
+        profile: Profile | None = None,
+        output: Any = None,
+        *,
+        tracker: StrokeTracker | None = None,
+        channels: int = 2,
+        splitter: Callable[[Drive, int, StrokeState | None], list[Drive]] | None = None,
+        resend_rel: float = 0.005,
+        refresh_s: float = 0.1,
+    ) -> None:
+        self.texture_map = texture_map
+        self.profile = profile or Profile.preset("paper")
+        self.output = output
+        self.tracker = tracker or StrokeTracker()
+        self.channels = int(getattr(output, "channels", channels) or channels)
+        self.splitter = splitter or default_splitter(output)
+        self._off = [Drive.off()] * self.channels
+        self._running = False  # did we leave the output driven?
+        self.resend_rel = float(resend_rel)
+        self.refresh_s = float(refresh_s)
+        self._sent: tuple[list[Drive], list[Drive]] | None = None  # (requested, applied) last sent
+        self._sent_at = 0.0
+        self._last = RenderResult(False, False, None, None, self._off, self._off)
+
+    @property
+    def last(self) -> RenderResult:
+        """The latest result."""
+        return self._last
+
+    def set_texture(self, texture_map: Any) -> RenderResult:
+        """Show another picture: the stroke restarts and the output stops."""
+        self.texture_map = texture_map
+        return self.lift()
+
+    def set_profile(self, profile: Profile) -> None:
+        """Use other laws from the next sample on."""
+        self.profile = profile
+
+    def lift(self) -> RenderResult:
+        """The pen left the surface: forget the stroke and stop the output at once."""
+        self.tracker.reset()
+        self._stop()
+        self._last = RenderResult(False, False, None, None, self._off, self._off)
+        return self._last
+
+    def feed(self, samples: Iterable[PenSample]) -> RenderResult:
+        """Add a batch of samples and drive the output for the newest one."""
+        state = self.tracker.extend(samples)
+        return self._render(state)
+
+    def still(self) -> RenderResult:
+        """No samples have arrived for a while although the pen is down.
+
+        Browsers send no pointer events while a pen rests, so silence means the
+        pen is not moving: render the same place at zero speed.
+        """
+        st = self.tracker.state
+        if st is None:
+            return self._last
+        self.tracker.reset()
+        self.tracker.add(PenSample(st.t_s, st.x_m, st.y_m, st.pressure))
+        return self._render(self.tracker.state)
+
+    def _stop(self) -> None:
+        if self._running and self.output is not None:
+            self.output.stop()
+        self._running = False
+        self._sent = None
+
+    def _render(self, state: StrokeState | None) -> RenderResult:
+        # No state: every sample so far was rejected, nothing is known about the pen.
+        feat = None if state is None else self.texture_map.lookup(state.x_m, state.y_m)
+        if feat is None:
+            self._stop()
+            self._last = RenderResult(True, False, state, None, self._off, self._off)
+            return self._last
+        drive = self.profile.drive(feat, state.speed_m_s, state.direction_rad, state.pressure)
+        requested = self.splitter(drive, self.channels, state)
+        applied = self._apply(requested)
+        self._last = RenderResult(True, True, state, feat, requested, applied)
+        return self._last
+
+    def _apply(self, requested: list[Drive]) -> list[Drive]:
+        """Play ``requested`` on the output; returns what it applied."""
+        if all(d.is_off for d in requested):
+            self._stop()
+            return self._off
+        if self.output is None:
+            return requested
+        now = time.monotonic()
+        if (
+            self._running
+            and self._sent is not None
+            and now - self._sent_at < self.refresh_s
+            and _close(requested, self._sent[0], self.resend_rel)
+        ):
+            # Imperceptibly different from what the output already plays:
+            # spare it (and a serial link) the frame.
+            return self._sent[1]
+        # Marked running first: if apply fails half-way, the next lift still stops it.
+        self._running = True
+        applied = list(self.output.apply(requested))
+        self._sent, self._sent_at = (requested, applied), now
+        return applied
+
+    def close(self) -> None:
+        """Stop the output (the renderer does not own it, so it is not closed)."""
+        self.lift()
+
+
+def _close(a: Sequence[Drive], b: Sequence[Drive], rel: float) -> bool:
+    """Every channel's frequency, width and amplitude within ``rel`` of the other's."""
+    if rel <= 0 or len(a) != len(b):
+        return False
+    return all(
+        math.isclose(x.pulse_frequency_hz, y.pulse_frequency_hz, rel_tol=rel)
+        and math.isclose(x.pulse_width_s, y.pulse_width_s, rel_tol=rel)
+        and math.isclose(x.amplitude, y.amplitude, rel_tol=rel)
+        for x, y in zip(a, b)
+    )
+
+
+@dataclass
+class _Recorder:
+    """An output that only records (for tests and the server's last resort)."""
+
+    channels: int = 2
+    applied: list[list[Drive]] = field(default_factory=list)
+    stops: int = 0
+
+    def apply(self, channels: Sequence[Drive]) -> list[Drive]:
+        drives = list(channels) + [Drive.off()] * (self.channels - len(channels))
+        self.applied.append(drives)
+        return drives
+
+    def stop(self) -> None:
+        self.stops += 1
+
+    def close(self) -> None:
+        self.stop()
+
+    def __enter__(self) -> "_Recorder":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
