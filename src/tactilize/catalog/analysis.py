@@ -177,6 +177,8 @@ def _row_from_image(img: TextureImage, settings: AnalysisSettings) -> dict[str, 
         row[prefix + "duty_ratio"] = drv.duty_ratio
         row[prefix + "amplitude"] = drv.amplitude
         row[prefix + "clamped"] = ",".join(drv.clamped)
+        # Where the width law puts the texture in an actuator's felt band (None when off).
+        row[prefix + "strength"] = float(drv.strength) if drv.strength is not None else None
     return row
 
 

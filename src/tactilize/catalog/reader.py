@@ -214,6 +214,7 @@ class Catalog:
         for speed in self.speeds_m_s:
             p = f"drive_{speed_label(speed)}_"
             clamped = row.get(p + "clamped") or ""
+            strength = row.get(p + "strength")  # absent in catalogs from before it was stored
             out.append(
                 (
                     speed,
@@ -222,6 +223,7 @@ class Catalog:
                         float(row[p + "pulse_width_s"]),
                         float(row[p + "amplitude"]),
                         tuple(c for c in clamped.split(",") if c),
+                        None if strength is None or strength != strength else float(strength),
                     ),
                 )
             )
