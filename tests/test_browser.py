@@ -372,3 +372,23 @@ def test_upload_through_the_page(page, tmp_path):
     page.locator("#upload-form button[type=submit]").click()
     page.wait_for_function("document.querySelector('[data-testid=upload-status]').className === 'bad'", timeout=20_000)
     assert "not an image" in page.get_by_test_id("upload-status").text_content()
+
+
+def test_the_page_shows_the_wire_state_and_hover_readies_it(page):
+    pick(page, "corduroy")
+    pen = Pen(page)
+    box = surface_box(page)
+    x, y = box["x"] + 40, box["y"] + 40
+    # A pen hovering over the picture (no button): the server puts the wire in standby.
+    for i in range(10):
+        pen._send("mouseMoved", x + 2 * i, y, 0, force=0.0)
+        time.sleep(0.03)
+    page.wait_for_function(
+        "() => (window.tactilize.wireState || []).every(s => s === 'standby') && (window.tactilize.wireState || []).length === 2",
+        timeout=10_000,
+    )
+    # A stroke: the wire vibrates, and the plot's legend says so in micrometres.
+    pen.stroke(x, y + 20, 40.0 / DEFAULT_MM_PER_PX, duration_s=0.5)
+    page.wait_for_function("() => (window.tactilize.wireState || []).includes('vibrating')", timeout=10_000)
+    pen.lift(pen.last_x, y + 20)
+    page.wait_for_function("() => (window.tactilize.wireState || []).every(s => s === 'standby')", timeout=10_000)

@@ -428,3 +428,36 @@ def test_the_pen_does_not_load_the_web_server():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"
 
+
+
+def test_lift_and_hover_rest_the_output_in_standby_where_it_has_one():
+    class Standing:
+        channels = 2
+
+        def __init__(self):
+            self.calls = []
+
+        def apply(self, drives):
+            self.calls.append("apply")
+            return list(drives)
+
+        def standby(self):
+            self.calls.append("standby")
+
+        def stop(self):
+            self.calls.append("stop")
+
+    from tactilize.pen import PenRenderer, PenSample
+    from tactilize.texturemap import texture_map
+    from tactilize.data import get_texture
+
+    out = Standing()
+    r = PenRenderer(texture_map(get_texture("corduroy").image), output=out)
+    r.hover()
+    assert out.calls == ["standby"]
+    r.feed([PenSample(0.0, 0.01, 0.01, 0.5), PenSample(0.01, 0.0104, 0.01, 0.5)])
+    assert out.calls[-1] == "apply"
+    r.hover()  # a hover while the pen renders does not interrupt it
+    assert out.calls[-1] == "apply"
+    r.lift()
+    assert out.calls[-1] == "standby" and "stop" not in out.calls

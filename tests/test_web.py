@@ -587,3 +587,30 @@ def test_accepted_connections_have_no_nagle_delay():
             client.close()
     finally:
         listener.close()
+
+
+def test_ws_hover_and_lift_hold_the_simulated_wire_in_standby():
+    from tactilize.actuators.simulated import SimulatedOutput
+
+    out = SimulatedOutput(start=False)
+    app = create_app(out, "paper", output_name="simulated")
+    with TestClient(app) as c, c.websocket_connect("/ws") as ws:
+        hello(ws)
+        states = lambda: [ctrl.state for ctrl in out.controllers]  # noqa: E731
+        assert states() == ["off", "off"]
+        ws.send_text(json.dumps({"type": "hover"}))
+        ws.send_text(json.dumps({"type": "ping", "id": 1}))
+        recv_type(ws, "pong")
+        out.advance(0.1)
+        assert states() == ["standby", "standby"]
+        ws.send_text(json.dumps({"type": "samples", "seq": 1, "samples": stroke_rows(40.0)}))
+        d = recv_type(ws, "drive")
+        assert d["on"]
+        out.advance(0.05)
+        assert states() == ["vibrating", "vibrating"]
+        ws.send_text(json.dumps({"type": "lift", "seq": 2}))
+        assert not recv_type(ws, "drive")["on"]
+        out.advance(0.05)
+        # lifted: texture off, wire still ready (not cold and off)
+        assert states() == ["standby", "standby"]
+        assert all(ctrl.bias_level > 0 for ctrl in out.controllers)

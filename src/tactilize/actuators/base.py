@@ -46,8 +46,15 @@ class OutputBase:
 
     channels: int = 2
     #: True where a drive's amplitude is the felt intensity (voice coil, LRA);
-    #: False for the SMA wire, whose amplitude is its pulse current.
+    #: False for the SMA wire, where the controller turns it into a place in the
+    #: wire's felt band and both pins play the same drive.
     amplitude_is_intensity: bool = True
+
+    def standby(self) -> None:
+        """Texture off, actuators held ready for the next touch (the pen lifted or
+        hovers).  Outputs with nothing to hold ready just stop; the SMA outputs
+        keep the wire just below its transformation for a while."""
+        self.stop()
 
     def __enter__(self):
         return self

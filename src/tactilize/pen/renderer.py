@@ -187,7 +187,8 @@ class PenRenderer:
         self.profile = profile
 
     def lift(self) -> RenderResult:
-        """The pen left the surface: forget the stroke and stop the output at once."""
+        """The pen left the surface: forget the stroke and rest the output at once
+        (an SMA wire stays in standby for a while, ready for the next touch)."""
         self.tracker.reset()
         self._stop()
         self._last = RenderResult(False, False, None, None, self._off, self._off)
@@ -211,11 +212,27 @@ class PenRenderer:
         self.tracker.add(PenSample(st.t_s, st.x_m, st.y_m, st.pressure))
         return self._render(self.tracker.state)
 
+    def hover(self) -> None:
+        """The pen hovers over the picture (or rests on it with nothing to render):
+        hold the output ready, so the first pulse after it touches is felt at once."""
+        if not self._running:
+            self._rest()
+
     def _stop(self) -> None:
-        if self._running and self.output is not None:
-            self.output.stop()
+        if self._running:
+            self._rest()
         self._running = False
         self._sent = None
+
+    def _rest(self) -> None:
+        """Texture pulses off; an output that can hold its actuators ready does."""
+        if self.output is None:
+            return
+        standby = getattr(self.output, "standby", None)
+        if standby is not None:
+            standby()
+        else:
+            self.output.stop()
 
     def _render(self, state: StrokeState | None) -> RenderResult:
         # No state: every sample so far was rejected, nothing is known about the pen.

@@ -18,6 +18,10 @@ Page to server
     may be left out.  At most :data:`MAX_BATCH` samples.
 ``{"type": "lift", "seq": N}``
     The pen left the surface (pointerup, pointercancel): stop at once.
+``{"type": "hover"}``
+    The pen (or mouse) is over the picture but not touching: the output holds
+    its actuators ready (an SMA wire in standby), so a touch is felt at once.
+    The page sends it at most a few times a second.
 ``{"type": "ping", "id": X}``
     Answered with ``{"type": "pong", "id": X}`` (round-trip measurements).
 
@@ -32,9 +36,10 @@ Server to page
     over the picture.  ``seq`` echoes the newest batch it covers; ``resting``
     is true for the drive the server sends by itself when the pen is down but
     no samples came for :data:`IDLE_S` (a resting pen: speed 0).
-``{"type": "wire", "t_s": [...], "displacement_um": [[...], [...]]}``
+``{"type": "wire", "t_s": [...], "displacement_um": [[...], [...]], "state": [...]}``
     The simulated wires' displacement per channel since the previous message
-    (simulated time [s], displacement [um]), when the output keeps a trace;
+    (simulated time [s], displacement [um]) and each wire's controller state now
+    (off, standby, warming, vibrating), when the output keeps a trace;
     :data:`WIRE_PERIOD_S` apart, or up to half as much again (each waits for
     the gap after a drive, when the pen is busy).
 ``{"type": "error", "message": TEXT}``
@@ -145,6 +150,9 @@ class PenSession:
             self.pending_lift = True
             self.seq = msg.get("seq", self.seq)
             self._wake()
+            return None
+        if kind == "hover":
+            self.renderer.hover()
             return None
         if kind == "ping":
             return {"type": "pong", "id": msg.get("id"), "server_time_s": time.time()}
@@ -455,6 +463,8 @@ def _wire_source(output: Any):
             "type": "wire",
             "t_s": [t[i] for i in idx],
             "displacement_um": [[c["displacement_um"][i] for i in idx] for c in chans],
+            # Each wire's controller state at the newest point (the page's legend).
+            "state": [(c.get("state") or ["off"])[-1] for c in chans],
         }
 
     return pull

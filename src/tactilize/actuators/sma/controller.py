@@ -246,11 +246,10 @@ class WireController:
             self.state = "warming"
 
     def standby(self, now_s: float) -> None:
-        """The pen is down or hovering with nothing to render: hold the wire ready."""
-        if self.state in ("off", "standby"):
-            self._enter_standby(now_s)
-        elif self.drive.is_off:
-            self._enter_standby(now_s)
+        """Texture off, the wire held ready for ``standby_s`` from now (the pen
+        lifted, or hovers, or rests with nothing to render)."""
+        self.drive = Drive.off()
+        self._enter_standby(now_s)
 
     def _enter_standby(self, now_s: float) -> None:
         self.state = "standby"

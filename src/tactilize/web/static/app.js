@@ -44,7 +44,7 @@ function connect() {
     let msg;
     try { msg = JSON.parse(ev.data); } catch (e) { return; }
     if (msg.type === "drive") onDrive(msg);
-    else if (msg.type === "wire") plot.addWire(msg.t_s, msg.displacement_um);
+    else if (msg.type === "wire") { plot.addWire(msg.t_s, msg.displacement_um, msg.state); T.wireState = msg.state || null; }
     else if (msg.type === "ready" || msg.type === "state") onSettings(msg);
     else if (msg.type === "error") showError(msg.message);
   };
@@ -211,6 +211,7 @@ async function setup() {
       T.seq = ++seq;
       send({ type: "lift", seq });
     },
+    onHover: () => { if (T.texture) send({ type: "hover" }); },
   });
 
   calibration.setupDialog($("#calibration"), $("#calibrate"), (mm) => {

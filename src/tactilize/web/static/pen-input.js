@@ -7,10 +7,15 @@
 
 /** Attach pen input to `surface`; positions are relative to `picture`.
  *  onBatch(rows) gets [[t_ms, x_px, y_px, pressure|null, tilt_x_deg, tilt_y_deg], ...];
- *  onLift() is called when the pen leaves the surface. */
-export function attachPen(surface, picture, { onBatch, onLift, onDown }) {
+ *  onLift() is called when the pen leaves the surface; onHover() at most every
+ *  HOVER_MS while a pen or mouse moves over it without touching (the server then
+ *  holds the wire ready, so the first touch is felt at once). */
+const HOVER_MS = 250;
+
+export function attachPen(surface, picture, { onBatch, onLift, onDown, onHover }) {
   let active = null;  // pointerId of the stroke in progress
   let rect = null;
+  let lastHover = -Infinity;
 
   const row = (ev) => {
     // A mouse has no pressure (browsers report 0.5 while a button is held).
@@ -34,7 +39,13 @@ export function attachPen(surface, picture, { onBatch, onLift, onDown }) {
     onBatch([row(ev)]);
   });
   surface.addEventListener("pointermove", (ev) => {
-    if (ev.pointerId !== active) return;
+    if (ev.pointerId !== active) {
+      if (active === null && onHover && ev.timeStamp - lastHover >= HOVER_MS) {
+        lastHover = ev.timeStamp;
+        onHover();
+      }
+      return;
+    }
     onBatch(samplesOf(ev));
   });
   const end = (ev) => {

@@ -1,6 +1,7 @@
 // A scrolling plot of the last WINDOW_S seconds: the pulse train of each channel
 // (rebuilt here from the drives, phase-continuous, exactly as the audio and the
-// controller play it) and the simulated wire's displacement sent by the server.
+// controller play it) and the simulated wire's displacement sent by the server,
+// in micrometres, with each wire's state (off, standby, warming, vibrating).
 
 const WINDOW_S = 0.5;
 
@@ -13,6 +14,7 @@ export class Plot {
     this.pulses = Array.from({ length: channels }, () => []);  // [t_s, width_s, amp]
     this.wire = [];  // [t_s (local clock), displacement_um]
     this.wireOffset = null;
+    this.wireState = [];  // per channel: off | standby | warming | vibrating
     this.running = true;
     requestAnimationFrame(() => this.frame());
   }
@@ -27,7 +29,8 @@ export class Plot {
 
   /** Wire samples on the server's simulated clock, one array per channel;
    *  aligned so that the newest is "now". */
-  addWire(tS, dispUm) {
+  addWire(tS, dispUm, state) {
+    if (Array.isArray(state)) this.wireState = state;
     if (!tS.length) return;
     const now = performance.now() / 1e3;
     this.wireOffset = now - tS[tS.length - 1];
@@ -72,13 +75,14 @@ export class Plot {
       }
     });
     const top = (lanes - 1) * lh, base = top + lh - 4;
-    // Autoscale to the window's range: the ripple of each pulse is a small
-    // fraction of a micrometre on top of a slowly drifting mean.
+    // Autoscale to the window's range, but never finer than 1 um full scale: a
+    // felt pulse moves the pin at least 0.5 um, so a still wire reads as flat.
     let lo = Infinity, hi = -Infinity;
     for (const [, ds] of this.wire) for (const d of ds) { lo = Math.min(lo, d); hi = Math.max(hi, d); }
-    if (!(hi - lo > 0.01)) { const m = Number.isFinite(lo) ? (lo + hi) / 2 : 0; lo = m - 0.005; hi = m + 0.005; }
+    if (!(hi - lo > 1)) { const m = Number.isFinite(lo) ? (lo + hi) / 2 : 0; lo = m - 0.5; hi = m + 0.5; }
     ctx.fillStyle = "#888";
-    ctx.fillText(this.wire.length ? `simulated wire displacement ${lo.toFixed(3)} .. ${hi.toFixed(3)} µm` : "wire displacement (no simulated wire on this output)", 4, top + 12);
+    const states = this.wireState.length ? ` — wire ${this.wireState.join(" / ")}` : "";
+    ctx.fillText(this.wire.length ? `simulated wire displacement ${lo.toFixed(1)} .. ${hi.toFixed(1)} µm${states}` : "wire displacement (no simulated wire on this output)", 4, top + 12);
     const nch = this.wire.length ? this.wire[0][1].length : 0;
     for (let c = 0; c < nch; c++) {
       ctx.strokeStyle = c ? "#c46a00" : "#1f6feb"; ctx.beginPath();
