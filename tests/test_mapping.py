@@ -179,3 +179,35 @@ def test_unknown_preset_and_missing_file():
         tz.Profile.load("/nonexistent/x.toml")
     with pytest.raises(tz.ProfileError, match="neither a preset"):
         tz.Profile.resolve("nope")
+
+
+def test_one_check_for_finite_numbers():
+    from tactilize.errors import DriveError, TactilizeError, check_finite
+
+    assert check_finite(3, "<x>", minimum=0) == 3.0
+    for bad in (float("nan"), float("inf"), True, "1", None, -1.0):
+        with pytest.raises(DriveError) as exc:
+            check_finite(bad, "<speed>", what="speed", error=DriveError, minimum=0.0, unit="m/s")
+        assert exc.value.source == "<speed>" and "speed must be a finite number >= 0 m/s" in exc.value.fault
+    with pytest.raises(TactilizeError):
+        check_finite(2.0, "<a>", minimum=0.0, maximum=1.0)
+    with pytest.raises(TactilizeError):
+        check_finite(0.0, "<a>", above=0.0)
+
+
+def test_catalog_and_experiments_share_one_features_value():
+    from tactilize.catalog import StoredFeatures
+    from tactilize.catalog.reader import Catalog
+    from tactilize.experiments import flow
+    from tactilize.mapping import DriveFeatures, FeaturesForDrive, Profile
+
+    assert StoredFeatures is DriveFeatures
+    assert flow.DriveFeatures is DriveFeatures
+    # an unknown anisotropy is directional everywhere, as Profile.drive assumes
+    assert DriveFeatures(500.0, 0.5).anisotropy == 1.0
+    row = {"status": "ok", "spatial_frequency_per_m": 500.0, "spectral_intensity": 0.5, "orientation_deg": 10.0}
+    assert Catalog.features_of(row).anisotropy == 1.0
+    assert isinstance(DriveFeatures(500.0, 0.5), FeaturesForDrive)
+    # and the paper's law gives the same drive from it as from a full analysis
+    d1 = Profile.preset("physical").drive(DriveFeatures(500.0, 0.5, 30.0, 0.9), 0.05, math.radians(30.0))
+    assert d1.pulse_frequency_hz == pytest.approx(0.05 * 500.0)

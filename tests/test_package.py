@@ -30,3 +30,24 @@ def test_unknown_attribute_is_an_attribute_error():
         assert "no_such_thing" in str(exc)
     else:
         raise AssertionError("expected AttributeError")
+
+
+def test_no_module_is_over_600_lines():
+    import pathlib
+
+    import tactilize
+
+    root = pathlib.Path(tactilize.__file__).parent
+    long = {str(p.relative_to(root)): n for p in root.rglob("*.py") if (n := len(p.read_text("utf-8").splitlines())) > 600}
+    assert not long, long
+
+
+def test_drive_is_a_plain_value_the_wire_needs_no_profile_for():
+    import subprocess
+    import sys
+
+    # The wire physics imports the value, not the laws and profiles.
+    code = "import sys, tactilize.actuators.sma; print('tactilize.mapping' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "False"

@@ -29,7 +29,7 @@ _EXPORTS = {
     "radial_profile": "features",
     "TextureMap": "texturemap",
     "texture_map": "texturemap",
-    "Drive": "mapping",
+    "Drive": "drive",
     "ActuatorLimits": "mapping",
     "Profile": "mapping",
     "preset_names": "mapping",

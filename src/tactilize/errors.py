@@ -8,6 +8,8 @@ print it as one line and exit with status 2.
 
 from __future__ import annotations
 
+import math
+
 
 class TactilizeError(Exception):
     """Base class of every error caused by bad input.
@@ -84,3 +86,56 @@ class RequestError(TactilizeError):
     def to_dict(self) -> dict[str, object]:
         """The answer's body: ``error`` (what is wrong), ``source`` and any detail."""
         return {"error": self.fault, "source": self.source, **self.detail}
+
+
+def check_finite(
+    value: object,
+    source: str,
+    *,
+    what: str = "",
+    error: type[TactilizeError] = TactilizeError,
+    minimum: float | None = None,
+    above: float | None = None,
+    maximum: float | None = None,
+    unit: str = "",
+) -> float:
+    """``value`` as a float, if it is a real finite number within the bounds given.
+
+    The one check every module uses for a number from outside (a profile, a
+    command line, a request): booleans, strings, NaN and infinities are refused.
+
+    Parameters
+    ----------
+    value : object
+        What was given.
+    source : str
+        The input it came from, for the message (``<speed>``, ``--duration``...).
+    what : str
+        The quantity's name, to start the message with ("pulse_width_s").
+    error : type
+        The :class:`TactilizeError` subclass to raise.
+    minimum, above, maximum : float, optional
+        ``value >= minimum``, ``value > above``, ``value <= maximum``.
+    unit : str
+        Unit for the message ("s", "Hz", "m/s").
+
+    Raises
+    ------
+    TactilizeError
+        Of type ``error``: "<what> must be a finite number >= 0 s, got 'x'".
+    """
+    bound = ""
+    if minimum is not None:
+        bound = f" >= {minimum:g}"
+    elif above is not None:
+        bound = f" > {above:g}"
+    if maximum is not None:
+        bound += f" and <= {maximum:g}"
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    if ok:
+        v = float(value)
+        ok = (minimum is None or v >= minimum) and (above is None or v > above) and (maximum is None or v <= maximum)
+    if not ok:
+        head = f"{what} must" if what else "must"
+        raise error(source, f"{head} be a finite number{bound}{' ' + unit if unit else ''}, got {value!r}")
+    return v

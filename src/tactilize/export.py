@@ -41,7 +41,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .errors import SignalError
-from .mapping import Drive
+from .drive import Drive
 from .synthesis import DEFAULT_SAMPLE_RATE_HZ, pulse_train
 
 __all__ = [

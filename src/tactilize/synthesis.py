@@ -52,7 +52,7 @@ import math
 import numpy as np
 
 from .errors import SignalError
-from .mapping import Drive
+from .drive import Drive
 
 __all__ = [
     "pulse_train",

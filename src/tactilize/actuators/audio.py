@@ -22,7 +22,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import OutputError
-from ..mapping import Drive
+from ..drive import Drive
 from ..synthesis import PulseScheduler, PulseStream
 from .base import OutputBase
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Protocol, Sequence, runtime_checkable
 
-from ..mapping import Drive
+from ..drive import Drive
 
 
 @runtime_checkable

@@ -36,7 +36,8 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
 from ..errors import OutputError
-from ..mapping import ActuatorLimits, Drive
+from ..drive import Drive
+from ..mapping import ActuatorLimits
 from . import protocol as P
 from .base import OutputBase
 from .sma import Circuit, SafetyEnvelope, WireController, WireSpec, default_envelope

@@ -29,7 +29,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from ..errors import OutputError
-from ..mapping import Drive
+from ..drive import Drive
 from ..synthesis import PulseScheduler
 from .base import OutputBase
 from .sma import Circuit, SafetyEnvelope, WireController, WireModel, WireSpec, build_envelope

@@ -31,7 +31,7 @@ from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, Field
 
 from ..errors import TactilizeError
-from ..mapping import Drive
+from ..drive import Drive
 from .reader import Catalog
 
 __all__ = ["PREFIX", "catalog_router", "create_catalog_app"]

@@ -12,12 +12,12 @@ import json
 import math
 import os
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from ..errors import CatalogError
-from ..mapping import Drive, Profile
+from ..drive import Drive
+from ..mapping import DriveFeatures, Profile
 from .analysis import DEFAULT_SPEEDS_M_S, speed_label
 from .stores import META_FILE, PART_PREFIX, is_sql_url, safe_url
 
@@ -76,17 +76,9 @@ def read_catalog(location: str | os.PathLike, *, table: str = "catalog"):
     return df.sort_values("id", kind="stable").reset_index(drop=True)
 
 
-@dataclass(frozen=True)
-class StoredFeatures:
-    """The features a stored row keeps that :meth:`Profile.drive` reads.
-
-    Enough to compute a drive at any speed from a catalog row without the image.
-    """
-
-    spatial_frequency_per_m: float
-    spectral_intensity: float
-    orientation_deg: float = 0.0
-    anisotropy: float = 0.0
+#: The features a stored row keeps that :meth:`Profile.drive` reads: the one
+#: value type for that, shared with the experiments.
+StoredFeatures = DriveFeatures
 
 
 class Catalog:
@@ -203,7 +195,8 @@ class Catalog:
             float(row.get("spatial_frequency_per_m") or 0.0),
             float(row.get("spectral_intensity") or 0.0),
             float(row.get("orientation_deg") or 0.0),
-            float(row.get("anisotropy") or 0.0),
+            # Unknown counts as directional, as Profile.drive assumes (every ok row has it).
+            float(row["anisotropy"]) if row.get("anisotropy") is not None else 1.0,
         )
 
     def stored_drives(self, row: dict[str, Any]) -> list[tuple[float, Drive]]:

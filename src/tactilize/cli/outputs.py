@@ -13,7 +13,7 @@ import time
 from typing import Any
 
 from ..errors import OutputError
-from ..mapping import Drive
+from ..drive import Drive
 
 __all__ = ["hold_drive", "run_controller_emulator"]
 

@@ -91,7 +91,7 @@ def simulate_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
 def simulate_raw(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     """One drive exactly as asked, open loop, on an ideal current source."""
     from ..actuators.sma import build_envelope, simulate_drive
-    from ..mapping import Drive
+    from ..drive import Drive
 
     for name, key in (("frequency", "frequency_hz"), ("pulse-width-ms", "pulse_width_ms"), ("current-ma", "current_ma")):
         if opt[key] is None:

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import RequestError, TactilizeError
+from ..mapping import DriveFeatures
 from .protocols import Protocol
 from .store import ExperimentSession, Store, iso, utcnow
 
@@ -33,14 +34,6 @@ MM_PER_PX_RANGE = (0.05, 1.0)
 
 class FlowError(RequestError):
     """A request the flow refuses; ``status`` is the HTTP status to answer with."""
-
-
-@dataclass
-class _Features:
-    spatial_frequency_per_m: float
-    spectral_intensity: float
-    orientation_deg: float = 0.0
-    anisotropy: float = 1.0
 
 
 class Flow:
@@ -81,7 +74,7 @@ class Flow:
             from ..image import load_image
 
             return extract_features(load_image(self._resolve(im).path))
-        return _Features(im.spatial_frequency_per_m, im.spectral_intensity, im.orientation_deg, im.anisotropy)
+        return DriveFeatures(im.spatial_frequency_per_m, im.spectral_intensity, im.orientation_deg, im.anisotropy)
 
     def image_png(self, image_id: str) -> bytes:
         """The picture shown for a protocol image, as PNG bytes."""

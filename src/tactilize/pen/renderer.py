@@ -13,7 +13,8 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable, Sequence
 
-from ..mapping import Drive, Profile
+from ..drive import Drive
+from ..mapping import Profile
 from ..synthesis import pen_channels
 from .samples import PenSample
 from .tracker import StrokeState, StrokeTracker

@@ -47,7 +47,7 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
-from ...mapping import Drive
+from ...drive import Drive
 from .circuit import Circuit
 from .envelope import SafetyEnvelope, build_envelope
 from .simulate import FOLLOW_THRESHOLD_M

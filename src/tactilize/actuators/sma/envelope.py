@@ -30,7 +30,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from ...mapping import Drive
+from ...drive import Drive
 from .circuit import Circuit
 from .wire import WireSpec
 

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import WireError
-from ...mapping import Drive
+from ...drive import Drive
 from .circuit import Circuit
 from .simulate import FOLLOW_THRESHOLD_M
 from .wire import WireSpec

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import WireError
-from ...mapping import Drive
+from ...drive import Drive
 from .circuit import Circuit
 from .model import WireModel
 from .wire import WireSpec

@@ -1,0 +1,109 @@
+"""The pulse drive of one actuator: the value every stage after the laws passes on.
+
+A :class:`Drive` is a small frozen value, checked when made, with no knowledge
+of profiles, laws or wires: the wire physics, the outputs and the exports all
+take one without importing the profile machinery.
+
+Units: SI (Hz, s); ``amplitude`` and ``strength`` are fractions in [0, 1].
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from .errors import DriveError, check_finite
+
+__all__ = ["Drive"]
+
+
+@dataclass(frozen=True)
+class Drive:
+    """One actuator's pulse drive.
+
+    Parameters
+    ----------
+    pulse_frequency_hz : float
+        Pulse repetition frequency [Hz].  0 means the actuator is off.
+    pulse_width_s : float
+        Width of each pulse [s].
+    amplitude : float
+        Pulse height in [0, 1] (the paper's H; it keeps H fixed, so 1.0).  On a
+        voice coil or LRA it is the felt intensity.  On an SMA output it is what
+        the circuit can do: the fraction of each pulse its switch conducts,
+        chopped at tens of kHz (docs/signals-and-wire.md, "The circuit").
+    clamped : tuple of str
+        Names of the limits that changed this drive on its way here
+        (e.g. ``"max_frequency_hz"``, ``"max_duty_ratio"``, ``"envelope"``);
+        empty when the laws' result went through untouched.
+    strength : float or None
+        Where the profile's width law puts this texture between its weakest and
+        strongest, in [0, 1] (:meth:`Profile.drive` sets it).  An actuator with a
+        narrow felt band (the SMA wire) plays this position inside its band
+        rather than the absolute width, which could fall outside it.  None: a
+        hand-made drive; such outputs then place it by its own heat.
+
+    Notes
+    -----
+    ``duty_ratio`` (the paper's W/L) is derived, never stored, so it cannot
+    disagree with frequency and width.
+    """
+
+    pulse_frequency_hz: float
+    pulse_width_s: float
+    amplitude: float = 1.0
+    clamped: tuple[str, ...] = ()
+    strength: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("pulse_frequency_hz", "pulse_width_s"):
+            check_finite(getattr(self, name), "<drive>", what=name, error=DriveError, minimum=0.0)
+        check_finite(self.amplitude, "<drive>", what="amplitude", error=DriveError, minimum=0.0, maximum=1.0)
+        if self.strength is not None:
+            check_finite(self.strength, "<drive>", what="strength", error=DriveError, minimum=0.0, maximum=1.0)
+        if type(self.clamped) is not tuple:
+            # Accept any iterable of names but store an immutable tuple (hashable, comparable).
+            object.__setattr__(self, "clamped", tuple(self.clamped))
+
+    @classmethod
+    def off(cls, clamped: tuple[str, ...] = ()) -> "Drive":
+        """A drive that keeps the actuator off."""
+        return cls(0.0, 0.0, 0.0, clamped)
+
+    @property
+    def is_off(self) -> bool:
+        """True when the drive produces no pulses."""
+        return self.pulse_frequency_hz <= 0 or self.pulse_width_s <= 0 or self.amplitude <= 0
+
+    @property
+    def duty_ratio(self) -> float:
+        """Fraction of time the current is on, W/L = f_p * p_w (dimensionless)."""
+        return self.pulse_frequency_hz * self.pulse_width_s
+
+    @property
+    def period_s(self) -> float:
+        """Pulse period [s]; ``inf`` when off."""
+        return 1.0 / self.pulse_frequency_hz if self.pulse_frequency_hz > 0 else math.inf
+
+    def replace(self, **changes: Any) -> "Drive":
+        """A copy with some fields changed (validated like any new Drive)."""
+        return dataclasses.replace(self, **changes)
+
+    def with_clamp(self, name: str, **changes: Any) -> "Drive":
+        """A copy with fields changed and ``name`` appended to :attr:`clamped`."""
+        clamped = self.clamped if name in self.clamped else self.clamped + (name,)
+        return self.replace(clamped=clamped, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-ready mapping (SI units, plus ``pulse_width_ms`` for display)."""
+        return {
+            "pulse_frequency_hz": self.pulse_frequency_hz,
+            "pulse_width_s": self.pulse_width_s,
+            "pulse_width_ms": self.pulse_width_s * 1e3,
+            "duty_ratio": self.duty_ratio,
+            "amplitude": self.amplitude,
+            "clamped": list(self.clamped),
+            "strength": self.strength,
+        }

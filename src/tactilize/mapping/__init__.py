@@ -1,0 +1,54 @@
+"""The laws that turn texture features and stroking speed into pulse drives.
+
+=============  ==============================================================
+``laws``       the paper's g, h, alpha and the amplitude and direction laws
+``limits``     :class:`ActuatorLimits`: an actuator's band, applied with a record
+``profile``    :class:`Profile` (TOML), presets, and what a drive needs to know
+=============  ==============================================================
+
+The value they make, :class:`~tactilize.drive.Drive`, lives in
+:mod:`tactilize.drive` so that the actuators need none of this.
+"""
+
+from ..drive import Drive
+from .laws import (
+    ConstantAmplitude,
+    ConstantSpeed,
+    ConstantWidth,
+    InverseWidth,
+    LinearFrequency,
+    LinearWidth,
+    LogFrequency,
+    NoDirection,
+    PressureAmplitude,
+    ProjectedSpeed,
+    ProportionalSpeed,
+    SigmoidSpeed,
+    law_from_dict,
+    law_kinds,
+)
+from .limits import ActuatorLimits
+from .profile import DriveFeatures, FeaturesForDrive, Profile, preset_names
+
+__all__ = [
+    "Drive",
+    "ActuatorLimits",
+    "LinearFrequency",
+    "LogFrequency",
+    "SigmoidSpeed",
+    "ConstantSpeed",
+    "ProportionalSpeed",
+    "LinearWidth",
+    "InverseWidth",
+    "ConstantWidth",
+    "ConstantAmplitude",
+    "PressureAmplitude",
+    "NoDirection",
+    "ProjectedSpeed",
+    "Profile",
+    "preset_names",
+    "DriveFeatures",
+    "FeaturesForDrive",
+    "law_from_dict",
+    "law_kinds",
+]

@@ -1,0 +1,243 @@
+"""Profiles: one law of each role, the actuator limits, stored as TOML; and what a drive needs to know.
+
+A :class:`Profile` composes a frequency law g, a speed law alpha, a width law h,
+an amplitude law and a direction law, plus the :class:`ActuatorLimits` it was
+tuned for.  Presets ship as TOML in ``tactilize/profiles``.  :meth:`Profile.drive`
+is pure: features and stroke in, a :class:`~tactilize.drive.Drive` out.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
+
+from ..drive import Drive
+from ..errors import DriveError, ProfileError, check_finite
+from .laws import ConstantAmplitude, LinearWidth, LogFrequency, NoDirection, SigmoidSpeed, law_from_dict
+from .limits import ActuatorLimits
+
+__all__ = ["Profile", "preset_names", "DriveFeatures", "FeaturesForDrive"]
+
+
+@runtime_checkable
+class FeaturesForDrive(Protocol):
+    """What :meth:`Profile.drive` reads from a texture's features.
+
+    :class:`~tactilize.features.TextureFeatures` has all of it; so has
+    :class:`DriveFeatures`, the plain value the catalog and the experiments make
+    from stored numbers.
+    """
+
+    spatial_frequency_per_m: float
+    spectral_intensity: float
+    orientation_deg: float
+    anisotropy: float
+
+
+@dataclass(frozen=True)
+class DriveFeatures:
+    """The four numbers a drive needs, when there is no image to analyse.
+
+    Attributes
+    ----------
+    spatial_frequency_per_m : float
+        Dominant spatial frequency [cycles/m].
+    spectral_intensity : float
+        The paper's i_s, in [0, 1].
+    orientation_deg : float
+        Direction of the wave vector [deg], counter-clockwise from +x, y up.
+    anisotropy : float
+        In [0, 1]; 1 (directional) when unknown, as :meth:`Profile.drive` assumes.
+    """
+
+    spatial_frequency_per_m: float
+    spectral_intensity: float
+    orientation_deg: float = 0.0
+    anisotropy: float = 1.0
+
+
+@dataclass(frozen=True)
+class Profile:
+    """A complete mapping from texture features and stroke to a :class:`Drive`.
+
+    Use :meth:`preset`, :meth:`load` or build one from law objects.  A profile is
+    pure: :meth:`drive` has no side effects and keeps no state.
+    """
+
+    name: str = "custom"
+    frequency: Any = field(default_factory=LogFrequency)
+    speed: Any = field(default_factory=SigmoidSpeed)
+    width: Any = field(default_factory=LinearWidth)
+    amplitude: Any = field(default_factory=ConstantAmplitude)
+    direction: Any = field(default_factory=NoDirection)
+    limits: ActuatorLimits = field(default_factory=ActuatorLimits)
+    description: str = ""
+
+    # -- the laws
+
+    def drive(
+        self,
+        features: Any,
+        speed_m_s: float,
+        direction_rad: float | None = None,
+        pressure: float | None = None,
+        *,
+        limits: ActuatorLimits | None = None,
+    ) -> Drive:
+        """The drive for a texture stroked at a given speed.
+
+        Parameters
+        ----------
+        features : TextureFeatures
+            Anything with ``spatial_frequency_per_m`` [cycles/m],
+            ``spectral_intensity`` in [0, 1] and ``orientation_deg`` [deg].
+        speed_m_s : float
+            Stroking speed [m/s], >= 0.
+        direction_rad : float, optional
+            Stroke direction [rad], counter-clockwise from the image's +x axis
+            with y pointing up (the same frame as ``orientation_deg``).
+        pressure : float, optional
+            Pen pressure in [0, 1]; None when the input has none.
+        limits : ActuatorLimits, optional
+            Overrides the profile's own actuator limits.
+
+        Returns
+        -------
+        Drive
+            Clamped into the limits; ``clamped`` names every limit that acted.
+        """
+        check_finite(speed_m_s, "<speed>", what="speed", error=DriveError, minimum=0.0, unit="m/s")
+        if direction_rad is not None:
+            check_finite(direction_rad, "<direction>", what="direction", error=DriveError)
+        if pressure is not None:
+            check_finite(pressure, "<pressure>", what="pressure", error=DriveError)
+        f_s = float(features.spatial_frequency_per_m)
+        i_s = float(features.spectral_intensity)
+        if f_s <= 0:
+            # No periodic content: nothing to render (g would give 0 Hz anyway
+            # for the log law, and a linear law must not be asked to guess).
+            return Drive.off()
+        wave_angle = math.radians(float(getattr(features, "orientation_deg", 0.0)))
+        v = speed_m_s
+        if getattr(features, "anisotropy", 1.0) >= getattr(self.direction, "min_anisotropy", 0.0):
+            v = self.direction.effective_speed(speed_m_s, direction_rad, wave_angle)
+        f_p = self.speed(v) * self.frequency(f_s)
+        p_w = self.width(i_s)
+        amp = min(1.0, max(0.0, self.amplitude(pressure)))
+        if f_p <= 0 or p_w <= 0 or amp <= 0:
+            return Drive.off()
+        position = getattr(self.width, "position", None)
+        strength = position(i_s) if position is not None else None
+        return (limits or self.limits).apply(Drive(f_p, p_w, amp, (), strength))
+
+    # -- storage
+
+    @classmethod
+    def preset(cls, name: str) -> "Profile":
+        """A profile shipped with tactilize (see :func:`preset_names`)."""
+        if name not in preset_names():
+            raise ProfileError(name, f"no such preset (known: {', '.join(preset_names())})")
+        text = resources.files("tactilize.profiles").joinpath(f"{name}.toml").read_text("utf-8")
+        return cls.from_toml(text, source=f"preset {name}")
+
+    @classmethod
+    def load(cls, path: str | Path) -> "Profile":
+        """Read a profile from a TOML file."""
+        p = Path(path)
+        try:
+            text = p.read_text("utf-8")
+        except FileNotFoundError:
+            raise ProfileError(str(path), "file not found") from None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ProfileError(str(path), f"cannot read ({exc.__class__.__name__})") from None
+        return cls.from_toml(text, source=str(path))
+
+    @classmethod
+    def resolve(cls, name_or_path: str | Path | None) -> "Profile":
+        """A preset by name, or a TOML file by path; the paper preset for None."""
+        if name_or_path is None:
+            return cls.preset("paper")
+        text = str(name_or_path)
+        if text in preset_names():
+            return cls.preset(text)
+        if text.endswith(".toml") or Path(text).exists():
+            return cls.load(text)
+        raise ProfileError(text, f"neither a preset ({', '.join(preset_names())}) nor a TOML file")
+
+    @classmethod
+    def from_toml(cls, text: str, source: str = "<toml>") -> "Profile":
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ProfileError(source, f"invalid TOML ({exc})") from None
+        return cls.from_dict(data, source=source)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], source: str = "<dict>") -> "Profile":
+        known = {"name", "description", "frequency", "speed", "width", "amplitude", "direction", "actuator"}
+        unknown = set(data) - known
+        if unknown:
+            raise ProfileError(source, f"unknown section(s) {', '.join(sorted(unknown))}")
+        for role in ("frequency", "speed", "width"):
+            if role not in data:
+                raise ProfileError(source, f"missing [{role}] section")
+        kwargs: dict[str, Any] = {
+            "name": str(data.get("name", Path(source).stem if source.endswith(".toml") else "custom")),
+            "description": str(data.get("description", "")),
+        }
+        for role in ("frequency", "speed", "width", "amplitude", "direction"):
+            if role in data:
+                kwargs[role] = law_from_dict(role, data[role], source)
+        if "actuator" in data:
+            act = dict(data["actuator"])
+            fields_ = {f.name for f in dataclasses.fields(ActuatorLimits)}
+            unknown = set(act) - fields_
+            if unknown:
+                raise ProfileError(source, f"[actuator] unknown key(s) {', '.join(sorted(unknown))}")
+            try:
+                kwargs["limits"] = ActuatorLimits(**act)
+            except TypeError as exc:
+                raise ProfileError(source, f"[actuator] {exc}") from None
+            except ProfileError as exc:
+                raise ProfileError(source, f"[actuator] {exc.fault}") from None
+        return cls(**kwargs)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "description": self.description,
+            "frequency": self.frequency.to_dict(),
+            "speed": self.speed.to_dict(),
+            "width": self.width.to_dict(),
+            "amplitude": self.amplitude.to_dict(),
+            "direction": self.direction.to_dict(),
+            "actuator": self.limits.to_dict(),
+        }
+
+    def to_toml(self) -> str:
+        import tomli_w
+
+        return tomli_w.dumps(self.to_dict())
+
+    def save(self, path: str | Path) -> Path:
+        """Write this profile as TOML (readable back with :meth:`load`)."""
+        p = Path(path)
+        try:
+            p.write_text(self.to_toml(), "utf-8")
+        except OSError as exc:
+            raise ProfileError(str(path), f"cannot write ({exc.strerror or exc})") from None
+        return p
+
+    def replace(self, **changes: Any) -> "Profile":
+        return dataclasses.replace(self, **changes)
+
+
+def preset_names() -> list[str]:
+    """Names of the profiles shipped in ``tactilize/profiles``."""
+    root = resources.files("tactilize.profiles")
+    return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith(".toml"))
