@@ -188,7 +188,7 @@ def test_one_check_for_finite_numbers():
     for bad in (float("nan"), float("inf"), True, "1", None, -1.0):
         with pytest.raises(DriveError) as exc:
             check_finite(bad, "<speed>", what="speed", error=DriveError, minimum=0.0, unit="m/s")
-        assert exc.value.source == "<speed>" and "speed must be a finite number >= 0 m/s" in exc.value.fault
+        assert exc.value.source == "<speed>" and "speed must be a finite number >= 0 [m/s]" in exc.value.fault
     with pytest.raises(TactilizeError):
         check_finite(2.0, "<a>", minimum=0.0, maximum=1.0)
     with pytest.raises(TactilizeError):

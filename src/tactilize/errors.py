@@ -137,5 +137,8 @@ def check_finite(
         ok = (minimum is None or v >= minimum) and (above is None or v > above) and (maximum is None or v <= maximum)
     if not ok:
         head = f"{what} must" if what else "must"
-        raise error(source, f"{head} be a finite number{bound}{' ' + unit if unit else ''}, got {value!r}")
+        kind = "a finite number"
+        if above == 0 and minimum is None:
+            kind, bound = "a positive finite number", bound.replace(" > 0", "", 1)
+        raise error(source, f"{head} be {kind}{bound}{' [' + unit + ']' if unit else ''}, got {value!r}")
     return v

@@ -40,7 +40,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .errors import SignalError
+from .errors import SignalError, check_finite
 from .drive import Drive
 from .synthesis import DEFAULT_SAMPLE_RATE_HZ, pulse_train
 
@@ -77,9 +77,7 @@ def _drives(drive: Drive | Sequence[Drive]) -> list[Drive]:
 
 
 def _duration(duration_s: float) -> float:
-    if not isinstance(duration_s, (int, float)) or not math.isfinite(duration_s) or duration_s <= 0:
-        raise SignalError("<duration>", f"must be a finite number > 0 s, got {duration_s!r}")
-    return float(duration_s)
+    return check_finite(duration_s, "<duration>", error=SignalError, above=0.0, unit="s")
 
 
 def _open_for_write(path: str | Path) -> Path:

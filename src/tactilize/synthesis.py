@@ -51,7 +51,7 @@ import math
 
 import numpy as np
 
-from .errors import SignalError
+from .errors import SignalError, check_finite
 from .drive import Drive
 
 __all__ = [
@@ -80,9 +80,7 @@ def _round(x: float) -> int:
 
 
 def _check_rate(sample_rate_hz: float) -> float:
-    if not isinstance(sample_rate_hz, (int, float)) or not math.isfinite(sample_rate_hz) or sample_rate_hz <= 0:
-        raise SignalError("<sample rate>", f"must be a finite number > 0 Hz, got {sample_rate_hz!r}")
-    return float(sample_rate_hz)
+    return check_finite(sample_rate_hz, "<sample rate>", error=SignalError, above=0.0, unit="Hz")
 
 
 def _check_drive(drive: Drive) -> Drive:
@@ -148,10 +146,8 @@ def pulse_train(drive: Drive, duration_s: float, sample_rate_hz: float = DEFAULT
     """
     _check_drive(drive)
     fs = _check_rate(sample_rate_hz)
-    if not isinstance(duration_s, (int, float)) or not math.isfinite(duration_s) or duration_s < 0:
-        raise SignalError("<duration>", f"must be a finite number >= 0 s, got {duration_s!r}")
-    if not isinstance(phase_s, (int, float)) or not math.isfinite(phase_s):
-        raise SignalError("<phase>", f"must be a finite number of seconds, got {phase_s!r}")
+    check_finite(duration_s, "<duration>", error=SignalError, minimum=0.0, unit="s")
+    check_finite(phase_s, "<phase>", error=SignalError, unit="s")
     n = _round(duration_s * fs)
     if drive.is_off or n == 0:
         return np.zeros(n, dtype=np.float32)
@@ -374,8 +370,7 @@ def soa_s(burst_s: float) -> float:
     ----------
     .. [1] docs/references.md, section 4 (apparent movement).
     """
-    if not isinstance(burst_s, (int, float)) or not math.isfinite(burst_s) or burst_s <= 0:
-        raise SignalError("<burst>", f"burst duration must be a finite number > 0 s, got {burst_s!r}")
+    check_finite(burst_s, "<burst>", what="burst duration", error=SignalError, above=0.0, unit="s")
     return SOA_SLOPE * burst_s + SOA_OFFSET_S
 
 
@@ -517,8 +512,7 @@ def pen_pulse_trains(
 ) -> np.ndarray:
     """Both channels of the pen for a steady drive, shape (N, 2) float32 (see :class:`PenStream`)."""
     fs = _check_rate(sample_rate_hz)
-    if not isinstance(duration_s, (int, float)) or not math.isfinite(duration_s) or duration_s < 0:
-        raise SignalError("<duration>", f"must be a finite number >= 0 s, got {duration_s!r}")
+    check_finite(duration_s, "<duration>", error=SignalError, minimum=0.0, unit="s")
     s = PenStream(fs, mode=mode, burst_s=burst_s, axis_rad=axis_rad)
     s.set_drive(drive, direction_rad)
     return s.render(_round(duration_s * fs))

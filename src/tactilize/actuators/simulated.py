@@ -20,7 +20,6 @@ The plant may differ from what the controller was told (``plant_wire``,
 
 from __future__ import annotations
 
-import math
 import threading
 import time
 from collections import deque
@@ -28,7 +27,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from ..errors import OutputError
+from ..errors import OutputError, check_finite
 from ..drive import Drive
 from ..synthesis import PulseScheduler
 from .base import OutputBase
@@ -123,8 +122,7 @@ class SimulatedOutput(OutputBase):
             raise OutputError("<simulated>", f"channels must be a positive integer, got {channels!r}")
         for name, v in (("trace_seconds", trace_seconds), ("trace_rate_hz", trace_rate_hz), ("tick_s", tick_s),
                         ("standby_s", standby_s)):
-            if not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-                raise OutputError("<simulated>", f"{name} must be a finite number > 0, got {v!r}")
+            check_finite(v, "<simulated>", what=name, error=OutputError, above=0.0)
         self.channels = channels
         self.envelope = envelope if envelope is not None else build_envelope(self.spec, self.circuit)
         self.tick_s = float(tick_s)

@@ -17,7 +17,7 @@ from typing import Any
 
 import click
 
-from ..errors import TactilizeError
+from ..errors import TactilizeError, check_finite
 from ..web.encode import dumps
 
 BAD_INPUT = 2
@@ -54,9 +54,7 @@ def emit_json(doc: Any) -> None:
 
 def _positive(name: str):
     def check(ctx, param, value):
-        if value is not None and (not math.isfinite(value) or value <= 0):
-            raise TactilizeError(f"--{name}", f"must be a positive number, got {value}")
-        return value
+        return value if value is None else check_finite(value, f"--{name}", above=0.0)
 
     return check
 
@@ -129,8 +127,7 @@ def drive(
     from ..image import load_image
     from ..mapping import Profile
 
-    if not math.isfinite(speed_mm_s) or speed_mm_s < 0:
-        raise TactilizeError("--speed", f"must be a number >= 0 mm/s, got {speed_mm_s}")
+    check_finite(speed_mm_s, "--speed", minimum=0.0, unit="mm/s")
     if hold_s is not None and (not math.isfinite(hold_s) or hold_s < 0 or output_spec is None):
         raise TactilizeError("--hold", "needs --output and a number of seconds >= 0")
     profile = Profile.resolve(profile_name)
@@ -270,8 +267,8 @@ def _wire_option(wire: str, length_mm: float | None):
     """The wire named by ``--wire`` (and ``--length-mm``), errors naming the option."""
     from ..actuators.sma import WireSpec
 
-    if length_mm is not None and (not math.isfinite(length_mm) or length_mm <= 0):
-        raise TactilizeError("--length-mm", f"must be a positive number, got {length_mm}")
+    if length_mm is not None:
+        check_finite(length_mm, "--length-mm", above=0.0, unit="mm")
     try:
         return WireSpec.preset(wire, length_m=None if length_mm is None else length_mm / 1e3)
     except TactilizeError as exc:
@@ -379,10 +376,8 @@ def export_cmd(
 
     if fmt.lower() not in FORMATS:
         raise TactilizeError("--format", f"unknown format {fmt!r} (use one of: {', '.join(FORMATS)})")
-    if not math.isfinite(speed_mm_s) or speed_mm_s < 0:
-        raise TactilizeError("--speed", f"must be a number >= 0 mm/s, got {speed_mm_s}")
-    if not math.isfinite(duration_s) or duration_s <= 0 or duration_s > 600:
-        raise TactilizeError("--duration", f"must be a number in (0, 600] s, got {duration_s}")
+    check_finite(speed_mm_s, "--speed", minimum=0.0, unit="mm/s")
+    check_finite(duration_s, "--duration", above=0.0, maximum=600.0, unit="s")
     if dpi is not None and width_mm is not None:
         raise TactilizeError("--dpi/--width-mm", "give one of them, not both")
     profile = Profile.resolve(profile_name)

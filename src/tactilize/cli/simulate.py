@@ -6,16 +6,14 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from ..errors import TactilizeError
+from ..errors import TactilizeError, check_finite
 
 __all__ = ["simulate_stroke", "simulate_raw", "envelope_table"]
 
 
 def _finite(name: str, value: float | None, *, positive: bool = True) -> None:
-    if value is None:
-        return
-    if not math.isfinite(value) or value < 0 or (positive and value == 0):
-        raise TactilizeError(f"--{name}", f"must be a {'positive' if positive else 'non-negative'} number, got {value}")
+    if value is not None:
+        check_finite(value, f"--{name}", above=0.0 if positive else None, minimum=None if positive else 0.0)
 
 
 def _wire_and_circuit(opt: dict[str, Any]):
@@ -39,8 +37,8 @@ def simulate_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     _finite("duration", opt["duration_s"])
     if opt["duration_s"] is not None and opt["duration_s"] > 600:
         raise TactilizeError("--duration", f"at most 600 s, got {opt['duration_s']}")
-    if opt["direction_deg"] is not None and not math.isfinite(opt["direction_deg"]):
-        raise TactilizeError("--direction", f"must be a finite number, got {opt['direction_deg']}")
+    if opt["direction_deg"] is not None:
+        check_finite(opt["direction_deg"], "--direction", unit="deg")
     if opt["texture_id"] is not None:
         from ..data import get_texture, texture_ids
 

@@ -42,7 +42,6 @@ the store records it anyway.
 from __future__ import annotations
 
 import hashlib
-import math
 import random
 import re
 import tomllib
@@ -51,7 +50,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from ..errors import TactilizeError
+from ..errors import TactilizeError, check_finite
 
 __all__ = [
     "ProtocolError",
@@ -350,8 +349,7 @@ class Protocol:
 
 
 def _num(source: str, where: str, value: Any, lo: float | None = None, hi: float | None = None) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ProtocolError(source, f"{where} must be a finite number, got {value!r}")
+    check_finite(value, source, what=where, error=ProtocolError)
     if (lo is not None and value < lo) or (hi is not None and value > hi):
         raise ProtocolError(source, f"{where} must be in [{lo}, {hi}], got {value!r}")
     return float(value)

@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import WireError
+from ...errors import WireError, check_finite
 from .wire import WireSpec
 
 __all__ = ["Circuit", "circuit_names", "SWITCH_OHM", "SENSE_OHM"]
@@ -96,9 +96,7 @@ class Circuit:
         if self.kind not in ("voltage", "current"):
             raise WireError(src, f"kind must be 'voltage' or 'current', got {self.kind!r}")
         for key in ("supply_v", "source_ohm", "current_a", "headroom_v"):
-            v = getattr(self, key)
-            if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v) or v < 0:
-                raise WireError(src, f"{key} must be a finite number >= 0, got {v!r}")
+            check_finite(getattr(self, key), src, what=key, error=WireError, minimum=0.0)
         if self.supply_v <= 0:
             raise WireError(src, "supply_v must be > 0")
         if self.kind == "voltage" and self.source_ohm <= 0:
@@ -154,9 +152,8 @@ class Circuit:
     def ideal_current(cls, current_a: float) -> "Circuit":
         """An ideal current source of ``current_a`` [A] (no compliance limit): the
         current asked for is the current that flows, whatever the wire does."""
-        if not isinstance(current_a, (int, float)) or not math.isfinite(current_a) or current_a <= 0:
-            raise WireError("<current>", f"current must be a finite number > 0 A, got {current_a!r}")
-        return cls("ideal-current", "current", 1e9, 0.0, current_a=float(current_a), headroom_v=0.0)
+        i = check_finite(current_a, "<current>", what="current", error=WireError, above=0.0, unit="A")
+        return cls("ideal-current", "current", 1e9, 0.0, current_a=i, headroom_v=0.0)
 
     def replace(self, **changes: Any) -> "Circuit":
         return dataclasses.replace(self, **changes)

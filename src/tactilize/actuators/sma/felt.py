@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import WireError
+from ...errors import WireError, check_finite
 from ...drive import Drive
 from .circuit import Circuit
 from .simulate import FOLLOW_THRESHOLD_M
@@ -110,8 +110,7 @@ def feel(
     f = drive.pulse_frequency_hz
     if duration_s is None:
         duration_s = max(1.5, 4.0 / f) if f > 0 else 1.5
-    if not (isinstance(duration_s, (int, float)) and math.isfinite(duration_s) and duration_s > 0):
-        raise WireError("<duration>", f"duration must be a finite number > 0 s, got {duration_s!r}")
+    check_finite(duration_s, "<duration>", what="duration", error=WireError, above=0.0, unit="s")
     out = SimulatedOutput(wire, circuit=circuit, channels=1, start=False, closed_loop=closed_loop,
                           plant_wire=plant_wire, plant_circuit=plant_circuit, trace_seconds=0.1,
                           trace_rate_hz=100.0, standby_s=3600.0)

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import WireError
+from ...errors import WireError, check_finite
 from ...drive import Drive
 from .circuit import Circuit
 from .model import WireModel
@@ -158,9 +158,7 @@ class SimulationResult:
 
 
 def _check_dt(dt_s: float) -> float:
-    if not isinstance(dt_s, (int, float)) or not math.isfinite(dt_s) or dt_s <= 0:
-        raise WireError("<dt>", f"time step must be a finite number > 0 s, got {dt_s!r}")
-    return float(dt_s)
+    return check_finite(dt_s, "<dt>", what="time step", error=WireError, above=0.0, unit="s")
 
 
 def _sample(model: WireModel, rec: list[float], n: int, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -280,8 +278,7 @@ def simulate_drive(
     spec = WireSpec.resolve(wire)
     if not isinstance(drive, Drive):
         raise WireError("<drive>", f"expected a Drive, got {type(drive).__name__}")
-    if not isinstance(duration_s, (int, float)) or not math.isfinite(duration_s) or duration_s <= 0:
-        raise WireError("<duration>", f"duration must be a finite number > 0 s, got {duration_s!r}")
+    check_finite(duration_s, "<duration>", what="duration", error=WireError, above=0.0, unit="s")
     if not drive.is_off and drive.pulse_width_s >= drive.period_s:
         raise WireError("<drive>", f"pulse width {drive.pulse_width_s:g} s does not fit in the period {drive.period_s:g} s")
     if not (0.0 <= bias_level <= 1.0):

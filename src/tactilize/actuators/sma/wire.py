@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
 
-from ...errors import WireError
+from ...errors import WireError, check_finite
 
 __all__ = ["WireSpec", "wire_names", "MODEL_VERSION"]
 
@@ -109,11 +109,8 @@ class WireSpec:
         for f in dataclasses.fields(self):
             if f.name == "name":
                 continue
-            v = getattr(self, f.name)
-            if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
-                raise WireError(src, f"{f.name} must be a finite number, got {v!r}")
-            if f.name not in _TEMPERATURE_FIELDS and v <= 0:
-                raise WireError(src, f"{f.name} must be > 0, got {v!r}")
+            above = None if f.name in _TEMPERATURE_FIELDS else 0.0
+            check_finite(getattr(self, f.name), src, what=f.name, error=WireError, above=above)
         if not (self.austenite_start_c < self.austenite_finish_c and self.martensite_finish_c < self.martensite_start_c):
             raise WireError(src, "need A_s < A_f and M_f < M_s")
         # The restart curves divide by how much of a branch is left at the reversal
