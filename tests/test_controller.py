@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from tactilize.actuators.simulated import SimulatedOutput
@@ -202,7 +202,17 @@ class _Feat:
     orientation_deg: float = 0.0
 
 
-@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+_STIFF_6A = Profile("hostile", LogFrequency(1.0), SigmoidSpeed(), LinearWidth(1.0, 0.0, 1e-5), ConstantAmplitude(0.3),
+                    limits=ActuatorLimits(max_frequency_hz=50.0, max_pulse_width_s=0.015625, max_duty_ratio=0.5))
+_STIFF_8A = Profile("hostile", LinearFrequency(4.0), SigmoidSpeed(), LinearWidth(1.0, 1.0, 1e-5), ConstantAmplitude(0.3),
+                    limits=ActuatorLimits(max_frequency_hz=187.0, max_pulse_width_s=0.015625, max_duty_ratio=0.5))
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+# Found by this test: a warming burst at 6 A (bursts are now cut to the envelope's
+# per-burst heat), and pulses shorter than the schedule's 1 us rounded up (now down).
+@example(_STIFF_6A, 20.0, 1.0, 1.0, None, Circuit("drawn", "voltage", supply_v=4.0, source_ohm=0.125), True)
+@example(_STIFF_8A, 20.0, 0.0, 85.0, None, Circuit("drawn", "voltage", supply_v=6.0, source_ohm=0.0625), False)
 @given(
     profile=profiles(),
     f_s=st.floats(20.0, 5000.0),

@@ -321,6 +321,9 @@ class SimulatedOutput(OutputBase):
                 ch.open_pulse = (t, x0, ch.model.displacement_m)
         while cursor < n:
             step = min(n - cursor, _PIECE_US[ctrl.state])
+            if ctrl.state == "warming":
+                # Each burst is short enough that the envelope's bound holds for it alone.
+                step = max(1, min(step, int(ctrl.burst_s() * _US)))
             want = ctrl.drive if ctrl.pulses_on else Drive.off()
             if want != ch.scheduled:
                 if want.is_off:
@@ -339,8 +342,12 @@ class SimulatedOutput(OutputBase):
                 self._close_pulse(ch)
                 ctrl.update(ch.model.time_s)
                 plan = ctrl.plan(want)
-                width_us = max(1, int(round(plan.pulse_width_s * _US)))
+                # Rounded down to the schedule's microsecond: never more heat than planned.
+                width_us = int(plan.pulse_width_s * _US)
                 ch.width_s, ch.current_a = width_us * 1e-6, ch.model.current_a
+                if width_us <= 0:
+                    pos = s
+                    continue
                 x0 = ch.model.displacement_m
                 on = min(width_us, step - s)
                 self._piece(ch, on, 1.0, rec, marks, cursor + s)

@@ -348,6 +348,12 @@ class WireController:
         closed loop (the sense resistor), the circuit's worst case open loop."""
         return self.on_power_w if self.closed_loop else self.envelope.max_power_w
 
+    def burst_s(self) -> float:
+        """Longest warming burst [s] before the resistance must be read again: the
+        heat the envelope allows one burst from a wire bounded below A_f, at the
+        heat the circuit delivers (measured in closed loop, its worst open loop)."""
+        return self.envelope.max_boost_j(self.spec.austenite_finish_c) / self._bound_power_w()
+
     def warming_allowed(self) -> bool:
         """A full-on burst is safe only while the resistance bounds the wire below A_f."""
         return self.martensite_fraction >= WARM_ALLOWED_ABOVE and self.envelope.max_boost_j(
