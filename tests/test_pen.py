@@ -431,7 +431,9 @@ def test_the_pen_does_not_load_the_web_server():
 
 
 def test_lift_and_hover_rest_the_output_in_standby_where_it_has_one():
-    class Standing:
+    from tactilize.actuators.base import OutputBase
+
+    class Standing(OutputBase):
         channels = 2
 
         def __init__(self):

@@ -17,13 +17,14 @@ from fastapi.testclient import TestClient
 
 from tactilize.mapping import Drive, Profile
 from tactilize.data import png_bytes
+from tactilize.actuators.base import OutputBase
 from tactilize.web import create_app
 from tactilize.web import session as session_mod
 from tactilize.web.rows import DEFAULT_M_PER_CSS_PX, sample_error, samples_from_css
 from tactilize.web.serve import bind_socket, is_loopback
 
 
-class FakeOutput:
+class FakeOutput(OutputBase):
     """Records what the server applies; halves nothing, clamps nothing."""
 
     channels = 2
@@ -43,12 +44,6 @@ class FakeOutput:
 
     def close(self):
         self.closed = True
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
 
 
 @pytest.fixture(scope="module")

@@ -32,16 +32,18 @@ References
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import wave
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from .errors import SignalError, check_finite
 from .drive import Drive
+from .errors import SignalError, check_finite
 from .synthesis import DEFAULT_SAMPLE_RATE_HZ, pulse_train
 
 __all__ = [
@@ -51,6 +53,12 @@ __all__ = [
     "export_csv",
     "export_json",
     "export_ahap",
+    "ExportFormat",
+    "export_format",
+    "render",
+    "wav_bytes",
+    "csv_bytes",
+    "drive_document",
     "export_android",
     "ahap_pattern",
     "android_waveform",
@@ -58,7 +66,6 @@ __all__ = [
     "intensity_from_drive",
 ]
 
-FORMATS = ("wav", "csv", "json", "ahap", "android")
 #: AHAP sharpness 0..1 is commonly mapped to 65..300 Hz:
 #: docs/references.md, section 6 (AHAP sharpness and frequency).
 SHARPNESS_LOW_HZ = 65.0
@@ -93,20 +100,17 @@ def _signals(drives: list[Drive], duration_s: float, sample_rate_hz: float) -> n
     return np.stack([pulse_train(d, duration_s, sample_rate_hz) for d in drives], axis=1)
 
 
-def export_wav(
+def wav_bytes(
     drive: Drive | Sequence[Drive],
-    path: str | Path,
     duration_s: float = 2.0,
     sample_rate_hz: int = DEFAULT_SAMPLE_RATE_HZ,
-) -> Path:
-    """A 16-bit PCM WAV of the pulse train (one channel per drive).
+) -> bytes:
+    """A 16-bit PCM WAV of the pulse train (one channel per drive), as bytes.
 
     Parameters
     ----------
     drive : Drive or list of Drive
         One drive per channel; amplitude 1 is full scale (32767).
-    path : str or Path
-        File to write.
     duration_s : float
         Length [s].
     sample_rate_hz : int
@@ -114,20 +118,45 @@ def export_wav(
     """
     drives = _drives(drive)
     duration = _duration(duration_s)
-    if not isinstance(sample_rate_hz, int) or sample_rate_hz <= 0:
+    if not isinstance(sample_rate_hz, int) or isinstance(sample_rate_hz, bool) or sample_rate_hz <= 0:
         raise SignalError("<sample rate>", f"WAV needs a whole positive number of Hz, got {sample_rate_hz!r}")
-    p = _open_for_write(path)
     x = _signals(drives, duration, sample_rate_hz)
     pcm = np.round(np.clip(x, 0.0, 1.0) * 32767).astype("<i2")
-    try:
-        with wave.open(str(p), "wb") as w:
-            w.setnchannels(len(drives))
-            w.setsampwidth(2)
-            w.setframerate(sample_rate_hz)
-            w.writeframes(pcm.tobytes())
-    except OSError as exc:
-        raise SignalError(str(path), f"cannot write ({exc.strerror or exc})") from None
-    return p
+    buf = io.BytesIO()
+    with wave.open(buf, "wb") as w:
+        w.setnchannels(len(drives))
+        w.setsampwidth(2)
+        w.setframerate(sample_rate_hz)
+        w.writeframes(pcm.tobytes())
+    return buf.getvalue()
+
+
+def csv_bytes(
+    drive: Drive | Sequence[Drive],
+    duration_s: float = 2.0,
+    sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ,
+) -> bytes:
+    """The samples as CSV: ``time_s`` then one column per channel (``channel_0``...)."""
+    drives = _drives(drive)
+    duration = _duration(duration_s)
+    x = _signals(drives, duration, sample_rate_hz)
+    t = np.arange(x.shape[0]) / float(sample_rate_hz)
+    buf = io.StringIO(newline="")
+    wr = csv.writer(buf)
+    wr.writerow(["time_s"] + [f"channel_{i}" for i in range(len(drives))])
+    # repr-exact times, compact sample values
+    wr.writerows([f"{ti:.9g}"] + [f"{v:.6g}" for v in row] for ti, row in zip(t, x.tolist()))
+    return buf.getvalue().encode("utf-8")
+
+
+def export_wav(
+    drive: Drive | Sequence[Drive],
+    path: str | Path,
+    duration_s: float = 2.0,
+    sample_rate_hz: int = DEFAULT_SAMPLE_RATE_HZ,
+) -> Path:
+    """Write :func:`wav_bytes` to ``path``."""
+    return _write(path, wav_bytes(drive, duration_s, sample_rate_hz))
 
 
 def export_csv(
@@ -136,46 +165,41 @@ def export_csv(
     duration_s: float = 2.0,
     sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ,
 ) -> Path:
-    """The samples as CSV: ``time_s`` then one column per channel (``channel_0``...)."""
-    drives = _drives(drive)
-    duration = _duration(duration_s)
+    """Write :func:`csv_bytes` to ``path``."""
+    return _write(path, csv_bytes(drive, duration_s, sample_rate_hz))
+
+
+def _write(path: str | Path, data: bytes) -> Path:
     p = _open_for_write(path)
-    x = _signals(drives, duration, sample_rate_hz)
-    t = np.arange(x.shape[0]) / float(sample_rate_hz)
     try:
-        with p.open("w", newline="", encoding="utf-8") as fh:
-            wr = csv.writer(fh)
-            wr.writerow(["time_s"] + [f"channel_{i}" for i in range(len(drives))])
-            # repr-exact times, compact sample values
-            wr.writerows([f"{ti:.9g}"] + [f"{v:.6g}" for v in row] for ti, row in zip(t, x.tolist()))
+        p.write_bytes(data)
     except OSError as exc:
         raise SignalError(str(path), f"cannot write ({exc.strerror or exc})") from None
     return p
 
 
-def export_json(drive: Drive | Sequence[Drive], path: str | Path, duration_s: float = 2.0, **extra: Any) -> Path:
-    """The drive parameters as JSON (SI units), plus anything in ``extra`` (features, speed...)."""
+def drive_document(drive: Drive | Sequence[Drive], duration_s: float = 2.0, **extra: Any) -> dict[str, Any]:
+    """The drive parameters as a JSON-ready document (SI units), plus anything in ``extra``."""
     drives = _drives(drive)
-    duration = _duration(duration_s)
-    p = _open_for_write(path)
-    doc = {
+    return {
         "format": "tactilize-drive",
         "version": 1,
-        "duration_s": duration,
+        "duration_s": _duration(duration_s),
         "channels": [d.to_dict() for d in drives],
         **extra,
     }
-    _write_json(p, doc, path)
-    return p
 
 
-def _write_json(p: Path, doc: Any, source: Any) -> None:
+def export_json(drive: Drive | Sequence[Drive], path: str | Path, duration_s: float = 2.0, **extra: Any) -> Path:
+    """Write :func:`drive_document` as JSON."""
+    return _write(path, _json_bytes(drive_document(drive, duration_s, **extra), path))
+
+
+def _json_bytes(doc: Any, source: Any) -> bytes:
     try:
-        p.write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n", "utf-8")
+        return (json.dumps(doc, indent=2, allow_nan=False) + "\n").encode("utf-8")
     except ValueError:
         raise SignalError(str(source), "a value is not finite (JSON has no NaN)") from None
-    except OSError as exc:
-        raise SignalError(str(source), f"cannot write ({exc.strerror or exc})") from None
 
 
 # --------------------------------------------------------------------------- phones
@@ -285,11 +309,7 @@ def ahap_pattern(drive: Drive, duration_s: float = 2.0) -> dict[str, Any]:
 
 def export_ahap(drive: Drive, path: str | Path, duration_s: float = 2.0) -> Path:
     """Write :func:`ahap_pattern` as an ``.ahap`` (JSON) file."""
-    if not isinstance(drive, Drive):
-        raise SignalError("<drive>", "AHAP export takes one Drive")
-    p = _open_for_write(path)
-    _write_json(p, ahap_pattern(drive, duration_s), path)
-    return p
+    return _write(path, render(drive, "ahap", duration_s))
 
 
 def android_waveform(drive: Drive, duration_s: float = 2.0) -> dict[str, Any]:
@@ -346,25 +366,73 @@ def android_waveform(drive: Drive, duration_s: float = 2.0) -> dict[str, Any]:
 
 def export_android(drive: Drive, path: str | Path, duration_s: float = 2.0) -> Path:
     """Write :func:`android_waveform` as JSON."""
-    if not isinstance(drive, Drive):
-        raise SignalError("<drive>", "Android export takes one Drive")
-    p = _open_for_write(path)
-    _write_json(p, android_waveform(drive, duration_s), path)
-    return p
+    return _write(path, render(drive, "android", duration_s))
+
+
+def _one(drive: Drive | Sequence[Drive]) -> Drive:
+    """Phone formats play one actuator: a single drive, or the first of a list."""
+    if isinstance(drive, Drive):
+        return drive
+    drives = _drives(drive)
+    return drives[0]
+
+
+@dataclass(frozen=True)
+class ExportFormat:
+    """One file format: its name, file suffix, media type and how to make its bytes.
+
+    ``render(drive, duration_s, sample_rate_hz, extra) -> bytes``.
+    """
+
+    name: str
+    suffix: str
+    media_type: str
+    render: Callable[[Any, float, int, dict[str, Any]], bytes]
+    description: str
+
+
+#: Every export format, by name: the CLI, :func:`export` and the catalog's HTTP API read this.
+FORMATS: dict[str, ExportFormat] = {
+    f.name: f
+    for f in (
+        ExportFormat("wav", ".wav", "audio/wav", lambda d, t, fs, x: wav_bytes(d, t, fs),
+                     "16-bit PCM pulse train, one channel per drive"),
+        ExportFormat("csv", ".csv", "text/csv", lambda d, t, fs, x: csv_bytes(d, t, fs),
+                     "the samples: time_s, channel_0, ..."),
+        ExportFormat("json", ".json", "application/json",
+                     lambda d, t, fs, x: _json_bytes(drive_document(d, t, **x), "<json>"),
+                     "the drive parameters in SI units"),
+        ExportFormat("ahap", ".ahap", "application/json",
+                     lambda d, t, fs, x: _json_bytes(ahap_pattern(_one(d), t), "<ahap>"),
+                     "Apple Core Haptics pattern"),
+        ExportFormat("android", ".json", "application/json",
+                     lambda d, t, fs, x: _json_bytes(android_waveform(_one(d), t), "<android>"),
+                     "Android VibrationEffect waveform and API 36 envelope"),
+    )
+}
+
+
+def export_format(fmt: str) -> ExportFormat:
+    """The :class:`ExportFormat` named ``fmt`` (any case)."""
+    key = str(fmt).strip().lower()
+    if key not in FORMATS:
+        raise SignalError(str(fmt), f"unknown export format (use one of: {', '.join(FORMATS)})")
+    return FORMATS[key]
+
+
+def render(
+    drive: Drive | Sequence[Drive],
+    fmt: str,
+    duration_s: float = 2.0,
+    *,
+    sample_rate_hz: int = DEFAULT_SAMPLE_RATE_HZ,
+    **extra: Any,
+) -> bytes:
+    """The bytes of ``drive`` in format ``fmt`` (see :data:`FORMATS`); ``extra`` goes into JSON."""
+    return export_format(fmt).render(drive, duration_s, sample_rate_hz, extra)
 
 
 def export(drive: Drive | Sequence[Drive], path: str | Path, fmt: str, duration_s: float = 2.0, **extra: Any) -> Path:
     """Write ``drive`` in format ``fmt`` (one of :data:`FORMATS`); ``extra`` goes into JSON."""
-    key = str(fmt).strip().lower()
-    if key not in FORMATS:
-        raise SignalError(str(fmt), f"unknown export format (use one of: {', '.join(FORMATS)})")
-    if key == "wav":
-        return export_wav(drive, path, duration_s)
-    if key == "csv":
-        return export_csv(drive, path, duration_s)
-    if key == "json":
-        return export_json(drive, path, duration_s, **extra)
-    single = _drives(drive)[0]
-    if key == "ahap":
-        return export_ahap(single, path, duration_s)
-    return export_android(single, path, duration_s)
+    data = render(drive, fmt, duration_s, **extra)
+    return _write(path, data)

@@ -1,14 +1,29 @@
 """The one protocol every output implements (simulated wire, serial controller, audio).
 
-An output receives one :class:`~tactilize.mapping.Drive` per channel (the pen has
+An output receives one :class:`~tactilize.drive.Drive` per channel (the pen has
 two actuators) with :meth:`Output.apply`, and :meth:`Output.stop` turns every
 channel off.  Outputs are context managers: leaving the ``with`` block stops and
 closes them, so an exception never leaves an actuator heating.
+
+Besides those, an output has a few capabilities the pen server and the CLI use,
+all declared here with what an output that lacks them answers
+(:class:`OutputBase` gives those defaults, so callers never guess):
+
+=========================  ===================================================
+``channels``               how many actuators (2)
+``amplitude_is_intensity`` amplitude is felt intensity (True) or, on the SMA
+                           wire, a place in its felt band (False)
+``standby()``              texture off, actuators held ready (default: stop)
+``after_batch()``          a time-critical step just ended (default: nothing)
+``traces(seconds)``        recent traces for the page, or None (no simulation)
+``connected``              the device answers (True)
+``events``                 what happened to the connection, as (time, kind, detail)
+=========================  ===================================================
 """
 
 from __future__ import annotations
 
-from typing import Protocol, Sequence, runtime_checkable
+from typing import Any, Protocol, Sequence, runtime_checkable
 
 from ..drive import Drive
 
@@ -40,6 +55,22 @@ class Output(Protocol):
 
     def __exit__(self, *exc: object) -> None: ...
 
+    amplitude_is_intensity: bool
+    connected: bool
+    events: Sequence[tuple[float, str, str]]
+
+    def standby(self) -> None:
+        """Texture off, actuators held ready for the next touch."""
+        ...
+
+    def after_batch(self) -> None:
+        """A time-critical step (a pen batch) just ended."""
+        ...
+
+    def traces(self, seconds: float = 2.0) -> dict[str, Any] | None:
+        """Recent traces for the page, or None."""
+        ...
+
 
 class OutputBase:
     """Shared plumbing: context manager and a check on the number of channels."""
@@ -50,11 +81,23 @@ class OutputBase:
     #: wire's felt band and both pins play the same drive.
     amplitude_is_intensity: bool = True
 
+    #: the device answers (outputs on a link override it)
+    connected: bool = True
+    #: (time [s], kind, detail) of what happened to the connection
+    events: Sequence[tuple[float, str, str]] = ()
+
     def standby(self) -> None:
         """Texture off, actuators held ready for the next touch (the pen lifted or
         hovers).  Outputs with nothing to hold ready just stop; the SMA outputs
         keep the wire just below its transformation for a while."""
         self.stop()
+
+    def after_batch(self) -> None:
+        """A time-critical step just ended (nothing to do by default)."""
+
+    def traces(self, seconds: float = 2.0) -> dict[str, Any] | None:
+        """Recent traces for the page; None: this output simulates nothing."""
+        return None
 
     def __enter__(self):
         return self

@@ -22,16 +22,15 @@ its reason; its drive and exports answer 409.
 from __future__ import annotations
 
 import os
-import tempfile
-from pathlib import Path
 from typing import Any, Literal
 
 from fastapi import APIRouter, FastAPI, Query
-from fastapi.responses import JSONResponse, Response
+from fastapi.responses import Response
 from pydantic import BaseModel, Field
 
-from ..errors import TactilizeError
 from ..drive import Drive
+from ..errors import RequestError
+from ..web.http import ErrorAnsweringRoute
 from .reader import Catalog
 
 __all__ = ["PREFIX", "catalog_router", "create_catalog_app"]
@@ -137,32 +136,14 @@ def _drive_doc(drv: Drive, speed_m_s: float) -> DriveAtSpeed:
     return DriveAtSpeed(speed_mm_s=speed_m_s * 1e3, **drv.to_dict())
 
 
-def _error(status: int, message: str) -> JSONResponse:
-    return JSONResponse({"error": message}, status_code=status)
+def _export_response(drive: Drive, fmt: str, product_id: str, duration_s: float, sample_rate_hz: int) -> Response:
+    """One export, in the format tactilize.export defines (the one registry of formats)."""
+    from ..export import export_format, render
 
-
-# ----------------------------------------------------------------- exports
-# The formats are tactilize.export's; this module only serves them.
-
-
-def _export_ahap(drv: Drive, duration_s: float) -> dict[str, Any]:
-    from ..export import ahap_pattern
-
-    return ahap_pattern(drv, duration_s)
-
-
-def _export_android(drv: Drive, duration_s: float) -> dict[str, Any]:
-    from ..export import android_waveform
-
-    return android_waveform(drv, duration_s)
-
-
-def _export_wav(drv: Drive, duration_s: float, sample_rate_hz: int) -> bytes:
-    from ..export import export_wav
-
-    # export_wav writes files; a scratch file keeps the bytes identical to `tactilize export`'s.
-    with tempfile.TemporaryDirectory(prefix="tz-wav-") as tmp:
-        return export_wav(drv, Path(tmp) / "drive.wav", duration_s, int(sample_rate_hz)).read_bytes()
+    spec = export_format(fmt)
+    data = render(drive, spec.name, duration_s, sample_rate_hz=sample_rate_hz)
+    name = f"{_file_stem(product_id)}{spec.suffix}"
+    return Response(data, media_type=spec.media_type, headers={"Content-Disposition": f'attachment; filename="{name}"'})
 
 
 # ----------------------------------------------------------------- the router
@@ -184,21 +165,22 @@ def catalog_router(catalog: Catalog | str | os.PathLike, *, prefix: str = PREFIX
         Mount it with ``app.include_router(router)`` (or ``create_app(extra_routers=[router])``).
     """
     cat = catalog if isinstance(catalog, Catalog) else Catalog(catalog)
-    r = APIRouter(prefix=prefix, tags=["catalog"])
+    # Routes raise RequestError (404, 409) or any TactilizeError (422): answered as JSON.
+    r = APIRouter(prefix=prefix, tags=["catalog"], route_class=ErrorAnsweringRoute)
     missing = {404: {"model": ErrorMessage, "description": "No product with this id."}}
     failed = {409: {"model": ErrorMessage, "description": "The product's image could not be analysed."}}
 
-    def lookup(product_id: str) -> tuple[dict[str, Any] | None, JSONResponse | None]:
+    def lookup(product_id: str) -> dict[str, Any]:
         row = cat.get(product_id)
         if row is None:
-            return None, _error(404, f"no product {product_id!r} in the catalog")
-        return row, None
+            raise RequestError(product_id, f"no product {product_id!r} in the catalog", 404)
+        return row
 
-    def ok_row(product_id: str) -> tuple[dict[str, Any] | None, JSONResponse | None]:
-        row, err = lookup(product_id)
-        if err is None and row.get("status") != "ok":
-            return None, _error(409, f"product {product_id!r} has no tactile profile: {row.get('error')}")
-        return row, err
+    def ok_row(product_id: str) -> dict[str, Any]:
+        row = lookup(product_id)
+        if row.get("status") != "ok":
+            raise RequestError(product_id, f"product {product_id!r} has no tactile profile: {row.get('error')}", 409)
+        return row
 
     speed_q = Query(60.0, ge=0.0, le=5000.0, description="Stroking speed [mm/s].")
     duration_q = Query(1.0, gt=0.0, le=MAX_EXPORT_S, description="Length of the export [s].")
@@ -224,9 +206,7 @@ def catalog_router(catalog: Catalog | str | os.PathLike, *, prefix: str = PREFIX
         summary="The drive of a product at any stroking speed",
     )
     def product_drive(product_id: str, speed_mm_s: float = speed_q) -> Any:
-        row, err = ok_row(product_id)
-        if err is not None:
-            return err
+        row = ok_row(product_id)
         return _drive_doc(cat.drive(row, speed_mm_s * 1e-3), speed_mm_s * 1e-3)
 
     @r.get(
@@ -235,14 +215,7 @@ def catalog_router(catalog: Catalog | str | os.PathLike, *, prefix: str = PREFIX
         summary="Apple AHAP pattern of the product stroked at a speed",
     )
     def export_ahap(product_id: str, speed_mm_s: float = speed_q, duration_s: float = duration_q) -> Any:
-        row, err = ok_row(product_id)
-        if err is not None:
-            return err
-        try:
-            doc = _export_ahap(cat.drive(row, speed_mm_s * 1e-3), duration_s)
-        except TactilizeError as exc:
-            return _error(422, f"{exc.source}: {exc.fault}")
-        return JSONResponse(doc, headers={"Content-Disposition": f'attachment; filename="{_file_stem(product_id)}.ahap"'})
+        return _export_response(cat.drive(ok_row(product_id), speed_mm_s * 1e-3), "ahap", product_id, duration_s, 48_000)
 
     @r.get(
         "/products/{product_id:path}/export/android",
@@ -251,13 +224,7 @@ def catalog_router(catalog: Catalog | str | os.PathLike, *, prefix: str = PREFIX
         summary="Android VibrationEffect waveform of the product stroked at a speed",
     )
     def export_android(product_id: str, speed_mm_s: float = speed_q, duration_s: float = duration_q) -> Any:
-        row, err = ok_row(product_id)
-        if err is not None:
-            return err
-        try:
-            return _export_android(cat.drive(row, speed_mm_s * 1e-3), duration_s)
-        except TactilizeError as exc:
-            return _error(422, f"{exc.source}: {exc.fault}")
+        return _export_response(cat.drive(ok_row(product_id), speed_mm_s * 1e-3), "android", product_id, duration_s, 48_000)
 
     @r.get(
         "/products/{product_id:path}/export/wav",
@@ -275,18 +242,7 @@ def catalog_router(catalog: Catalog | str | os.PathLike, *, prefix: str = PREFIX
         duration_s: float = duration_q,
         sample_rate_hz: int = Query(48_000, ge=8_000, le=192_000, description="Samples per second [Hz]."),
     ) -> Any:
-        row, err = ok_row(product_id)
-        if err is not None:
-            return err
-        try:
-            data = _export_wav(cat.drive(row, speed_mm_s * 1e-3), duration_s, sample_rate_hz)
-        except TactilizeError as exc:
-            return _error(422, f"{exc.source}: {exc.fault}")
-        return Response(
-            data,
-            media_type="audio/wav",
-            headers={"Content-Disposition": f'attachment; filename="{_file_stem(product_id)}.wav"'},
-        )
+        return _export_response(cat.drive(ok_row(product_id), speed_mm_s * 1e-3), "wav", product_id, duration_s, sample_rate_hz)
 
     @r.get(
         "/products/{product_id:path}",
@@ -295,10 +251,7 @@ def catalog_router(catalog: Catalog | str | os.PathLike, *, prefix: str = PREFIX
         summary="The tactile profile of a product",
     )
     def product(product_id: str) -> Any:
-        row, err = lookup(product_id)
-        if err is not None:
-            return err
-        return _profile_doc(cat, row)
+        return _profile_doc(cat, lookup(product_id))
 
     return r
 

@@ -41,18 +41,18 @@ def hold_drive(spec: str, drive: Drive, hold_s: float, channels: int = 2) -> dic
         # this loop only waits, and notices a lost controller early.
         while (remaining := deadline - time.monotonic()) > 0:
             time.sleep(min(0.05, remaining))
-            if getattr(out, "connected", True) is False:
+            if not out.connected:
                 break
         held_s = time.monotonic() - started
-        lost = [detail for _, kind, detail in getattr(out, "events", ()) if kind == "lost"]
-        if lost or getattr(out, "connected", True) is False:
+        lost = [detail for _, kind, detail in out.events if kind == "lost"]
+        if lost or not out.connected:
             why = lost[0] if lost else "disconnected"
             raise OutputError(spec, f"controller lost after {held_s:.2f} s of the hold ({why})")
         try:
             out.stop()  # raises OutputError when a connected controller does not acknowledge
         except OutputError as exc:
             # The controller can vanish between the last wait and the stop.
-            if getattr(out, "connected", True) is False:
+            if not out.connected:
                 raise OutputError(spec, f"controller lost after {held_s:.2f} s of the hold ({exc.fault})") from None
             raise
     finally:

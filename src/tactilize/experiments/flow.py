@@ -404,7 +404,6 @@ class StrokeHandler:
                          "pulse_width_s": drive.pulse_width_s, "amplitude": drive.amplitude})
         self.flow.store.log_samples(trial.id, rows)
         if self.output is not None:
-            n = int(getattr(self.output, "channels", 2) or 2)
-            self.output.apply([drive] * n)
+            self.output.apply([drive] * int(self.output.channels))
         return {"type": "drive", "trial": idx, "image": image_id, "speed_mm_s": speed * 1e3,
                 "logged": len(rows), "drive": drive.to_dict()}

@@ -13,6 +13,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable, Sequence
 
+from ..actuators.base import OutputBase
 from ..drive import Drive
 from ..mapping import Profile
 from ..synthesis import pen_channels
@@ -105,7 +106,7 @@ def default_splitter(output: Any) -> Callable[[Drive, int, StrokeState | None], 
     still on a diagonal stroke), so both pins play the texture's drive as in
     the paper's pen.  Outputs say which with ``amplitude_is_intensity``.
     """
-    if getattr(output, "amplitude_is_intensity", True):
+    if output is None or output.amplitude_is_intensity:
         return _phantom_channels
     return _equal_channels
 
@@ -163,7 +164,7 @@ class PenRenderer:
         self.profile = profile or Profile.preset("paper")
         self.output = output
         self.tracker = tracker or StrokeTracker()
-        self.channels = int(getattr(output, "channels", channels) or channels)
+        self.channels = channels if output is None else int(output.channels)
         self.splitter = splitter or default_splitter(output)
         self._off = [Drive.off()] * self.channels
         self._running = False  # did we leave the output driven?
@@ -229,11 +230,7 @@ class PenRenderer:
         """Texture pulses off; an output that can hold its actuators ready does."""
         if self.output is None:
             return
-        standby = getattr(self.output, "standby", None)
-        if standby is not None:
-            standby()
-        else:
-            self.output.stop()
+        self.output.standby()
 
     def _render(self, state: StrokeState | None) -> RenderResult:
         # No state: every sample so far was rejected, nothing is known about the pen.
@@ -289,7 +286,7 @@ def _close(a: Sequence[Drive], b: Sequence[Drive], rel: float) -> bool:
 
 
 @dataclass
-class _Recorder:
+class _Recorder(OutputBase):
     """An output that only records (for tests and the server's last resort)."""
 
     channels: int = 2
@@ -303,12 +300,3 @@ class _Recorder:
 
     def stop(self) -> None:
         self.stops += 1
-
-    def close(self) -> None:
-        self.stop()
-
-    def __enter__(self) -> "_Recorder":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

@@ -380,7 +380,7 @@ def _api_router() -> APIRouter:
             "default_mm_per_px": s.m_per_px * 1e3,
             "profile": s.profile.name,
             "output": s.output_name,
-            "channels": int(getattr(s.output, "channels", 2)),
+            "channels": int(s.output.channels),
             "max_upload_bytes": MAX_UPLOAD_BYTES,
             "card_mm": [85.60, 53.98],
         }

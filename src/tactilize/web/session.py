@@ -323,7 +323,7 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
     closed = asyncio.Event()
     # Outputs that do background work in Python (the simulated wire) do it
     # between batches when told that one has just been sent.
-    after_batch = getattr(state.output, "after_batch", None)
+    after_batch = state.output.after_batch
     drive_sent = asyncio.Event()
 
     async def send(doc: dict[str, Any]) -> None:
@@ -348,8 +348,7 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
             await send(msg)
             if arrival:
                 state.latency_ns.append(time.perf_counter_ns() - arrival)
-            if after_batch is not None:
-                after_batch()
+            after_batch()
             drive_sent.set()
             state.counters["drives_sent"] += 1
             session.schedule_idle(loop)
@@ -438,9 +437,9 @@ def _wire_source(output: Any):
     thinned to about 1 kHz (the wire is a low-pass filter; the page's plot is
     720 px wide for 0.5 s).
     """
-    fn = getattr(output, "traces", None)
-    if not callable(fn):
+    if output.traces(0.0) is None:
         return None
+    fn = output.traces
     last_t = [-math.inf]
     span_s = 2 * WIRE_PERIOD_S
 
