@@ -122,23 +122,19 @@ def check_finite(
     Raises
     ------
     TactilizeError
-        Of type ``error``: "<what> must be a finite number >= 0 s, got 'x'".
+        Of type ``error``: "<what> must be a finite number >= 0 [s], got 'x'".
     """
-    bound = ""
-    if minimum is not None:
-        bound = f" >= {minimum:g}"
-    elif above is not None:
-        bound = f" > {above:g}"
-    if maximum is not None:
-        bound += f" and <= {maximum:g}"
     ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
     if ok:
         v = float(value)
         ok = (minimum is None or v >= minimum) and (above is None or v > above) and (maximum is None or v <= maximum)
     if not ok:
-        head = f"{what} must" if what else "must"
+        bound = f" >= {minimum:g}" if minimum is not None else f" > {above:g}" if above is not None else ""
+        if maximum is not None:
+            bound += f" and <= {maximum:g}"
         kind = "a finite number"
         if above == 0 and minimum is None:
             kind, bound = "a positive finite number", bound.replace(" > 0", "", 1)
+        head = f"{what} must" if what else "must"
         raise error(source, f"{head} be {kind}{bound}{' [' + unit + ']' if unit else ''}, got {value!r}")
     return v
