@@ -44,6 +44,11 @@ class Drive:
         narrow felt band (the SMA wire) plays this position inside its band
         rather than the absolute width, which could fall outside it.  None: a
         hand-made drive; such outputs then place it by its own heat.
+    regularity : float or None
+        How evenly the pulses follow each other, in [0, 1]: 1 (or None) an even
+        train, a grating; lower for irregular, noisy surfaces, whose pulses then
+        jitter around the same mean frequency (tactilize.synthesis, "Irregular
+        textures").
 
     Notes
     -----
@@ -56,13 +61,16 @@ class Drive:
     amplitude: float = 1.0
     clamped: tuple[str, ...] = ()
     strength: float | None = None
+    regularity: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("pulse_frequency_hz", "pulse_width_s"):
             check_finite(getattr(self, name), "<drive>", what=name, error=DriveError, minimum=0.0)
         check_finite(self.amplitude, "<drive>", what="amplitude", error=DriveError, minimum=0.0, maximum=1.0)
-        if self.strength is not None:
-            check_finite(self.strength, "<drive>", what="strength", error=DriveError, minimum=0.0, maximum=1.0)
+        for name in ("strength", "regularity"):
+            value = getattr(self, name)
+            if value is not None:
+                check_finite(value, "<drive>", what=name, error=DriveError, minimum=0.0, maximum=1.0)
         if type(self.clamped) is not tuple:
             # Accept any iterable of names but store an immutable tuple (hashable, comparable).
             object.__setattr__(self, "clamped", tuple(self.clamped))
@@ -106,4 +114,5 @@ class Drive:
             "amplitude": self.amplitude,
             "clamped": list(self.clamped),
             "strength": self.strength,
+            "regularity": self.regularity,
         }

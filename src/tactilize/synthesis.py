@@ -30,6 +30,17 @@ Positions are exact (fractional) and rounded half up when a pulse starts, so at
 sample resolution two starts are at least ``floor(period * fs)`` samples apart,
 the same spacing a steady train has.
 
+Irregular textures
+------------------
+A drive whose ``regularity`` is below 1 (a noisy, non-periodic surface) has its
+pulses moved from their places on the even grid: pulse ``k`` starts at
+``(k + j u_k) / f`` with ``u_k`` uniform in [-1/2, 1/2) from a seeded table and
+``j = JITTER_MAX_PERIODS (1 - regularity)`` periods (less when the pulses would
+otherwise touch).  The positions stay locked to the grid, so the mean frequency is
+exactly the drive's and nothing drifts; the intervals between pulses vary with a
+coefficient of variation ``j / sqrt(6)`` (0.245 at regularity 0).  The same seed
+gives the same train, in one piece or block by block.
+
 Two channels (the pen's two actuators)
 --------------------------------------
 :func:`pen_channels` places a phantom actuator by the energy model
@@ -48,6 +59,7 @@ References
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 
@@ -64,6 +76,8 @@ __all__ = [
     "phantom_amplitudes",
     "phantom_beta",
     "soa_s",
+    "jitter_periods",
+    "JITTER_MAX_PERIODS",
     "DEFAULT_SAMPLE_RATE_HZ",
 ]
 
@@ -72,6 +86,38 @@ DEFAULT_SAMPLE_RATE_HZ = 48_000
 #: SOA = 0.32 d + 47.3 ms (Israr and Poupyrev 2011): docs/references.md, section 4 (apparent movement).
 SOA_SLOPE = 0.32
 SOA_OFFSET_S = 47.3e-3
+
+
+#: Largest pulse-position jitter [periods], at regularity 0: each pulse moves up to
+#: 0.3 of a period either way, so the intervals' coefficient of variation is
+#: 0.6 / sqrt(6) = 0.245, above the fingertip's frequency Weber fraction (about 0.2,
+#: docs/references.md, section 3 (frequency discrimination)): successive intervals
+#: differ by more than a frequency JND.  No interval is shorter than 0.4 of a
+#: period, so the SMA wire still relaxes between pulses and follows every one
+#: (at 0.8 it missed some on the finest built-in textures at 160 mm/s).
+JITTER_MAX_PERIODS = 0.6
+_JITTER_TABLE = 4096  # pulses before the pattern repeats: 13 s at 300 Hz
+
+
+@lru_cache(maxsize=16)
+def _jitter_table(seed: int) -> np.ndarray:
+    """The seeded offsets u_k in [-1/2, 1/2) (read-only)."""
+    t = np.random.default_rng(seed).uniform(-0.5, 0.5, _JITTER_TABLE)
+    t.flags.writeable = False
+    return t
+
+
+def jitter_periods(drive: Drive, period_samples: float, width_samples: int) -> float:
+    """Depth ``j`` of a drive's pulse-position jitter [periods] (0 for a regular drive).
+
+    Two neighbours may move toward each other by ``j`` periods; ``j`` is capped so
+    that they still leave one sample between them.
+    """
+    regularity = drive.regularity
+    if regularity is None or regularity >= 1.0:
+        return 0.0
+    room = 1.0 - (width_samples + 1) / period_samples
+    return max(0.0, min(JITTER_MAX_PERIODS * (1.0 - regularity), room))
 
 
 def _round(x: float) -> int:
@@ -123,7 +169,14 @@ def _fill(n: int, starts: np.ndarray, ends: np.ndarray, amplitude: float, out: n
     return out
 
 
-def pulse_train(drive: Drive, duration_s: float, sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ, *, phase_s: float = 0.0) -> np.ndarray:
+def pulse_train(
+    drive: Drive,
+    duration_s: float,
+    sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ,
+    *,
+    phase_s: float = 0.0,
+    seed: int = 0,
+) -> np.ndarray:
     """The pulse train of a drive as a sampled signal.
 
     Parameters
@@ -138,6 +191,8 @@ def pulse_train(drive: Drive, duration_s: float, sample_rate_hz: float = DEFAULT
         Pulse starts are at ``phase_s + k / f`` [s] for every integer ``k``: the
         buffer is a window on an endless train, so a pulse that began before 0
         shows its remaining samples.
+    seed : int
+        Seed of the jitter of an irregular drive (see "Irregular textures").
 
     Returns
     -------
@@ -155,8 +210,10 @@ def pulse_train(drive: Drive, duration_s: float, sample_rate_hz: float = DEFAULT
     offset = phase_s * fs
     k0 = math.floor((-offset - width) / period) - 1
     k1 = math.ceil((n - offset) / period) + 1
-    k = np.arange(k0, k1 + 1, dtype=np.float64)
-    starts = np.floor(offset + k * period + 0.5).astype(np.int64)
+    k = np.arange(k0, k1 + 1, dtype=np.int64)
+    j = jitter_periods(drive, period, width)
+    place = k + j * _jitter_table(seed)[k % _JITTER_TABLE] if j else k.astype(np.float64)
+    starts = np.floor(offset + place * period + 0.5).astype(np.int64)
     keep = (starts < n) & (starts + width > 0)
     starts = starts[keep]
     return _fill(n, starts, starts + width, drive.amplitude)
@@ -176,10 +233,18 @@ class PulseScheduler:
     ----------
     sample_rate_hz : float
         Resolution of the schedule [Hz].
+    seed : int
+        Seed of the jitter of irregular drives.
     """
 
-    def __init__(self, sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ) -> None:
+    def __init__(self, sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ, seed: int = 0) -> None:
         self.sample_rate_hz = _check_rate(sample_rate_hz)
+        self._table = _jitter_table(int(seed))
+        self._j = 0.0  # jitter depth of the current drive [periods]
+        # Jitter table index of the current drive's pulse 0: it runs on across drive
+        # changes (a pen changes the drive every few pulses), so the pattern does not
+        # restart, and repeat, at every change.
+        self._base = 0
         self.position = 0  # absolute sample index of the next block
         self._drive = Drive.off()
         self._period = math.inf
@@ -207,7 +272,11 @@ class PulseScheduler:
             nxt = max(nxt, self._last_start + period)
         nxt = max(nxt, float(self._last_end + 1) if self._last_start is not None else nxt)
         self._drive, self._period, self._width = drive, period, width
-        self._anchor, self._k = nxt, 0
+        self._j = jitter_periods(drive, period, width)
+        self._base += self._k
+        # Pulse 0 of the new schedule must not move before ``nxt``: shift the grid by
+        # the largest backward jitter so the rule above still holds.
+        self._anchor, self._k = nxt + 0.5 * self._j * period, 0
 
     def next_block(self, n: int) -> tuple[np.ndarray | list[int], int, float]:
         """Pulses starting in the next ``n`` samples; advances the position.
@@ -226,28 +295,32 @@ class PulseScheduler:
         self.position = end
         if self._width == 0 or n <= 0:
             return [], 0, 0.0
-        a, P, k = self._anchor, self._period, self._k
-        first = math.floor(a + k * P + 0.5)
+        a, P, k, j, tab, b = self._anchor, self._period, self._k, self._j, self._table, self._base
+        first = math.floor(a + (k + j * tab[(b + k) % _JITTER_TABLE]) * P + 0.5)
         if first >= end:
             return [], self._width, self._drive.amplitude
         m = int((end - first) / P) + 2
         if m <= 64:
             few = []
             while True:
-                st = math.floor(a + k * P + 0.5)
+                place = k + j * tab[(b + k) % _JITTER_TABLE]
+                st = math.floor(a + place * P + 0.5)
                 if st >= end:
                     break
                 few.append(st - pos)
+                last = place
                 k += 1
             self._k = k
-            self._last_start = a + (k - 1) * P
+            self._last_start = a + last * P
             self._last_end = few[-1] + pos + self._width
             return few, self._width, self._drive.amplitude
-        kk = k + np.arange(m, dtype=np.float64)
-        starts = np.floor(a + kk * P + 0.5).astype(np.int64)
-        starts = starts[starts < end]
+        kk = k + np.arange(m, dtype=np.int64)
+        place = kk + j * tab[(b + kk) % _JITTER_TABLE] if j else kk.astype(np.float64)
+        starts = np.floor(a + place * P + 0.5).astype(np.int64)
+        keep = starts < end
+        starts = starts[keep]
         self._k = k + starts.size
-        self._last_start = a + (self._k - 1) * P
+        self._last_start = a + float(place[keep][-1]) * P
         self._last_end = int(starts[-1]) + self._width
         return starts - pos, self._width, self._drive.amplitude
 

@@ -254,7 +254,7 @@ class SerialOutput(OutputBase):
         if self._planner is not None:
             plan = self._planner.plan(drive)
             clamped = drive.clamped + tuple(n for n in plan.clamped if n not in drive.clamped)
-            drive = Drive(drive.pulse_frequency_hz, plan.pulse_width_s, plan.level, clamped, drive.strength)
+            drive = drive.replace(pulse_width_s=plan.pulse_width_s, amplitude=plan.level, clamped=clamped)
         safe = self.envelope.apply(drive)
         limits = self._controller_limits
         if limits is not None and not safe.is_off:

@@ -180,7 +180,7 @@ class SimulatedOutput(OutputBase):
                     continue
                 plan = ch.ctrl.plan(d)
                 clamped = d.clamped + tuple(n for n in plan.clamped if n not in d.clamped)
-                out = Drive(d.pulse_frequency_hz, plan.pulse_width_s, plan.level, clamped, d.strength)
+                out = d.replace(pulse_width_s=plan.pulse_width_s, amplitude=plan.level, clamped=clamped)
                 applied.append(out)
         self._hand_over("apply", drives)
         self._drives = applied
@@ -331,7 +331,8 @@ class SimulatedOutput(OutputBase):
                     ch.sched.set_drive(want)
                 else:
                     plan = ctrl.plan(want)
-                    ch.sched.set_drive(Drive(want.pulse_frequency_hz, max(plan.pulse_width_s, 1e-6)))
+                    ch.sched.set_drive(Drive(want.pulse_frequency_hz, max(plan.pulse_width_s, 1e-6),
+                                             regularity=want.regularity))
                 ch.scheduled = want
             starts, _, _ = ch.sched.next_block(step)
             pos = 0

@@ -179,6 +179,7 @@ def _row_from_image(img: TextureImage, settings: AnalysisSettings) -> dict[str, 
         row[prefix + "clamped"] = ",".join(drv.clamped)
         # Where the width law puts the texture in an actuator's felt band (None when off).
         row[prefix + "strength"] = float(drv.strength) if drv.strength is not None else None
+        row[prefix + "regularity"] = float(drv.regularity) if drv.regularity is not None else None
     return row
 
 

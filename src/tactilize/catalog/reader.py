@@ -197,6 +197,7 @@ class Catalog:
             float(row.get("orientation_deg") or 0.0),
             # Unknown counts as directional, as Profile.drive assumes (every ok row has it).
             float(row["anisotropy"]) if row.get("anisotropy") is not None else 1.0,
+            float(row["periodicity"]) if row.get("periodicity") is not None else 1.0,
         )
 
     def stored_drives(self, row: dict[str, Any]) -> list[tuple[float, Drive]]:
@@ -207,7 +208,8 @@ class Catalog:
         for speed in self.speeds_m_s:
             p = f"drive_{speed_label(speed)}_"
             clamped = row.get(p + "clamped") or ""
-            strength = row.get(p + "strength")  # absent in catalogs from before it was stored
+            # Absent in catalogs from before they were stored; NaN in a float column means None.
+            strength, regularity = row.get(p + "strength"), row.get(p + "regularity")
             out.append(
                 (
                     speed,
@@ -217,6 +219,7 @@ class Catalog:
                         float(row[p + "amplitude"]),
                         tuple(c for c in clamped.split(",") if c),
                         None if strength is None or strength != strength else float(strength),
+                        None if regularity is None or regularity != regularity else float(regularity),
                     ),
                 )
             )

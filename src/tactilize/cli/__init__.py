@@ -245,7 +245,7 @@ def batch(
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address to bind; anything but loopback must be asked for.")
 @click.option("--port", type=click.IntRange(0, 65535), default=8765, show_default=True, help="TCP port (0: any free port).")
 @click.option("--output", "output_spec", default="simulated", show_default=True, help="simulated | serial:PORT | audio[:DEVICE]")
-@click.option("--profile", "profile_name", default=None, help="Preset name or TOML file [default: paper].")
+@click.option("--profile", "profile_name", default=None, help="Preset name or TOML file [default: perceptual].")
 @click.option("--open/--no-open", "open_browser", default=None, help="Open the page in a browser [default: when a display exists].")
 @click.option("--catalog", "catalog_path", default=None, help="Also serve this catalog (Parquet folder or SQLAlchemy URL) at /api/catalog.")
 def serve(host: str, port: int, output_spec: str, profile_name: str | None, open_browser: bool | None, catalog_path: str | None) -> None:
@@ -407,3 +407,7 @@ def export_cmd(
 from ..experiments.cli import experiment as _experiment  # noqa: E402  (click only; the package loads lazily)
 
 main.add_command(_experiment)
+
+from .profile import profile as _profile  # noqa: E402  (click only)
+
+main.add_command(_profile)

@@ -88,3 +88,29 @@ def plot_envelope(rows: list[dict[str, Any]], spec: Any, circuit: Any, path: str
     ax.set_title(f"{spec.name} wire on {circuit.name}: felt band and envelope")
     ax.legend(fontsize=8)
     _save(plt, fig, path)
+
+
+def plot_profile_report(report: Any, path: str, *, jnd: float = 0.2, option: str = "--plot") -> None:
+    """Pulse frequency [Hz] against stroking speed [mm/s] per texture, each line with a band
+    one frequency JND wide, over the band where the wire is felt (shaded)."""
+    plt = _pyplot(option)
+    fig, ax = plt.subplots(figsize=(7.5, 5))
+    ax.axhspan(1.0, 300.0, color="0.92", label="the wire follows (1 .. 300 Hz)")
+    names = list(dict.fromkeys(r["texture"] for r in report.rows))
+    half = (1.0 + jnd) ** 0.5
+    for n in names:
+        rows = [r for r in report.rows if r["texture"] == n]
+        v = [r["speed_mm_s"] for r in rows]
+        f = [r["frequency_hz"] for r in rows]
+        line = ax.plot(v, f, marker="o", ms=3, label=n)[0]
+        ax.fill_between(v, [x / half for x in f], [x * half for x in f], color=line.get_color(), alpha=0.15, lw=0)
+        missed = [(a, b) for a, b, r in zip(v, f, rows) if not r["follows"]]
+        if missed:
+            ax.scatter(*zip(*missed), marker="x", color="k", zorder=3)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("stroking speed [mm/s]")
+    ax.set_ylabel("pulse frequency [Hz]")
+    ax.set_title(f"profile {report.profile}: {report.distinct_share * 100:.0f} % of texture pairs one JND apart")
+    ax.legend(fontsize=7, ncol=2)
+    _save(plt, fig, path)

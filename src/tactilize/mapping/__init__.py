@@ -1,7 +1,7 @@
 """The laws that turn texture features and stroking speed into pulse drives.
 
 =============  ==============================================================
-``laws``       the paper's g, h, alpha and the amplitude and direction laws
+``laws``       the paper's g, h, alpha, the amplitude, direction and regularity laws
 ``limits``     :class:`ActuatorLimits`: an actuator's band, applied with a record
 ``profile``    :class:`Profile` (TOML), presets, and what a drive needs to know
 =============  ==============================================================
@@ -15,11 +15,15 @@ from .laws import (
     ConstantAmplitude,
     ConstantSpeed,
     ConstantWidth,
+    EvenPulses,
     InverseWidth,
     LinearFrequency,
     LinearWidth,
     LogFrequency,
     NoDirection,
+    PeriodicityRegularity,
+    PowerFrequency,
+    PowerSpeed,
     PressureAmplitude,
     ProjectedSpeed,
     ProportionalSpeed,
@@ -45,6 +49,10 @@ __all__ = [
     "PressureAmplitude",
     "NoDirection",
     "ProjectedSpeed",
+    "PowerFrequency",
+    "PowerSpeed",
+    "EvenPulses",
+    "PeriodicityRegularity",
     "Profile",
     "preset_names",
     "DriveFeatures",

@@ -33,12 +33,18 @@ __all__ = [
     "PressureAmplitude",
     "NoDirection",
     "ProjectedSpeed",
+    "PowerFrequency",
+    "PowerSpeed",
+    "EvenPulses",
+    "PeriodicityRegularity",
     "law_from_dict",
     "law_kinds",
 ]
 
 
-_LAWS: dict[str, dict[str, type]] = {"frequency": {}, "speed": {}, "width": {}, "amplitude": {}, "direction": {}}
+_LAWS: dict[str, dict[str, type]] = {
+    "frequency": {}, "speed": {}, "width": {}, "amplitude": {}, "direction": {}, "regularity": {},
+}
 
 
 def _law(role: str, kind: str):
@@ -81,6 +87,35 @@ class LogFrequency(_LawBase):
 
     def __call__(self, spatial_frequency_per_m: float) -> float:
         return self.k2 * math.log(spatial_frequency_per_m + 1.0)
+
+
+@_law("frequency", "power")
+@dataclass(frozen=True)
+class PowerFrequency(_LawBase):
+    """g(f_s) = scale_hz * (f_s / reference_per_m) ** exponent, f_s in cycles/m.
+
+    With :class:`PowerSpeed` of the same exponent the product is a power of the
+    temporal frequency a stylus meets, v * f_s (the perceptual preset).
+    """
+
+    scale_hz: float = 300.0
+    reference_per_m: float = 5000.0
+    exponent: float = 1.0
+
+    def __call__(self, spatial_frequency_per_m: float) -> float:
+        return self.scale_hz * (max(spatial_frequency_per_m, 0.0) / self.reference_per_m) ** self.exponent
+
+
+@_law("speed", "power")
+@dataclass(frozen=True)
+class PowerSpeed(_LawBase):
+    """alpha(v) = (v / reference_mm_s) ** exponent; the call takes m/s."""
+
+    reference_mm_s: float = 160.0
+    exponent: float = 1.0
+
+    def __call__(self, speed_m_s: float) -> float:
+        return (max(speed_m_s, 0.0) * 1e3 / self.reference_mm_s) ** self.exponent
 
 
 @_law("speed", "sigmoid")
@@ -248,8 +283,38 @@ class ProjectedSpeed(_LawBase):
         return speed_m_s * abs(math.cos(direction_rad - wave_angle_rad))
 
 
+@_law("regularity", "none")
+@dataclass(frozen=True)
+class EvenPulses(_LawBase):
+    """The paper's trains: every texture an even pulse train (regularity None)."""
+
+    def __call__(self, periodicity: float) -> float | None:
+        return None
+
+
+@_law("regularity", "periodicity")
+@dataclass(frozen=True)
+class PeriodicityRegularity(_LawBase):
+    """Regularity from the texture's ``periodicity`` (share of its AC power in the peak).
+
+    ``(periodicity - irregular_below) / (regular_above - irregular_below)``, clipped
+    to [0, 1]: a clean grating (periodicity near 1) gives an even train, a noisy
+    surface (periodicity near 0) the most jitter.
+    """
+
+    irregular_below: float = 0.05
+    regular_above: float = 0.5
+
+    def __call__(self, periodicity: float) -> float | None:
+        span = self.regular_above - self.irregular_below
+        if span <= 0:
+            return 1.0 if periodicity >= self.regular_above else 0.0
+        return min(1.0, max(0.0, (periodicity - self.irregular_below) / span))
+
+
 def law_kinds(role: str) -> list[str]:
-    """The ``law`` names known for a role (``frequency``, ``speed``, ``width``, ``amplitude``, ``direction``)."""
+    """The ``law`` names known for a role (``frequency``, ``speed``, ``width``, ``amplitude``,
+    ``direction``, ``regularity``)."""
     return sorted(_LAWS[role])
 
 

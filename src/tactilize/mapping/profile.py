@@ -18,7 +18,7 @@ from typing import Any, Protocol, runtime_checkable
 
 from ..drive import Drive
 from ..errors import DriveError, ProfileError, check_finite
-from .laws import ConstantAmplitude, LinearWidth, LogFrequency, NoDirection, SigmoidSpeed, law_from_dict
+from .laws import ConstantAmplitude, EvenPulses, LinearWidth, LogFrequency, NoDirection, SigmoidSpeed, law_from_dict
 from .limits import ActuatorLimits
 
 __all__ = ["Profile", "preset_names", "DriveFeatures", "FeaturesForDrive"]
@@ -37,6 +37,7 @@ class FeaturesForDrive(Protocol):
     spectral_intensity: float
     orientation_deg: float
     anisotropy: float
+    periodicity: float
 
 
 @dataclass(frozen=True)
@@ -53,12 +54,15 @@ class DriveFeatures:
         Direction of the wave vector [deg], counter-clockwise from +x, y up.
     anisotropy : float
         In [0, 1]; 1 (directional) when unknown, as :meth:`Profile.drive` assumes.
+    periodicity : float
+        Share of the AC power in the dominant peak, in [0, 1]; 1 (regular) when unknown.
     """
 
     spatial_frequency_per_m: float
     spectral_intensity: float
     orientation_deg: float = 0.0
     anisotropy: float = 1.0
+    periodicity: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -75,6 +79,7 @@ class Profile:
     width: Any = field(default_factory=LinearWidth)
     amplitude: Any = field(default_factory=ConstantAmplitude)
     direction: Any = field(default_factory=NoDirection)
+    regularity: Any = field(default_factory=EvenPulses)
     limits: ActuatorLimits = field(default_factory=ActuatorLimits)
     description: str = ""
 
@@ -133,7 +138,8 @@ class Profile:
             return Drive.off()
         position = getattr(self.width, "position", None)
         strength = position(i_s) if position is not None else None
-        return (limits or self.limits).apply(Drive(f_p, p_w, amp, (), strength))
+        regularity = self.regularity(float(getattr(features, "periodicity", 1.0)))
+        return (limits or self.limits).apply(Drive(f_p, p_w, amp, (), strength, regularity))
 
     # -- storage
 
@@ -179,7 +185,7 @@ class Profile:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], source: str = "<dict>") -> "Profile":
-        known = {"name", "description", "frequency", "speed", "width", "amplitude", "direction", "actuator"}
+        known = {"name", "description", "frequency", "speed", "width", "amplitude", "direction", "regularity", "actuator"}
         unknown = set(data) - known
         if unknown:
             raise ProfileError(source, f"unknown section(s) {', '.join(sorted(unknown))}")
@@ -190,7 +196,7 @@ class Profile:
             "name": str(data.get("name", Path(source).stem if source.endswith(".toml") else "custom")),
             "description": str(data.get("description", "")),
         }
-        for role in ("frequency", "speed", "width", "amplitude", "direction"):
+        for role in ("frequency", "speed", "width", "amplitude", "direction", "regularity"):
             if role in data:
                 kwargs[role] = law_from_dict(role, data[role], source)
         if "actuator" in data:
@@ -216,6 +222,7 @@ class Profile:
             "width": self.width.to_dict(),
             "amplitude": self.amplitude.to_dict(),
             "direction": self.direction.to_dict(),
+            "regularity": self.regularity.to_dict(),
             "actuator": self.limits.to_dict(),
         }
 

@@ -17,7 +17,11 @@ from typing import Any, Callable, Iterable
 from ..errors import TactilizeError
 from .http import is_loopback
 
-__all__ = ["serve", "is_loopback", "bind_socket", "display_available"]
+#: The pen's default profile: textures told apart and every stroke felt on the wire
+#: (src/tactilize/profiles/perceptual.toml says why each constant is what it is).
+DEFAULT_PROFILE = "perceptual"
+
+__all__ = ["DEFAULT_PROFILE", "serve", "is_loopback", "bind_socket", "display_available"]
 
 
 def bind_socket(host: str, port: int) -> socket.socket:
@@ -79,7 +83,8 @@ def serve(
     output : str
         Output spec for :func:`tactilize.actuators.factory.open_output`.
     profile : str, optional
-        Preset name or TOML file (the paper's by default).
+        Preset name or TOML file; by default :data:`DEFAULT_PROFILE` (the paper's
+        laws stay one click away on the page).
     open_browser : bool, optional
         Open the page in a browser; by default only when a display exists.
     extra_routers : iterable of APIRouter
@@ -91,7 +96,7 @@ def serve(
     from ..mapping import Profile
     from .app import create_app
 
-    prof = Profile.resolve(profile)  # bad profiles fail before anything opens
+    prof = Profile.resolve(DEFAULT_PROFILE if profile is None else profile)  # bad profiles fail before anything opens
     sock = bind_socket(host, port)
     try:
         try:

@@ -1,0 +1,155 @@
+"""A profile report a designer reads: what each texture gets at each speed, whether the wire
+follows it, and which textures the finger cannot tell apart.
+
+:func:`profile_report` runs a profile over textures (the built-in ones, or given
+images) and steady strokes at 10 .. 160 mm/s, plays every drive on the simulated
+wire (:func:`tactilize.actuators.sma.feel`), and compares every pair of textures at
+equal speed.  ``tactilize profile report`` prints it and draws it.
+
+Two drives are told apart (:func:`distinguishable`) when their pulse frequencies
+differ by at least one frequency JND (Weber fraction 0.2, docs/references.md,
+section 3 (frequency discrimination)), or when one train is clearly irregular and
+the other is not: their intervals' coefficients of variation differ by at least
+:data:`REGULARITY_JND_CV` (at that difference successive intervals of the
+irregular train typically differ by one frequency JND).  Strength is not counted.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any, Sequence
+
+from .drive import Drive
+from .mapping import Profile
+
+__all__ = ["profile_report", "ProfileReport", "distinguishable", "interval_cv", "SPEEDS_MM_S", "FREQUENCY_JND"]
+
+#: The stroking speeds of the report [mm/s] (docs/references.md, section 9 (stroking speeds)).
+SPEEDS_MM_S = (10.0, 20.0, 40.0, 60.0, 100.0, 160.0)
+#: Weber fraction of vibration frequency on the fingertip (0.18 .. 0.25; the middle).
+FREQUENCY_JND = 0.2
+#: Difference of interval CV that tells an irregular train from a regular one:
+#: successive intervals of a train with CV c differ by about sqrt(2) c, so
+#: 0.2 / sqrt(2) = 0.14 makes them differ by a frequency JND.
+REGULARITY_JND_CV = 0.14
+
+
+def interval_cv(drive: Drive) -> float:
+    """Coefficient of variation of a drive's inter-pulse intervals (0 for an even train)."""
+    from .synthesis import jitter_periods
+
+    if drive.is_off:
+        return 0.0
+    # At 1 MHz the one-sample margin of jitter_periods is negligible.
+    fs = 1e6
+    return jitter_periods(drive, fs / drive.pulse_frequency_hz, max(1, round(drive.pulse_width_s * fs))) / math.sqrt(6)
+
+
+def distinguishable(a: Drive, b: Drive) -> bool:
+    """True when the finger tells the two drives apart (see the module docstring)."""
+    if a.is_off or b.is_off:
+        return a.is_off != b.is_off
+    lo, hi = sorted((a.pulse_frequency_hz, b.pulse_frequency_hz))
+    if hi >= lo * (1.0 + FREQUENCY_JND):
+        return True
+    return abs(interval_cv(a) - interval_cv(b)) >= REGULARITY_JND_CV
+
+
+@dataclass
+class ProfileReport:
+    """The report: one row per texture and speed, and the pairs closer than one JND.
+
+    Attributes
+    ----------
+    profile : str
+    rows : list of dict
+        ``texture``, ``speed_mm_s``, ``frequency_hz``, ``pulse_width_ms`` (the
+        profile's), ``strength``, ``regularity``, ``interval_cv``, ``follows``,
+        ``displacement_pp_um``, ``first_follow_ms`` (the simulated wire, from standby).
+    close_pairs : list of dict
+        ``speed_mm_s``, ``a``, ``b``, ``frequency_ratio``: pairs the finger cannot tell apart.
+    pairs : int
+        Texture pairs compared (pairs x speeds).
+    """
+
+    profile: str
+    rows: list[dict[str, Any]] = field(default_factory=list)
+    close_pairs: list[dict[str, Any]] = field(default_factory=list)
+    pairs: int = 0
+
+    @property
+    def distinct_share(self) -> float:
+        """Share of texture pairs told apart at equal speed."""
+        return 1.0 - len(self.close_pairs) / self.pairs if self.pairs else 1.0
+
+    @property
+    def followed_share(self) -> float:
+        """Share of drives the simulated wire follows."""
+        return sum(r["follows"] for r in self.rows) / len(self.rows) if self.rows else 1.0
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["distinct_share"] = self.distinct_share
+        d["followed_share"] = self.followed_share
+        return d
+
+
+def profile_report(
+    profile: Profile,
+    textures: dict[str, Any] | None = None,
+    speeds_mm_s: Sequence[float] = SPEEDS_MM_S,
+    *,
+    wire: Any = None,
+    simulate_wire: bool = True,
+) -> ProfileReport:
+    """Drives, wire response and JND pairs of a profile over textures and speeds.
+
+    Parameters
+    ----------
+    profile : Profile
+    textures : dict of name -> features, optional
+        Anything :meth:`Profile.drive` takes; the built-in textures by default.
+    speeds_mm_s : sequence of float
+        Steady stroking speeds [mm/s] (no direction: full speed).
+    wire : WireSpec or str, optional
+        The simulated wire (the paper's 75 um).
+    simulate_wire : bool
+        Play every drive on the simulated wire (a few hundredths of a second each).
+    """
+    from .actuators.sma import feel
+
+    if textures is None:
+        from .data import get_texture, texture_ids
+        from .features import extract_features
+
+        textures = {tid: extract_features(get_texture(tid).image) for tid in texture_ids()}
+    report = ProfileReport(profile.name)
+    for v in speeds_mm_s:
+        drives = {name: profile.drive(feat, v / 1e3) for name, feat in textures.items()}
+        for name, d in drives.items():
+            row = {
+                "texture": name,
+                "speed_mm_s": float(v),
+                "frequency_hz": d.pulse_frequency_hz,
+                "pulse_width_ms": d.pulse_width_s * 1e3,
+                "strength": d.strength,
+                "regularity": d.regularity,
+                "interval_cv": interval_cv(d),
+                "clamped": list(d.clamped),
+            }
+            if simulate_wire and not d.is_off:
+                felt = feel(d, wire)
+                row.update(follows=felt.follows, displacement_pp_um=felt.displacement_pp_um,
+                           first_follow_ms=felt.first_follow_ms if math.isfinite(felt.first_follow_ms) else None)
+            else:
+                row.update(follows=False, displacement_pp_um=0.0, first_follow_ms=None)
+            report.rows.append(row)
+        for a, b in itertools.combinations(drives, 2):
+            report.pairs += 1
+            if not distinguishable(drives[a], drives[b]):
+                fa, fb = drives[a].pulse_frequency_hz, drives[b].pulse_frequency_hz
+                ratio = max(fa, fb) / min(fa, fb) if min(fa, fb) > 0 else math.inf
+                report.close_pairs.append({"speed_mm_s": float(v), "a": a, "b": b, "frequency_ratio": ratio})
+    return report
