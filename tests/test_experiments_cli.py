@@ -16,11 +16,11 @@ def _run(*args):
     return result
 
 
-def test_protocols_json_lists_the_four_builtins():
+def test_protocols_json_lists_the_builtins():
     r = _run("protocols", "--json")
     assert r.exit_code == 0
     doc = json.loads(r.output)
-    assert [p["name"] for p in doc] == ["alpha-law", "assessment", "g-law", "h-law"]
+    assert [p["name"] for p in doc] == ["alpha-law", "assessment", "g-law", "h-law", "perceptual-law"]
     assert all(len(p["sha256"]) == 64 and "seed" in p["order"] for p in doc)
 
 

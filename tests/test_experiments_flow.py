@@ -318,3 +318,28 @@ def test_postgresql_store_takes_each_answer_once():
     rows = [r for r in Store(url).answer_rows("alpha-law") if r["participant"].startswith(f"SIM-{seed}-")]
     assert len(rows) == 2 * 4 * 2
     assert len({(r["participant"], r["trial"], r["question"]) for r in rows}) == len(rows)
+
+
+def test_personal_calibration_fits_the_perceptual_profile(tmp_path):
+    from tactilize.experiments.calibration import fit_personal_profile
+    from tactilize.mapping import Profile
+
+    db = str(tmp_path / "perc.sqlite3")
+    client = TestClient(create_experiment_app("perceptual-law", db))
+    proto = load_protocol("perceptual-law")
+    # This person likes the textures a little more compressed than the preset (k = 0.7).
+    liking = {0.6: 4, 0.7: 7, 0.836: 5, 0.95: 3, 1.1: 2}
+    with client:
+        token = client.post(f"{API}/sessions", json={"participant_id": "PK", "consent": True}).json()["session"]
+        client.post(f"{API}/sessions/{token}/calibration", json={"mm_per_px": 0.25, "felt": True})
+        for i, cid in enumerate(proto.condition_order(1)):
+            r = liking[proto.profile(cid).frequency.exponent]
+            client.post(f"{API}/sessions/{token}/answers",
+                        json={"trial": i, "ratings": {"match": r, "difference": r}})
+    prof, report = fit_personal_profile(Store(db), "PK")
+    assert report["base"] == "perceptual"  # the protocol's base, not the paper's
+    k = prof.frequency.exponent
+    assert 0.6 < k < 0.836 and report["fits"][0]["role"] == "frequency"
+    assert prof.frequency.kind == "power"
+    perceptual = Profile.preset("perceptual")
+    assert prof.speed == perceptual.speed and prof.regularity == perceptual.regularity

@@ -49,7 +49,7 @@ def test_rows_repeat_with_the_square_height():
 
 
 def test_builtin_protocols_mirror_the_paper():
-    assert builtin_names() == ["alpha-law", "assessment", "g-law", "h-law"]
+    assert builtin_names() == ["alpha-law", "assessment", "g-law", "h-law", "perceptual-law"]
     g = load_protocol("g-law")
     assert len(g.conditions) == 10 and len(g.images) == 3 and g.participants_planned == 8
     # The paper's best g is "I": log, k2 = 40.

@@ -44,6 +44,10 @@ PRIMARY = {
     ("speed", "sigmoid"): "slope_per_mm_s",
     ("speed", "proportional"): "gain_per_m_s",
     ("speed", "constant"): "value",
+    # The perceptual profile's laws (src/tactilize/profiles/perceptual.toml).
+    ("frequency", "power"): "exponent",
+    ("speed", "power"): "exponent",
+    ("regularity", "periodicity"): "regular_above",
 }
 
 
@@ -95,7 +99,9 @@ def fit_personal_profile(store, participant: str, base: str | None = None, quest
     participant : str
         Their participant ID (the same ID across the g, h and alpha protocols).
     base : str, optional
-        Preset name or profile TOML the fitted laws replace (default "paper").
+        Preset name or profile TOML the fitted laws replace; by default the
+        base profile of the newest protocol the participant rated (the paper's
+        for its experiments, the perceptual preset for ``perceptual-law``).
     questions : list of str, optional
         Only these questions count (default: all).
 
@@ -109,7 +115,6 @@ def fit_personal_profile(store, participant: str, base: str | None = None, quest
     from .analysis import tidy_answers
     from .protocols import PROFILE_ROLES, protocol_from_toml
 
-    base_profile = Profile.resolve(base)
     df = tidy_answers(store)
     df = df[df["participant"] == participant]
     if questions:
@@ -122,6 +127,10 @@ def fit_personal_profile(store, participant: str, base: str | None = None, quest
 
         for pv in s.query(ProtocolVersion):
             texts[pv.sha256[:12]] = pv.text
+    if base is None:
+        newest = df.loc[df["answered_at"].idxmax()]
+        base = protocol_from_toml(texts[newest["protocol_sha256"]], source=f"protocol {newest['protocol']}").base_profile
+    base_profile = Profile.resolve(base)
     data = base_profile.to_dict()
     reports = []
     # Oldest protocol first: a later one (a refinement round) supersedes an

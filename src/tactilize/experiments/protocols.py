@@ -66,7 +66,7 @@ __all__ = [
     "builtin_names",
 ]
 
-PROFILE_ROLES = ("frequency", "speed", "width", "amplitude", "direction")
+PROFILE_ROLES = ("frequency", "speed", "width", "amplitude", "direction", "regularity")
 _ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,31}$")
 
 
