@@ -130,7 +130,10 @@ def test_the_simulated_wire_plays_the_jitter_and_follows_it(features):
     iv = np.diff(starts)
     assert iv.std() / iv.mean() > 0.2
     assert 1 / iv.mean() == pytest.approx(d.pulse_frequency_hz, rel=0.03)
-    assert all(rise >= 0.5e-6 for _, rise, _ in log)
+    # A pulse close after the previous one may merge with it (felt.IRREGULAR_FOLLOWED_SHARE);
+    # the rest each have their own peak.
+    followed = sum(rise >= 0.5e-6 for _, rise, _ in log)
+    assert followed >= 0.95 * len(log)
 
 
 def test_distinguishable_counts_frequency_and_regularity():

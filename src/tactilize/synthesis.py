@@ -245,6 +245,7 @@ class PulseScheduler:
         # changes (a pen changes the drive every few pulses), so the pattern does not
         # restart, and repeat, at every change.
         self._base = 0
+        self._first_lead = 0.0  # how much of pulse 0's jitter applies (only its delay)
         self.position = 0  # absolute sample index of the next block
         self._drive = Drive.off()
         self._period = math.inf
@@ -271,12 +272,22 @@ class PulseScheduler:
         if self._last_start is not None:
             nxt = max(nxt, self._last_start + period)
         nxt = max(nxt, float(self._last_end + 1) if self._last_start is not None else nxt)
+        # Pulse 0 of the new schedule must not move before ``nxt`` (the rule above):
+        # its jitter only delays it, and not at all after silence (a touch is felt at once).
+        self._first_lead = 0.0 if self._drive.is_off or self._last_start is None else 1.0
         self._drive, self._period, self._width = drive, period, width
         self._j = jitter_periods(drive, period, width)
         self._base += self._k
-        # Pulse 0 of the new schedule must not move before ``nxt``: shift the grid by
-        # the largest backward jitter so the rule above still holds.
-        self._anchor, self._k = nxt + 0.5 * self._j * period, 0
+        self._anchor, self._k = nxt, 0
+
+    def _place(self, k: int) -> float:
+        """Pulse ``k``'s place on the current schedule [periods from the anchor]."""
+        if not self._j:
+            return float(k)
+        u = self._table[(self._base + k) % _JITTER_TABLE]
+        if k == 0:
+            u = max(u, 0.0) * self._first_lead
+        return k + self._j * u
 
     def next_block(self, n: int) -> tuple[np.ndarray | list[int], int, float]:
         """Pulses starting in the next ``n`` samples; advances the position.
@@ -295,15 +306,15 @@ class PulseScheduler:
         self.position = end
         if self._width == 0 or n <= 0:
             return [], 0, 0.0
-        a, P, k, j, tab, b = self._anchor, self._period, self._k, self._j, self._table, self._base
-        first = math.floor(a + (k + j * tab[(b + k) % _JITTER_TABLE]) * P + 0.5)
+        a, P, k, j = self._anchor, self._period, self._k, self._j
+        first = math.floor(a + self._place(k) * P + 0.5)
         if first >= end:
             return [], self._width, self._drive.amplitude
         m = int((end - first) / P) + 2
         if m <= 64:
             few = []
             while True:
-                place = k + j * tab[(b + k) % _JITTER_TABLE]
+                place = self._place(k)
                 st = math.floor(a + place * P + 0.5)
                 if st >= end:
                     break
@@ -315,7 +326,12 @@ class PulseScheduler:
             self._last_end = few[-1] + pos + self._width
             return few, self._width, self._drive.amplitude
         kk = k + np.arange(m, dtype=np.int64)
-        place = kk + j * tab[(b + kk) % _JITTER_TABLE] if j else kk.astype(np.float64)
+        if j:
+            place = kk + j * self._table[(self._base + kk) % _JITTER_TABLE]
+            if k == 0:
+                place[0] = self._place(0)
+        else:
+            place = kk.astype(np.float64)
         starts = np.floor(a + place * P + 0.5).astype(np.int64)
         keep = starts < end
         starts = starts[keep]
