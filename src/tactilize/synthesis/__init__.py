@@ -1,0 +1,33 @@
+"""Pulse trains: one-shot arrays, a streaming phase-continuous synthesiser, two channels.
+
+==========  ==================================================================
+``trains``  :func:`pulse_train`, :class:`PulseScheduler`, :class:`PulseStream`,
+            the jitter of irregular textures
+``pen``     the pen's two actuators: phantom sensation, apparent movement
+==========  ==================================================================
+"""
+
+from .pen import PenStream, pen_channels, pen_pulse_trains, phantom_amplitudes, phantom_beta, soa_s
+from .trains import (
+    DEFAULT_SAMPLE_RATE_HZ,
+    JITTER_MAX_PERIODS,
+    PulseScheduler,
+    PulseStream,
+    jitter_periods,
+    pulse_train,
+)
+
+__all__ = [
+    "pulse_train",
+    "PulseScheduler",
+    "PulseStream",
+    "PenStream",
+    "pen_channels",
+    "pen_pulse_trains",
+    "phantom_amplitudes",
+    "phantom_beta",
+    "soa_s",
+    "jitter_periods",
+    "JITTER_MAX_PERIODS",
+    "DEFAULT_SAMPLE_RATE_HZ",
+]
