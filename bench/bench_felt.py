@@ -32,6 +32,7 @@ import time
 
 import tactilize as tz
 from tactilize.actuators.sma import FOLLOW_THRESHOLD_M, Circuit, WireSpec, feel, simulate_drive
+from tactilize.mapping import preset_names
 from tactilize.data import get_texture, texture_ids
 
 SPEEDS_MM_S = (10, 20, 40, 60, 100, 160)
@@ -63,7 +64,7 @@ def main() -> None:
     feats = {tid: tz.extract_features(get_texture(tid).image) for tid in texture_ids()}
     rows = []
     t0 = time.perf_counter()
-    for preset in tz.mapping.preset_names():
+    for preset in preset_names():
         profile = tz.Profile.preset(preset)
         for tid, feat in feats.items():
             for v in SPEEDS_MM_S:
@@ -83,7 +84,7 @@ def main() -> None:
     if args.json:
         print(json.dumps({"rows": rows, "seconds": elapsed}, default=lambda x: None if x == math.inf else x))
         return
-    for preset in tz.mapping.preset_names():
+    for preset in preset_names():
         sel = [r for r in rows if r["preset"] == preset]
         print(f"\npreset {preset}: follows (displacement p-p um) / first felt pulse from standby, from cold [ms]")
         print(f"  {'texture':10}" + "".join(f"{v:>19} mm/s" for v in SPEEDS_MM_S))
