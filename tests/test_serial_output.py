@@ -65,13 +65,13 @@ def test_apply_round_trip(emu):
     # The transport alone: no planning, no envelope.
     with SerialOutput(emu.device, envelope=Identity()) as out:
         assert out.connected
-        sent = out.apply([Drive(120.0, 400e-6), Drive(250.0, 200e-6, 0.5)])
-        assert [(d.pulse_frequency_hz, d.pulse_width_s) for d in sent] == [(120.0, 400e-6), (250.0, 200e-6)]
+        sent = out.apply([Drive(120.0, 300e-6), Drive(250.0, 150e-6, 0.5)])
+        assert [(d.pulse_frequency_hz, d.pulse_width_s) for d in sent] == [(120.0, 300e-6), (250.0, 150e-6)]
         status = out.status()
-        assert status.channels[0] == P.ChannelStatus(True, 120.0, 400e-6, 1.0)
+        assert status.channels[0] == P.ChannelStatus(True, 120.0, 300e-6, 1.0)
         assert status.channels[1].frequency_hz == 250.0
         assert status.channels[1].amplitude == pytest.approx(0.5, abs=1e-4)
-        assert host_machine.pin_state(fw.CHANNEL_PINS[1])["duty_ns"] == 200_000
+        assert host_machine.pin_state(fw.CHANNEL_PINS[1])["duty_ns"] == 150_000
     # leaving the block stopped the controller
     assert [e["reason"] for e in emu.events if not e["on"]] == ["stop", "stop"]
 
@@ -112,8 +112,8 @@ def test_the_default_envelope_is_the_wire_models(emu):
 
 def test_controller_limits_clamp_what_the_envelope_lets_through(emu):
     with SerialOutput(emu.device, envelope=Identity()) as out:
-        sent = out.apply([Drive(250.0, 1e-3)])  # 25 %, above the controller's 20 %
-        assert "controller:max_duty_ratio" in sent[0].clamped
+        sent = out.apply([Drive(1.0, 20e-3)])  # above the controller's 5 ms
+        assert "controller:max_pulse_width_s" in sent[0].clamped
         assert out.status().channels[0].on  # accepted, not refused
 
 

@@ -298,8 +298,8 @@ class Controller:
         """Keep the host's heat between its messages: width and bias from the
         measured heat while on, within the energy limits (tactile_wire.Hold)."""
         ch.hold.frequency_hz = ch.frequency_mhz / 1000.0
-        width_s, bias = ch.hold.step(ch.sense.resistance_ohm, ch.sense.power_w(now, _ticks_diff), dt_s)
-        if ch.on:
+        width_s, bias = ch.hold.step(ch.sense.resistance_ohm, ch.sense.power_w(now, _ticks_diff), dt_s, ch.width_ns / 1e9)
+        if ch.on and width_s > 0:
             w_ns = int(width_s * 1e9)
             if w_ns < MIN_WIDTH_NS:
                 w_ns = MIN_WIDTH_NS if self._fits(ch, ch.frequency_mhz, MIN_WIDTH_NS, bias) else 0
@@ -384,7 +384,8 @@ class Controller:
         refused = self.check_limits(f_mhz, w_ns)
         if refused:
             return refused
-        if not self._fits(ch, f_mhz, w_ns, ch.bias_q16 / 65536.0):
+        # The pulses come first: the bias is cut to the room they leave (_apply).
+        if not self._fits(ch, f_mhz, w_ns, 0.0):
             return REFUSED_ENERGY
         return REFUSED_NONE
 
@@ -401,6 +402,10 @@ class Controller:
                 self._changed(ch, "command")
             return
         before = (ch.frequency_mhz, ch.width_ns)
+        p = self.limits.power(ch.sense.power_w(_ticks_ms(), _ticks_diff))
+        room = self.limits.max_bias(f_mhz / 1000.0, w_ns / 1e9, p)
+        if ch.bias_q16 > int(room * 65536):
+            ch.set_bias(int(room * 65536))
         ch.set(f_mhz, w_ns, amp)
         if (ch.frequency_mhz, ch.width_ns) != before:
             self._changed(ch, "command")

@@ -37,7 +37,7 @@ RAIL_DIVIDER = 2.0
 # count (read_u16 scale) and the resistance in series with the wire between the
 # rail's tap and ground (series resistor, switch, sense resistor) [ohm].
 DEFAULT_AMPS_PER_COUNT = ADC_FULL_SCALE_V / 65535.0 / (SENSE_GAIN * SENSE_OHM)
-DEFAULT_PATH_OHM = (4.3 + 0.05 + 0.1, 4.3 + 0.05 + 0.1)
+DEFAULT_PATH_OHM = (5.1 + 0.05 + 0.1, 5.1 + 0.05 + 0.1)  # aa-resistor: 5.1 ohm, switch, sense
 RAIL_VOLTS_PER_COUNT = ADC_FULL_SCALE_V / 65535.0 * RAIL_DIVIDER
 # A reading counts as "during a pulse" above this current [A]; fewer are noise.
 MIN_SENSE_A = 0.05
@@ -225,12 +225,13 @@ class Hold:
         self.target_ohm = target_ohm
         self.trim = 0.0
 
-    def step(self, resistance_ohm, power_w, dt_s):
+    def step(self, resistance_ohm, power_w, dt_s, width_now_s=0.0):
         """(pulse width [s], bias level) for the next interval; power_w is the
-        measured heat while on (0: none yet, then nothing is driven)."""
-        if power_w <= 0:
-            # Nothing measured yet: plan with the circuit's worst case, so the
-            # first bias and pulses are the smallest; they give the first readings.
+        measured heat while on [W] (0: none yet; the width is then 0: keep the host's)."""
+        measured = power_w > 0
+        if not measured:
+            # Nothing measured yet: the bias with the circuit's worst case (the
+            # smallest level; it gives the first readings), the host's width kept.
             power_w = self.limits.p_max
         if self.target_ohm > 0 and resistance_ohm > 0 and self.r_span > 0:
             # More resistance than meant: more martensite, the wire is cooler.
@@ -243,7 +244,7 @@ class Hold:
         p_bound = self.limits.power(power_w)
         f = self.frequency_hz
         width = 0.0
-        if f > 0 and self.energy_j > 0:
+        if f > 0 and self.energy_j > 0 and measured:
             width = self.energy_j / power_w
             w_max = self.limits.max_width_s(f, 0.0, p_bound)
             if width > w_max:
@@ -252,7 +253,7 @@ class Hold:
                 width = 0.5 / f
         hold_w = self.bias_w + f * self.energy_j
         bias = (self.bias_w + self.trim * hold_w) / power_w
-        b_max = self.limits.max_bias(f, width, p_bound)
+        b_max = self.limits.max_bias(f, width if width > 0 else width_now_s, p_bound)
         if bias > b_max:
             bias = b_max
         if bias < 0:
