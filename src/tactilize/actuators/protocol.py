@@ -32,8 +32,6 @@ HOLD      0x05  channel u8, pulse heat u32 [nJ], bias heat u32 [uW], target
 SENSE     0x06  no payload: the controller answers with a SENSE_REPLY.
 PAIR      0x07  onset offset u32 [us], then frequency, width, amplitude of
                 channels 0 and 1: channel 1 starts that long after channel 0.
-CALIBRATE 0x08  channel u8, sense u32 [pA per ADC count], series path u32
-                [uohm]: stored on the board.
 ========  ====  ==========================================================
 
 Replies, controller to host (``SEQ`` echoes the sequence number of the frame
@@ -87,7 +85,6 @@ __all__ = [
     "SENSE_FORMAT",
     "encode_hold",
     "encode_pair",
-    "encode_calibrate",
     "ChannelSense",
     "SenseReport",
     "decode_sense",
@@ -116,7 +113,6 @@ class Command(IntEnum):
     HOLD = 0x05
     SENSE = 0x06
     PAIR = 0x07
-    CALIBRATE = 0x08
     ACK = 0x80
     NAK = 0x81
     STATUS_REPLY = 0x82
@@ -474,7 +470,6 @@ def encode_status(status: ControllerStatus) -> bytes:
 
 _HOLD_FORMAT = ">BIII"
 _PAIR_FORMAT = ">I" + "IIH" * 2
-_CALIBRATE_FORMAT = ">BII"
 #: SENSE_REPLY payload: rail [mV] u16, then per channel resistance [uohm] u32,
 #: current [uA] u32, bias level u16 (65536 = 1), pulse width [ns] u32, count u16
 SENSE_FORMAT = ">H" + "IIHIH" * 2
@@ -495,11 +490,6 @@ def encode_pair(onset_s: float, first: tuple[float, float, float], second: tuple
     for f, w, a in (first, second):
         fields += [_u32(f * 1e3, "frequency_hz"), _u32(w * 1e9, "pulse_width_s"), int(round(a * AMPLITUDE_FULL_SCALE))]
     return struct.pack(_PAIR_FORMAT, *fields)
-
-
-def encode_calibrate(channel: int, amps_per_count: float, path_ohm: float) -> bytes:
-    """CALIBRATE payload: sense gain [A per read_u16 count] and series path [ohm]."""
-    return struct.pack(_CALIBRATE_FORMAT, channel, _u32(amps_per_count * 1e12, "amps_per_count"), _u32(path_ohm * 1e6, "path_ohm"))
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,8 @@ def board_config(wire: WireSpec | str | None = None, circuit: Circuit | str | No
     dict
         ``conductance_w_k`` [W/K], ``heat_capacity_j_k`` [J/K], ``budget_k`` [K],
         ``max_power_w`` [W] (the circuit's worst case into this wire),
-        ``r_martensite_ohm`` and ``r_austenite_ohm`` [ohm].
+        ``r_martensite_ohm`` and ``r_austenite_ohm`` [ohm], ``current_min_a`` [A]
+        (the least current the circuit gives the wire over that range).
     """
     env = build_envelope(wire, circuit)
     spec = env.spec
@@ -47,6 +48,7 @@ def board_config(wire: WireSpec | str | None = None, circuit: Circuit | str | No
         "max_power_w": env.max_power_w,
         "r_martensite_ohm": spec.resistance_martensite_ohm,
         "r_austenite_ohm": spec.resistance_austenite_ohm,
+        "current_min_a": min(env.circuit.current_at(r) for r in (spec.resistance_martensite_ohm, spec.resistance_austenite_ohm)),
     }
 
 

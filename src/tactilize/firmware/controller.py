@@ -90,7 +90,6 @@ CMD_STATUS = 0x04
 CMD_HOLD = 0x05
 CMD_SENSE = 0x06
 CMD_PAIR = 0x07
-CMD_CALIBRATE = 0x08
 CMD_ACK = 0x80
 CMD_NAK = 0x81
 CMD_STATUS_REPLY = 0x82
@@ -110,7 +109,6 @@ SET_FORMAT = ">BIIH"
 STATUS_FORMAT = ">BBIII" + "BIIH" * 2 + "IIIIIH"
 HOLD_FORMAT = ">BIII"  # channel, pulse heat [nJ], bias heat [uW], target resistance [uohm]
 PAIR_FORMAT = ">I" + "IIH" * 2  # onset offset of channel 1 [us], then (mHz, ns, amplitude) per channel
-CALIBRATE_FORMAT = ">BII"  # channel, sense [pA per count], series path [uohm]
 SENSE_FORMAT = ">H" + "IIHIH" * 2  # rail [mV]; per channel R [uohm], I [uA], bias q16, width [ns], count
 
 class Channel:
@@ -298,7 +296,11 @@ class Controller:
         """Keep the host's heat between its messages: width and bias from the
         measured heat while on, within the energy limits (tactile_wire.Hold)."""
         ch.hold.frequency_hz = ch.frequency_mhz / 1000.0
-        width_s, bias = ch.hold.step(ch.sense.resistance_ohm, ch.sense.power_w(now, _ticks_diff), dt_s, ch.width_ns / 1e9)
+        sense = ch.sense
+        width_s, bias = ch.hold.step(
+            sense.resistance_ohm, sense.power_w(now, _ticks_diff), dt_s, ch.width_ns / 1e9,
+            sense.current_bound_a(now, _ticks_diff),
+        )
         if ch.on and width_s > 0:
             w_ns = int(width_s * 1e9)
             if w_ns < MIN_WIDTH_NS:
@@ -315,7 +317,7 @@ class Controller:
 
     def _fits(self, ch, f_mhz, w_ns, bias):
         """The energy limits (tactile_wire.WireLimits) with the channel's heat while on."""
-        p = self.limits.power(ch.sense.power_w(_ticks_ms(), _ticks_diff))
+        p = self.limits.power(ch.sense.current_bound_a(_ticks_ms(), _ticks_diff))
         return self.limits.allowed(f_mhz / 1000.0, w_ns / 1e9, bias, p)
 
     # -- frames
@@ -357,8 +359,6 @@ class Controller:
             return self._hold_cmd(seq, payload)
         if cmd == CMD_PAIR:
             return self._pair(seq, payload)
-        if cmd == CMD_CALIBRATE:
-            return self._calibrate(seq, payload)
         return self._nak(seq, NAK_UNKNOWN_COMMAND)
 
     def _set(self, seq, payload):
@@ -402,7 +402,7 @@ class Controller:
                 self._changed(ch, "command")
             return
         before = (ch.frequency_mhz, ch.width_ns)
-        p = self.limits.power(ch.sense.power_w(_ticks_ms(), _ticks_diff))
+        p = self.limits.power(ch.sense.current_bound_a(_ticks_ms(), _ticks_diff))
         room = self.limits.max_bias(f_mhz / 1000.0, w_ns / 1e9, p)
         if ch.bias_q16 > int(room * 65536):
             ch.set_bias(int(room * 65536))
@@ -460,25 +460,6 @@ class Controller:
         if self.pair_timer is not None:
             self.pair_timer.deinit()
             self.pair_timer = None
-
-    def _calibrate(self, seq, payload):
-        """Store one channel's sense calibration on the board.  Safe from any
-        host: the limits use the larger of the measured and the configured heat."""
-        if len(payload) != struct.calcsize(CALIBRATE_FORMAT):
-            return self._nak(seq, NAK_BAD_PAYLOAD)
-        index, pa_per_count, path_uohm = struct.unpack(CALIBRATE_FORMAT, payload)
-        if index >= len(self.channels) or pa_per_count == 0:
-            return self._nak(seq, NAK_BAD_PAYLOAD, REFUSED_CHANNEL if index >= len(self.channels) else 0)
-        sense = self.channels[index].sense
-        sense.amps_per_count = pa_per_count * 1e-12
-        sense.path_ohm = path_uohm * 1e-6
-        cal = [(c.sense.amps_per_count, c.sense.path_ohm) for c in self.channels]
-        try:
-            with open(self.store + W.CAL_FILE, "w") as fh:
-                fh.write(W.calibration_text(cal))
-        except OSError:
-            pass  # applied, not stored (read-only file system)
-        return self._ack(seq, CMD_CALIBRATE)
 
     @staticmethod
     def check_limits(f_mhz, w_ns):

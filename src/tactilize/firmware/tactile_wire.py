@@ -21,6 +21,7 @@ DEFAULT_CONFIG = {
     "max_power_w": 0.15750929066017705,
     "r_martensite_ohm": 0.5432488724203361,
     "r_austenite_ohm": 0.6790610905254202,
+    "current_min_a": 0.48193113946897774,
 }
 CONFIG_FILE = "tactile_cfg.txt"
 CAL_FILE = "tactile_cal.txt"
@@ -33,7 +34,8 @@ ADC_FULL_SCALE_V = 3.3
 SENSE_OHM = 0.1
 SENSE_GAIN = 50.0
 RAIL_DIVIDER = 2.0
-# Calibration per channel (stored on the board in CAL_FILE): amperes per ADC
+# Calibration per channel, stored on the board in CAL_FILE (written with mpremote
+# in maintenance mode, like CONFIG_FILE; see docs/hardware.md): amperes per ADC
 # count (read_u16 scale) and the resistance in series with the wire between the
 # rail's tap and ground (series resistor, switch, sense resistor) [ohm].
 DEFAULT_AMPS_PER_COUNT = ADC_FULL_SCALE_V / 65535.0 / (SENSE_GAIN * SENSE_OHM)
@@ -45,6 +47,12 @@ MIN_SENSE_A = 0.05
 SENSE_AVERAGE = 16
 # A measurement older than this [ms] no longer describes the wire.
 SENSE_FRESH_MS = 1000
+# What the limits allow for the calibration's own error (it is measured on the
+# bench and written to CAL_FILE in maintenance mode; no host can change it).
+CAL_TOLERANCE = 0.01
+# A sense reading at or above this read_u16 count is clipped: the amplifier
+# saturated (more current than the path was designed for); it bounds nothing.
+ADC_CLIPPED = 65000
 
 # ---------------------------------------------------------------- the hold (between host messages)
 # The host's controller decides the heat (tactilize.actuators.sma.controller);
@@ -105,18 +113,28 @@ class WireLimits:
     """The energy limits: the SafetyEnvelope's bounds, evaluated on the board.
 
     Peak <= hottest air + (f E + b P) / (h A) + E / C, with E = w P the heat of
-    one pulse and P the heat while on: the larger of the configured circuit's
-    worst case and the latest measured I^2 R, so a measurement can only tighten
-    a limit."""
+    one pulse and P a bound on the heat while on: the configured circuit's
+    worst case P_max, lowered by a fresh current measurement I when the cells
+    sag: P_max (I / ((1 - tol) I_min))^2, with I_min the least current the
+    configured circuit gives the wire (at its highest resistance) and tol the
+    calibration's residual error.  A voltage circuit's heat
+    goes as the square of its EMF, and I / I_min bounds the EMF's ratio; a sink
+    reads I_min and keeps P_max.  Only the current, a gain-only reading, goes
+    into it.  A clipped ADC, a stale or no reading: P_max."""
 
     def __init__(self, cfg):
         self.h = cfg["conductance_w_k"]
         self.c = cfg["heat_capacity_j_k"]
         self.budget = cfg["budget_k"]
         self.p_max = cfg["max_power_w"]
+        self.i_min = cfg["current_min_a"]
 
-    def power(self, measured_w):
-        return measured_w if measured_w > self.p_max else self.p_max
+    def power(self, current_a):
+        """Bound on the heat while on [W] from a measured current [A] (0: none)."""
+        if current_a <= 0:
+            return self.p_max
+        k = current_a / ((1.0 - CAL_TOLERANCE) * self.i_min)
+        return self.p_max * k * k if k < 1 else self.p_max
 
     def rise_k(self, f_hz, width_s, bias, p_w):
         e = width_s * p_w
@@ -164,7 +182,13 @@ class Sense:
 
     def sample(self, now_ms):
         """One reading; returns True when it completed a measurement."""
-        i = self.adc_i.read_u16() * self.amps_per_count
+        raw = self.adc_i.read_u16()
+        if raw >= ADC_CLIPPED:
+            self.measured_ms = None  # no bound from a clipped reading
+            self.n = 0
+            self.sum_i = self.sum_v = 0.0
+            return False
+        i = raw * self.amps_per_count
         if i < MIN_SENSE_A:
             return False
         v = self.adc_rail.read_u16() * RAIL_VOLTS_PER_COUNT
@@ -187,11 +211,18 @@ class Sense:
         self.count = (self.count + 1) & 0xFFFF
         return True
 
+    def fresh(self, now_ms, ticks_diff):
+        return self.measured_ms is not None and ticks_diff(now_ms, self.measured_ms) <= SENSE_FRESH_MS
+
     def power_w(self, now_ms, ticks_diff):
         """I^2 R of the latest fresh measurement [W], 0 when none."""
-        if self.measured_ms is None or ticks_diff(now_ms, self.measured_ms) > SENSE_FRESH_MS:
+        if not self.fresh(now_ms, ticks_diff):
             return 0.0
         return self.current_a * self.current_a * self.resistance_ohm
+
+    def current_bound_a(self, now_ms, ticks_diff):
+        """The latest fresh current [A] for WireLimits.power, 0 when none."""
+        return self.current_a if self.fresh(now_ms, ticks_diff) else 0.0
 
 
 class Hold:
@@ -200,7 +231,7 @@ class Hold:
     The host gives, per channel: the pulse frequency [Hz], the heat per pulse [J],
     the bias heat [W] and the resistance [ohm] it wants the wire at; step()
     turns them into a pulse width [s] and a bias level [0, 1] at the measured
-    heat while on [W], within the WireLimits."""
+    heat while on [W], within the WireLimits of the measured current [A]."""
 
     def __init__(self, limits, cfg):
         self.limits = limits
@@ -225,7 +256,7 @@ class Hold:
         self.target_ohm = target_ohm
         self.trim = 0.0
 
-    def step(self, resistance_ohm, power_w, dt_s, width_now_s=0.0):
+    def step(self, resistance_ohm, power_w, dt_s, width_now_s=0.0, current_a=0.0):
         """(pulse width [s], bias level) for the next interval; power_w is the
         measured heat while on [W] (0: none yet; the width is then 0: keep the host's)."""
         measured = power_w > 0
@@ -233,15 +264,16 @@ class Hold:
             # Nothing measured yet: the bias with the circuit's worst case (the
             # smallest level; it gives the first readings), the host's width kept.
             power_w = self.limits.p_max
-        if self.target_ohm > 0 and resistance_ohm > 0 and self.r_span > 0:
-            # More resistance than meant: more martensite, the wire is cooler.
+        if self.target_ohm > 0 and resistance_ohm > 0 and self.r_span != 0:
+            # err > 0: more martensite than meant (the wire is cooler): more heat.
+            # (r_span = R_martensite - R_austenite carries the wire's sign.)
             err = (resistance_ohm - self.target_ohm) / self.r_span
             self.trim += HOLD_TRIM_PER_S * err * dt_s
             if self.trim > HOLD_TRIM_MAX:
                 self.trim = HOLD_TRIM_MAX
             elif self.trim < -HOLD_TRIM_MAX:
                 self.trim = -HOLD_TRIM_MAX
-        p_bound = self.limits.power(power_w)
+        p_bound = self.limits.power(current_a if measured else 0.0)
         f = self.frequency_hz
         width = 0.0
         if f > 0 and self.energy_j > 0 and measured:
