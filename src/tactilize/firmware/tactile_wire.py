@@ -21,7 +21,7 @@ DEFAULT_CONFIG = {
     "max_power_w": 0.15750929066017705,
     "r_martensite_ohm": 0.5432488724203361,
     "r_austenite_ohm": 0.6790610905254202,
-    "current_min_a": 0.48193113946897774,
+    "current_min_a": 0.481613513883029,
 }
 CONFIG_FILE = "tactile_cfg.txt"
 CAL_FILE = "tactile_cal.txt"
