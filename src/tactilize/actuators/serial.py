@@ -73,7 +73,7 @@ class SerialOutput(OutputBase):
         Serial device path (``/dev/ttyACM0``, ``COM3``, a pty path).
     wire, circuit : optional
         The wire and the driver circuit on the board (the paper's 75 um on
-        ``aa-resistor`` by default, see docs/signals-and-wire.md).
+        ``aa-resistor`` by default, see docs/hardware.md).
     envelope : object with ``apply(Drive) -> Drive``, optional
         Safety envelope applied to every drive before it is sent; default: the
         :class:`~tactilize.actuators.sma.SafetyEnvelope` of the wire and circuit.
