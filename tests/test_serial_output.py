@@ -315,3 +315,37 @@ def test_limits_class_is_an_envelope():
     # serial output relies on for its fallback and for the controller's limits.
     d = ActuatorLimits().apply(Drive(1000.0, 1e-3))
     assert d.pulse_frequency_hz == 300.0 and d.clamped
+
+
+# ------------------------------------------------------------ the self-sensing loop
+
+
+def test_the_host_closes_the_loop_on_the_boards_measurements(emu):
+    from tactilize.firmware import tactile_wire as W
+
+    r_wire, amps = 0.60, 0.48
+    host_machine.ADC.sources[fw.SENSE_ADC_PINS[0]] = amps / W.DEFAULT_AMPS_PER_COUNT
+    host_machine.ADC.sources[fw.RAIL_ADC_PIN] = amps * (r_wire + W.DEFAULT_PATH_OHM[0]) / W.RAIL_VOLTS_PER_COUNT
+    with SerialOutput(emu.device) as out:
+        assert out.loop is not None
+        out.apply([Drive(80.0, 3e-4, 1.0, (), 0.5), Drive.off()])
+        ctrl = out.loop.controllers[0]
+        assert wait_for(lambda: ctrl.resistance_ohm == pytest.approx(r_wire, abs=0.01), 3.0)
+        # the heat it measures is the board's I^2 R, not the nominal circuit's
+        assert ctrl.on_power_w == pytest.approx(amps * amps * r_wire, rel=0.02)
+        # and the board holds what the host's controller decided
+        hold = emu.controller.channels[0].hold
+        assert wait_for(lambda: hold.active, 2.0)
+        assert hold.bias_w > 0 and hold.target_ohm >= 0
+        # within the board's own energy limits (the host leaves the bias that room)
+        assert emu.controller.limits.heat_allowed(80.0, hold.energy_j, hold.bias_w)
+        report = out.loop.report
+        assert report is not None and report.channels[0].count > 0
+
+
+def test_open_loop_serial_output_sends_no_holds(emu):
+    with SerialOutput(emu.device, closed_loop=False) as out:
+        assert out.loop is None
+        out.apply([Drive(80.0, 3e-4)])
+        time.sleep(0.2)
+        assert not emu.controller.channels[0].hold.active
