@@ -37,7 +37,8 @@ def board_config(wire: WireSpec | str | None = None, circuit: Circuit | str | No
         ``conductance_w_k`` [W/K], ``heat_capacity_j_k`` [J/K], ``budget_k`` [K],
         ``max_power_w`` [W] (the circuit's worst case into this wire),
         ``r_martensite_ohm`` and ``r_austenite_ohm`` [ohm], ``current_min_a`` [A]
-        (the least current the circuit gives the wire over that range).
+        (the least current the circuit gives the wire over that range) and
+        ``current_spread`` [1] (see ``tactile_wire.WireLimits``).
     """
     env = build_envelope(wire, circuit)
     spec = env.spec
@@ -49,7 +50,17 @@ def board_config(wire: WireSpec | str | None = None, circuit: Circuit | str | No
         "r_martensite_ohm": spec.resistance_martensite_ohm,
         "r_austenite_ohm": spec.resistance_austenite_ohm,
         "current_min_a": min(env.circuit.current_at(r) for r in (spec.resistance_martensite_ohm, spec.resistance_austenite_ohm)),
+        "current_spread": _current_spread(env.circuit, spec),
     }
+
+
+def _current_spread(circuit: Circuit, spec: WireSpec) -> float:
+    """1 for a voltage circuit; for a sink, how much its current can vary with the
+    wire's resistance once the supply cannot feed it: (R_loop + R_hi) / (R_loop + R_lo)."""
+    if circuit.kind != "current":
+        return 1.0
+    lo, hi = sorted((spec.resistance_martensite_ohm, spec.resistance_austenite_ohm))
+    return (circuit.source_ohm + hi) / (circuit.source_ohm + lo)
 
 
 def board_config_text(wire: WireSpec | str | None = None, circuit: Circuit | str | None = None) -> str:

@@ -111,6 +111,10 @@ HOLD_FORMAT = ">BIII"  # channel, pulse heat [nJ], bias heat [uW], target resist
 PAIR_FORMAT = ">I" + "IIH" * 2  # onset offset of channel 1 [us], then (mHz, ns, amplitude) per channel
 SENSE_FORMAT = ">H" + "IIHIH" * 2  # rail [mV]; per channel R [uohm], I [uA], bias q16, width [ns], count
 
+# The hardware watchdog once run() started it (fed also after each retune wait).
+_wdt = [None]
+
+
 class Channel:
     """One actuator output: a PWM slice for fast trains, a soft timer for slow
     ones, a second slice for the standby bias, and the sense path."""
@@ -197,6 +201,8 @@ class Channel:
                 old_us = 1000000 // self.pwm.freq()
                 self.pwm.duty_ns(0)
                 _sleep_us(old_us + 50)
+                if _wdt[0] is not None:
+                    _wdt[0].feed()  # a train of retunes in one pass must not reset the chip
                 self.pwm.freq(hz)
             # Same divider and TOP: the compare alone latches at the wrap.
             self.pwm.duty_ns(width_ns)
@@ -524,6 +530,7 @@ class Controller:
 def run(read, controller, wdt=None):
     """The main loop: read(timeout_ms) returns received bytes (maybe empty);
     wdt (machine.WDT) is fed once per pass, so a hung loop resets the chip."""
+    _wdt[0] = wdt
     while controller.running:
         if wdt is not None:
             wdt.feed()

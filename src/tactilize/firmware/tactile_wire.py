@@ -22,6 +22,7 @@ DEFAULT_CONFIG = {
     "r_martensite_ohm": 0.5432488724203361,
     "r_austenite_ohm": 0.6790610905254202,
     "current_min_a": 0.481613513883029,
+    "current_spread": 1.0,
 }
 CONFIG_FILE = "tactile_cfg.txt"
 CAL_FILE = "tactile_cal.txt"
@@ -115,11 +116,13 @@ class WireLimits:
     Peak <= hottest air + (f E + b P) / (h A) + E / C, with E = w P the heat of
     one pulse and P a bound on the heat while on: the configured circuit's
     worst case P_max, lowered by a fresh current measurement I when the cells
-    sag: P_max (I / ((1 - tol) I_min))^2, with I_min the least current the
-    configured circuit gives the wire (at its highest resistance) and tol the
-    calibration's residual error.  A voltage circuit's heat
-    goes as the square of its EMF, and I / I_min bounds the EMF's ratio; a sink
-    reads I_min and keeps P_max.  Only the current, a gain-only reading, goes
+    sag: P_max (s I / ((1 - tol) I_min))^2, with I_min the least current the
+    configured circuit gives the wire (at its highest resistance), tol the
+    calibration's residual error and s the current spread.  A voltage circuit's
+    heat goes as the square of its EMF, and I / I_min bounds the EMF's ratio
+    (s = 1); a sink reads I_min and keeps P_max while it regulates, and once
+    the cells cannot feed it, its current varies with the wire's resistance by
+    at most s = (R_loop + R_hi) / (R_loop + R_lo).  Only the current, a gain-only reading, goes
     into it.  A clipped ADC, a stale or no reading: P_max."""
 
     def __init__(self, cfg):
@@ -128,12 +131,13 @@ class WireLimits:
         self.budget = cfg["budget_k"]
         self.p_max = cfg["max_power_w"]
         self.i_min = cfg["current_min_a"]
+        self.spread = cfg["current_spread"]
 
     def power(self, current_a):
         """Bound on the heat while on [W] from a measured current [A] (0: none)."""
         if current_a <= 0:
             return self.p_max
-        k = current_a / ((1.0 - CAL_TOLERANCE) * self.i_min)
+        k = current_a * self.spread / ((1.0 - CAL_TOLERANCE) * self.i_min)
         return self.p_max * k * k if k < 1 else self.p_max
 
     def rise_k(self, f_hz, width_s, bias, p_w):
