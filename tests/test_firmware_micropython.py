@@ -185,3 +185,30 @@ dump()
     assert ["WDT", 100] in r["log"]
     assert r["feeds"] >= 6
     assert len(replies(r)) == 5
+
+
+def test_micropython_and_the_host_emulator_answer_alike(tmp_path):
+    """The same frames, refused and accepted, to the firmware under MicroPython
+    and under CPython (the host emulator's way): the same replies, byte for byte."""
+    from tactilize.firmware import host_machine
+    from tactilize.firmware.emulator import load_firmware
+
+    cases = [(0, 80.0, 500e-6), (0, 301.0, 3e-4), (0, 0.5, 3e-4), (0, 100.0, 6e-3), (0, 100.0, 5e-6),
+             (0, 250.0, 3e-3), (0, 150.0, 1e-3), (1, 60.0, 4e-4), (3, 60.0, 4e-4), (1, 0.0, 0.0)]
+    frames = [P.encode_frame(i + 1, P.Command.SET, P.encode_set_channel(c, f, w, 1.0)) for i, (c, f, w) in enumerate(cases)]
+    frames += [P.encode_frame(20, P.Command.HOLD, P.encode_hold(0, 2e-5, 1e-3, 0.57)), P.encode_frame(21, P.Command.STOP)]
+    wasm = replies(run_frames(frames))
+    fw = load_firmware()
+    host_machine.reset()
+    sent: list[bytes] = []
+    ctl = fw.Controller(sent.append, store=str(tmp_path) + "/")
+    for f in frames:
+        ctl.feed(f)
+    ctl.all_off("exit")
+    host_machine.reset()
+    host = P.FrameDecoder().feed(b"".join(sent))
+    assert wasm == host
+    assert [P.decode_nak(f.payload)[1] for f in host if f.command == P.Command.NAK] == [
+        P.Refused.FREQUENCY, P.Refused.FREQUENCY, P.Refused.PULSE_WIDTH, P.Refused.PULSE_WIDTH, P.Refused.DUTY,
+        P.Refused.ENERGY, P.Refused.CHANNEL,
+    ]
