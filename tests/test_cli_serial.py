@@ -78,7 +78,7 @@ def test_emulator_prints_its_device_then_one_json_line_per_change(emulator):
     import serial
 
     with serial.Serial(emulator.device, timeout=1.0) as ser:
-        ser.write(P.encode_frame(1, P.Command.SET, P.encode_set_channel(0, 120.0, 400e-6, 1.0)))
+        ser.write(P.encode_frame(1, P.Command.SET, P.encode_set_channel(0, 120.0, 300e-6, 1.0)))
         dec = P.FrameDecoder()
         frames: list[P.Frame] = []
         while not frames:
@@ -92,7 +92,7 @@ def test_emulator_prints_its_device_then_one_json_line_per_change(emulator):
         "channel": 0,
         "on": True,
         "frequency_hz": 120.0,
-        "pulse_width_us": 400.0,
+        "pulse_width_us": 300.0,
     }
     assert off["channel"] == 0 and off["on"] is False and off["reason"] == "watchdog"
     assert 0.19 <= off["t_s"] - on["t_s"] <= 0.25

@@ -17,6 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tactilize.actuators import protocol as P
+from tactilize.actuators.sma import build_envelope
 from tactilize.firmware import host_machine
 from tactilize.firmware.emulator import ControllerEmulator, load_firmware
 
@@ -85,25 +86,25 @@ def link(emu):
 
 
 def test_set_round_trip_drives_the_pwm_hardware(emu, link):
-    reply = link.set(0, 120.0, 400e-6)
+    reply = link.set(0, 120.0, 300e-6)
     assert reply.command == P.Command.ACK
     assert reply.payload[0] == P.Command.SET
     hw = host_machine.pin_state(PIN0)
     assert hw["mode"] == "pwm"
     assert hw["frequency_hz"] == 120.0
-    assert hw["duty_ns"] == 400_000
+    assert hw["duty_ns"] == 300_000
     assert host_machine.pin_state(PIN1).get("duty_ns", 0) == 0
     status = P.decode_status(link.request(P.Command.STATUS).payload)
-    assert status.channels[0] == P.ChannelStatus(True, 120.0, 400e-6, 1.0)
+    assert status.channels[0] == P.ChannelStatus(True, 120.0, 300e-6, 1.0)
     assert not status.channels[1].on
     assert status.max_frequency_hz == 300.0 and status.watchdog_s == 0.2
     on = [e for e in emu.events if e["on"]]
-    assert on[0]["channel"] == 0 and on[0]["frequency_hz"] == 120.0 and on[0]["pulse_width_us"] == 400.0
+    assert on[0]["channel"] == 0 and on[0]["frequency_hz"] == 120.0 and on[0]["pulse_width_us"] == 300.0
 
 
 def test_two_channels_run_different_frequencies(emu, link):
-    link.set(0, 120.0, 400e-6)
-    link.set(1, 250.0, 200e-6)
+    link.set(0, 120.0, 300e-6)
+    link.set(1, 250.0, 150e-6)
     assert host_machine.pin_state(PIN0)["frequency_hz"] == 120.0
     assert host_machine.pin_state(PIN1)["frequency_hz"] == 250.0
 
@@ -115,7 +116,7 @@ def test_pins_on_one_pwm_slice_would_share_a_frequency():
     sent = []
     ctl = fw.Controller(sent.append, pins=(16, 17))
     for seq, (ch, f) in enumerate([(0, 120.0), (1, 250.0)]):
-        ctl.feed(P.encode_frame(seq, P.Command.SET, P.encode_set_channel(ch, f, 2e-4, 1.0)))
+        ctl.feed(P.encode_frame(seq, P.Command.SET, P.encode_set_channel(ch, f, 1e-4, 1.0)))
     assert host_machine.pin_state(16)["frequency_hz"] == host_machine.pin_state(17)["frequency_hz"] == 250.0
     ctl.all_off("exit")
     host_machine.reset()
@@ -140,7 +141,8 @@ def test_bad_checksum_is_nakked_and_changes_nothing(emu, link):
         (0.5, 300e-6, P.Refused.FREQUENCY),
         (100.0, 6e-3, P.Refused.PULSE_WIDTH),
         (100.0, 5e-6, P.Refused.PULSE_WIDTH),
-        (250.0, 1e-3, P.Refused.DUTY),  # 25 % duty
+        (250.0, 3e-3, P.Refused.DUTY),  # 75 %: no room to cool in the period
+        (150.0, 1e-3, P.Refused.ENERGY),  # 15 %: within every shape limit, too much heat
     ],
 )
 def test_hard_limits_are_refused_and_the_old_drive_kept(emu, link, f_hz, w_s, refused):
@@ -154,7 +156,13 @@ def test_hard_limits_are_refused_and_the_old_drive_kept(emu, link, f_hz, w_s, re
 
 def test_limit_edges_are_accepted(emu, link):
     assert link.set(0, 300.0, 10e-6).command == P.Command.ACK
-    assert link.set(1, 40.0, 5e-3).command == P.Command.ACK  # duty exactly 20 %
+    assert link.set(1, 1.0, 5e-3).command == P.Command.ACK
+    # the energy limit is the host's envelope for the wire and circuit on the board
+    env = build_envelope()
+    w = env.max_pulse_width_s(50.0)
+    assert link.set(0, 50.0, w * 0.999).command == P.Command.ACK
+    reply = link.set(0, 50.0, w * 1.01)
+    assert P.decode_nak(reply.payload) == (P.NakReason.REFUSED_LIMIT, P.Refused.ENERGY)
 
 
 def test_unknown_command_and_bad_payload(emu, link):
@@ -177,7 +185,7 @@ def test_stop_turns_everything_off(emu, link):
 
 
 def test_watchdog_turns_outputs_off_within_250_ms_of_silence(emu, link):
-    link.set(0, 120.0, 400e-6)
+    link.set(0, 120.0, 300e-6)
     link.set(1, 60.0, 400e-6)
     last_frame_s = time.monotonic()  # the ACK of the last valid frame is in
     deadline = last_frame_s + 1.0
@@ -197,19 +205,19 @@ def test_watchdog_turns_outputs_off_within_250_ms_of_silence(emu, link):
 
 
 def test_heartbeats_keep_the_outputs_on(emu, link):
-    link.set(0, 120.0, 400e-6)
+    link.set(0, 120.0, 300e-6)
     end = time.monotonic() + 0.6
     while time.monotonic() < end:
         assert link.request(P.Command.HEARTBEAT).command == P.Command.ACK
         time.sleep(0.05)
     assert not [e for e in emu.events if not e["on"]]
-    assert host_machine.pin_state(PIN0)["duty_ns"] == 400_000
+    assert host_machine.pin_state(PIN0)["duty_ns"] == 300_000
 
 
 def test_a_corrupt_length_cannot_starve_the_watchdog(emu, link):
     # A start byte with a long length would swallow the following heartbeats
     # if the firmware waited for it to complete; it gives up after 50 ms.
-    link.set(0, 120.0, 400e-6)
+    link.set(0, 120.0, 300e-6)
     link.send_raw(bytes((P.START, 64, 0, 0)))
     end = time.monotonic() + 0.5
     while time.monotonic() < end:
@@ -268,11 +276,12 @@ def test_firmware_decoder_agrees_with_host_decoder(frames, garbage, where):
 
 # ------------------------------------------------------------ MicroPython compatibility
 
-MICROPYTHON_MODULES = {"struct", "sys", "time", "machine", "select", "micropython"}
+MICROPYTHON_MODULES = {"struct", "sys", "time", "machine", "select", "micropython", "tactile_frames", "tactile_wire", "tactilize.firmware"}
 
 
-def test_controller_source_uses_only_micropython_features():
-    source = resources.files("tactilize.firmware").joinpath("controller.py").read_text("utf-8")
+@pytest.mark.parametrize("name", ["controller.py", "tactile_frames.py", "tactile_wire.py"])
+def test_controller_source_uses_only_micropython_features(name):
+    source = resources.files("tactilize.firmware").joinpath(name).read_text("utf-8")
     tree = ast.parse(source)
     for node in ast.walk(tree):
         assert not isinstance(node, ast.JoinedStr), f"f-string at line {node.lineno}"
@@ -280,7 +289,7 @@ def test_controller_source_uses_only_micropython_features():
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
             assert node.returns is None and all(a.annotation is None for a in node.args.args), node.name
         if isinstance(node, ast.Import):
-            assert {a.name for a in node.names} <= MICROPYTHON_MODULES
+            assert {a.name for a in node.names} <= MICROPYTHON_MODULES, node.names
         if isinstance(node, ast.ImportFrom):
             assert node.module in MICROPYTHON_MODULES, node.module
         if isinstance(node, ast.Attribute):

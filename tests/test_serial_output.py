@@ -65,13 +65,13 @@ def test_apply_round_trip(emu):
     # The transport alone: no planning, no envelope.
     with SerialOutput(emu.device, envelope=Identity()) as out:
         assert out.connected
-        sent = out.apply([Drive(120.0, 400e-6), Drive(250.0, 200e-6, 0.5)])
-        assert [(d.pulse_frequency_hz, d.pulse_width_s) for d in sent] == [(120.0, 400e-6), (250.0, 200e-6)]
+        sent = out.apply([Drive(120.0, 300e-6), Drive(250.0, 150e-6, 0.5)])
+        assert [(d.pulse_frequency_hz, d.pulse_width_s) for d in sent] == [(120.0, 300e-6), (250.0, 150e-6)]
         status = out.status()
-        assert status.channels[0] == P.ChannelStatus(True, 120.0, 400e-6, 1.0)
+        assert status.channels[0] == P.ChannelStatus(True, 120.0, 300e-6, 1.0)
         assert status.channels[1].frequency_hz == 250.0
         assert status.channels[1].amplitude == pytest.approx(0.5, abs=1e-4)
-        assert host_machine.pin_state(fw.CHANNEL_PINS[1])["duty_ns"] == 200_000
+        assert host_machine.pin_state(fw.CHANNEL_PINS[1])["duty_ns"] == 150_000
     # leaving the block stopped the controller
     assert [e["reason"] for e in emu.events if not e["on"]] == ["stop", "stop"]
 
@@ -112,8 +112,8 @@ def test_the_default_envelope_is_the_wire_models(emu):
 
 def test_controller_limits_clamp_what_the_envelope_lets_through(emu):
     with SerialOutput(emu.device, envelope=Identity()) as out:
-        sent = out.apply([Drive(250.0, 1e-3)])  # 25 %, above the controller's 20 %
-        assert "controller:max_duty_ratio" in sent[0].clamped
+        sent = out.apply([Drive(1.0, 20e-3)])  # above the controller's 5 ms
+        assert "controller:max_pulse_width_s" in sent[0].clamped
         assert out.status().channels[0].on  # accepted, not refused
 
 
@@ -315,3 +315,37 @@ def test_limits_class_is_an_envelope():
     # serial output relies on for its fallback and for the controller's limits.
     d = ActuatorLimits().apply(Drive(1000.0, 1e-3))
     assert d.pulse_frequency_hz == 300.0 and d.clamped
+
+
+# ------------------------------------------------------------ the self-sensing loop
+
+
+def test_the_host_closes_the_loop_on_the_boards_measurements(emu):
+    from tactilize.firmware import tactile_wire as W
+
+    r_wire, amps = 0.60, 0.48
+    host_machine.ADC.sources[fw.SENSE_ADC_PINS[0]] = amps / W.DEFAULT_AMPS_PER_COUNT
+    host_machine.ADC.sources[fw.RAIL_ADC_PIN] = amps * (r_wire + W.DEFAULT_PATH_OHM[0]) / W.RAIL_VOLTS_PER_COUNT
+    with SerialOutput(emu.device) as out:
+        assert out.loop is not None
+        out.apply([Drive(80.0, 3e-4, 1.0, (), 0.5), Drive.off()])
+        ctrl = out.loop.controllers[0]
+        assert wait_for(lambda: ctrl.resistance_ohm == pytest.approx(r_wire, abs=0.01), 3.0)
+        # the heat it measures is the board's I^2 R, not the nominal circuit's
+        assert ctrl.on_power_w == pytest.approx(amps * amps * r_wire, rel=0.02)
+        # and the board holds what the host's controller decided
+        hold = emu.controller.channels[0].hold
+        assert wait_for(lambda: hold.active, 2.0)
+        assert hold.bias_w > 0 and hold.target_ohm >= 0
+        # within the board's own energy limits (the host leaves the bias that room)
+        assert emu.controller.limits.heat_allowed(80.0, hold.energy_j, hold.bias_w)
+        report = out.loop.report
+        assert report is not None and report.channels[0].count > 0
+
+
+def test_open_loop_serial_output_sends_no_holds(emu):
+    with SerialOutput(emu.device, closed_loop=False) as out:
+        assert out.loop is None
+        out.apply([Drive(80.0, 3e-4)])
+        time.sleep(0.2)
+        assert not emu.controller.channels[0].hold.active

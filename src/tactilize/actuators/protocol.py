@@ -26,6 +26,12 @@ SET       0x01  channel u8, frequency u32 [mHz], width u32 [ns], amplitude u16
 STOP      0x02  no payload: every channel off.
 HEARTBEAT 0x03  no payload: keeps the controller's 200 ms watchdog from firing.
 STATUS    0x04  no payload: the controller answers with a STATUS_REPLY.
+HOLD      0x05  channel u8, pulse heat u32 [nJ], bias heat u32 [uW], target
+                resistance u32 [uohm]: the heat the board keeps between host
+                messages (pulse width and bias from its measured I^2 R).
+SENSE     0x06  no payload: the controller answers with a SENSE_REPLY.
+PAIR      0x07  onset offset u32 [us], then frequency, width, amplitude of
+                channels 0 and 1: channel 1 starts that long after channel 0.
 ========  ====  ==========================================================
 
 Replies, controller to host (``SEQ`` echoes the sequence number of the frame
@@ -35,6 +41,7 @@ they answer, so the host can match replies to requests):
 ACK           0x80  command u8 (the command acknowledged)
 NAK           0x81  reason u8, detail u8 (see :class:`NakReason`, :class:`Refused`)
 STATUS_REPLY  0x82  see :data:`STATUS_FORMAT` and :class:`ControllerStatus`
+SENSE_REPLY   0x83  see :data:`SENSE_FORMAT` and :class:`SenseReport`
 ============  ====  ====================================================
 
 Every command is idempotent, so the host may resend a frame whose ACK got lost.
@@ -75,6 +82,12 @@ __all__ = [
     "encode_status",
     "decode_nak",
     "STATUS_FORMAT",
+    "SENSE_FORMAT",
+    "encode_hold",
+    "encode_pair",
+    "ChannelSense",
+    "SenseReport",
+    "decode_sense",
     "AMPLITUDE_FULL_SCALE",
 ]
 
@@ -97,9 +110,13 @@ class Command(IntEnum):
     STOP = 0x02
     HEARTBEAT = 0x03
     STATUS = 0x04
+    HOLD = 0x05
+    SENSE = 0x06
+    PAIR = 0x07
     ACK = 0x80
     NAK = 0x81
     STATUS_REPLY = 0x82
+    SENSE_REPLY = 0x83
 
 
 class NakReason(IntEnum):
@@ -119,6 +136,7 @@ class Refused(IntEnum):
     PULSE_WIDTH = 2
     DUTY = 3
     CHANNEL = 4
+    ENERGY = 5
 
 
 def _crc_table() -> tuple[int, ...]:
@@ -446,3 +464,58 @@ def encode_status(status: ControllerStatus) -> bytes:
         int(round(status.watchdog_s * 1e3)),
     ]
     return struct.pack(STATUS_FORMAT, *fields)
+
+
+# ------------------------------------------------------------ self-sensing and the board's hold
+
+_HOLD_FORMAT = ">BIII"
+_PAIR_FORMAT = ">I" + "IIH" * 2
+#: SENSE_REPLY payload: rail [mV] u16, then per channel resistance [uohm] u32,
+#: current [uA] u32, bias level u16 (65536 = 1), pulse width [ns] u32, count u16
+SENSE_FORMAT = ">H" + "IIHIH" * 2
+
+
+def encode_hold(channel: int, pulse_energy_j: float, bias_w: float, target_ohm: float) -> bytes:
+    """HOLD payload: heat per pulse [J], bias heat [W] and target resistance [ohm]."""
+    return struct.pack(
+        _HOLD_FORMAT, channel, _u32(pulse_energy_j * 1e9, "pulse_energy_j"), _u32(bias_w * 1e6, "bias_w"),
+        _u32(target_ohm * 1e6, "target_ohm"),
+    )
+
+
+def encode_pair(onset_s: float, first: tuple[float, float, float], second: tuple[float, float, float]) -> bytes:
+    """PAIR payload: channel 1 starts ``onset_s`` [s] after channel 0; each drive is
+    (frequency [Hz], width [s], amplitude)."""
+    fields: list[int] = [_u32(onset_s * 1e6, "onset_s")]
+    for f, w, a in (first, second):
+        fields += [_u32(f * 1e3, "frequency_hz"), _u32(w * 1e9, "pulse_width_s"), int(round(a * AMPLITUDE_FULL_SCALE))]
+    return struct.pack(_PAIR_FORMAT, *fields)
+
+
+@dataclass(frozen=True)
+class ChannelSense:
+    """One channel's latest self-sensing measurement (SI units; 0 when none yet)."""
+
+    resistance_ohm: float
+    current_a: float
+    bias_level: float
+    pulse_width_s: float
+    count: int
+
+
+@dataclass(frozen=True)
+class SenseReport:
+    """A SENSE_REPLY: the supply rail [V] and each channel's measurement."""
+
+    rail_v: float
+    channels: tuple[ChannelSense, ...]
+
+
+def decode_sense(payload: bytes) -> SenseReport:
+    """A :class:`SenseReport` from a SENSE_REPLY payload."""
+    v = struct.unpack(SENSE_FORMAT, payload)
+    chans = tuple(
+        ChannelSense(v[1 + 5 * i] / 1e6, v[2 + 5 * i] / 1e6, v[3 + 5 * i] / 65536, v[4 + 5 * i] / 1e9, v[5 + 5 * i])
+        for i in range(2)
+    )
+    return SenseReport(v[0] / 1e3, chans)

@@ -40,6 +40,7 @@ from ..drive import Drive
 from ..mapping import ActuatorLimits
 from . import protocol as P
 from .base import OutputBase
+from .sensed import SensedLoop
 from .sma import Circuit, SafetyEnvelope, WireController, WireSpec, default_envelope
 
 __all__ = ["SerialOutput"]
@@ -72,7 +73,7 @@ class SerialOutput(OutputBase):
         Serial device path (``/dev/ttyACM0``, ``COM3``, a pty path).
     wire, circuit : optional
         The wire and the driver circuit on the board (the paper's 75 um on
-        ``aa-resistor`` by default, see docs/signals-and-wire.md).
+        ``aa-resistor`` by default, see docs/hardware.md).
     envelope : object with ``apply(Drive) -> Drive``, optional
         Safety envelope applied to every drive before it is sent; default: the
         :class:`~tactilize.actuators.sma.SafetyEnvelope` of the wire and circuit.
@@ -93,7 +94,11 @@ class SerialOutput(OutputBase):
         A connected controller silent for this long is treated as lost [s].
     on_event : callable, optional
         ``on_event(kind, detail)`` for ``connected``, ``lost``, ``reconnected``,
-        ``watchdog`` and ``reapply-failed`` events (called from a worker thread).
+        ``watchdog``, ``reapply-failed`` and ``hold-refused`` events (called from a worker thread).
+    closed_loop : bool
+        Ask the board for its self-sensing measurements with every heartbeat,
+        close the :class:`WireController` loop on them and send the heat it
+        decides as HOLD frames (:mod:`tactilize.actuators.sensed`).
 
     Raises
     ------
@@ -122,6 +127,7 @@ class SerialOutput(OutputBase):
         connect_timeout_s: float = 2.0,
         unresponsive_s: float = 0.5,
         on_event: Callable[[str, str], None] | None = None,
+        closed_loop: bool = True,
     ) -> None:
         self.port = str(port)
         spec = WireSpec.resolve(wire)
@@ -133,6 +139,8 @@ class SerialOutput(OutputBase):
             if isinstance(self.envelope, SafetyEnvelope)
             else None
         )
+        #: the self-sensing loop (:class:`~tactilize.actuators.sensed.SensedLoop`), when closed
+        self.loop = SensedLoop(self.envelope) if closed_loop and isinstance(self.envelope, SafetyEnvelope) else None
         self.baudrate = baudrate
         self.ack_timeout_s = ack_timeout_s
         self.retries = retries
@@ -203,6 +211,9 @@ class SerialOutput(OutputBase):
         with self._apply_lock:
             self._desired = drives
             self._send_drives(drives)
+            if self.loop is not None:
+                self.loop.command(drives, time.monotonic())
+                self._send_holds()
         return drives
 
     def stop(self) -> None:
@@ -218,6 +229,8 @@ class SerialOutput(OutputBase):
         """
         with self._apply_lock:
             self._desired = [Drive.off()] * self.channels
+            if self.loop is not None:
+                self.loop.stop()
             if not self.connected:
                 return
             try:
@@ -279,6 +292,16 @@ class SerialOutput(OutputBase):
             raise OutputError(
                 self.port, "controller disconnected; outputs are off and the drives will be re-applied when it returns"
             ) from None
+
+    def _send_holds(self) -> None:
+        """The loop's HOLD frames whose heat moved (the apply lock is held)."""
+        holds = self.loop.holds(time.monotonic()) if self.loop is not None else []
+        requests = [(int(P.Command.HOLD), P.encode_hold(*h)) for h in holds]
+        if requests:
+            try:
+                self._transact(requests)
+            except _PortLost:
+                self.loop.forget()
 
     # ------------------------------------------------------------ requests
 
@@ -464,6 +487,11 @@ class SerialOutput(OutputBase):
             # (the host stalled); put the drives back.
             if any(not d.is_off for d in self._desired):
                 self._reapply.set()
+        if frame.command == P.Command.SENSE_REPLY and self.loop is not None:
+            try:
+                self.loop.observe(P.decode_sense(frame.payload), time.monotonic())
+            except Exception:  # struct.error: a reply of another firmware version
+                pass
         with self._pending_lock:
             waiter = self._pending.get(frame.seq)
         if waiter is not None:
@@ -487,8 +515,16 @@ class SerialOutput(OutputBase):
             # Not waited for: any reply refreshes _last_rx_s, and a stalled
             # controller is caught by the silence check above.
             self._write(P.encode_frame(seq, P.Command.HEARTBEAT))
+            if self.loop is not None:
+                self._write(P.encode_frame(next(self._seq) & 0xFF, P.Command.SENSE))
         except _PortLost:
             return
+        if self.loop is not None:
+            with self._apply_lock:
+                try:
+                    self._send_holds()
+                except OutputError as exc:
+                    self._event("hold-refused", exc.fault)
         if self._reapply.is_set():
             self._reapply.clear()
             self._event("watchdog", "controller watchdog fired while connected; re-applying drives")
@@ -529,6 +565,8 @@ class SerialOutput(OutputBase):
                 pass
 
     def _reapply_drives(self) -> None:
+        if self.loop is not None:
+            self.loop.forget()
         with self._apply_lock:
             drives = [self._make_safe(d) for d in self._desired]
             try:

@@ -13,8 +13,10 @@
 # annotations or bytearray.find), integer arithmetic in wire units, and every
 # host difference confined to the small compatibility block below.
 #
-# This file keeps its own copy of the frame codec because a board runs one file;
-# the tests run the host's protocol.py against it, so the two cannot drift.
+# This file keeps its own copy of the frame codec (MicroPython has no enum or
+# dataclasses); the tests run the host's protocol.py against it, so the two
+# cannot drift.  The wire's physics on the board (energy limits, self-sensing,
+# the hold between host messages) is in tactile_wire.py, copied next to it.
 
 import struct
 import sys
@@ -22,7 +24,19 @@ import time
 
 import machine
 
-VERSION = 1
+try:
+    import tactile_frames as F
+    import tactile_wire as W
+except ImportError:  # on the host, inside the package
+    from tactilize.firmware import tactile_frames as F
+    from tactilize.firmware import tactile_wire as W
+
+# The codec and the clock (tactile_frames.py), under the names this file uses.
+START, MAX_PAYLOAD, FRAME_TIMEOUT_MS = F.START, F.MAX_PAYLOAD, F.FRAME_TIMEOUT_MS
+crc16, encode_frame, Decoder = F.crc16, F.encode_frame, F.Decoder
+_ticks_ms, _ticks_diff, _ticks_us, _sleep_us = F._ticks_ms, F._ticks_diff, F._ticks_us, F._sleep_us
+
+VERSION = 2
 
 # ---------------------------------------------------------------- hardware map
 # GPIO driving the gate of each channel's MOSFET (through ~100 ohm, with a
@@ -30,6 +44,13 @@ VERSION = 1
 # GP16 and GP18 sit on different PWM slices (slice = (gpio >> 1) & 7): the two
 # outputs of one slice share its frequency, so GP16/GP17 could not differ.
 CHANNEL_PINS = (16, 18)
+# GPIO of each channel's standby bias: a 20 kHz PWM on a slice of its own (GP20:
+# slice 2, GP22: slice 3), OR-ed with the pulse pin into the gate (docs/hardware.md).
+BIAS_PINS = (20, 22)
+BIAS_HZ = 20000
+# ADC inputs: each channel's current-sense amplifier, and the wire rail's divider.
+SENSE_ADC_PINS = (26, 27)
+RAIL_ADC_PIN = 28
 # Status LED: lit while any channel is on.
 LED_PIN = "LED"
 # Maintenance jumper: tie this pin to GND before power-up and main.py returns to
@@ -38,20 +59,22 @@ LED_PIN = "LED"
 MAINTENANCE_PIN = 15
 
 # ---------------------------------------------------------------- hard limits
-# The controller's own limits, independent of any host.  They sit just outside
-# the host's actuator limits (tactilize.mapping.ActuatorLimits: 1..300 Hz,
-# 20 us..2 ms, duty 10 %) so a healthy host never meets them, and a broken or
-# hostile host cannot overheat a wire.
+# The controller's own limits, independent of any host.  The shape limits sit
+# outside the host's actuator limits; the heat is limited in energy terms by
+# tactile_wire.WireLimits (the host's safety envelope, evaluated on the board for
+# the wire and circuit stored on it), so a broken or hostile host cannot overheat
+# a wire with any sequence of valid frames.
 MIN_FREQUENCY_MHZ = 1000  # 1 Hz
 MAX_FREQUENCY_MHZ = 300000  # 300 Hz, the paper's top vibration frequency
 MIN_WIDTH_NS = 10000  # 10 us
 MAX_WIDTH_NS = 5000000  # 5 ms
-MAX_DUTY_PPM = 200000  # 20 %: above ~10 % a 75 um wire leaves its transformation band
+MAX_DUTY_PPM = 500000  # a pulse leaves half its period to cool; heat: the energy limits
 WATCHDOG_MS = 200
-# A frame of at most 70 bytes takes well under a millisecond at USB speed; a
-# partial frame older than this was corrupted, and waiting longer would let a
-# bad length byte swallow the heartbeats and trip the watchdog.
-FRAME_TIMEOUT_MS = 50
+# machine.WDT: a hung VM resets the chip (every pin back to an input, the gates
+# pulled low) this long after the main loop last ran [ms].
+WDT_TIMEOUT_MS = 100
+# How often the board's hold loop runs [ms].
+HOLD_MS = 10
 # How long the main loop waits for input before checking the watchdog [ms].
 POLL_MS = 5
 # Below this frequency the RP2040 PWM cannot make the period from an integer Hz
@@ -60,15 +83,17 @@ POLL_MS = 5
 PWM_MIN_FREQUENCY_MHZ = 20000
 
 # ---------------------------------------------------------------- protocol
-START = 0xA5
-MAX_PAYLOAD = 64
 CMD_SET = 0x01
 CMD_STOP = 0x02
 CMD_HEARTBEAT = 0x03
 CMD_STATUS = 0x04
+CMD_HOLD = 0x05
+CMD_SENSE = 0x06
+CMD_PAIR = 0x07
 CMD_ACK = 0x80
 CMD_NAK = 0x81
 CMD_STATUS_REPLY = 0x82
+CMD_SENSE_REPLY = 0x83
 NAK_BAD_CHECKSUM = 1
 NAK_REFUSED_LIMIT = 2
 NAK_UNKNOWN_COMMAND = 3
@@ -78,110 +103,23 @@ REFUSED_FREQUENCY = 1
 REFUSED_WIDTH = 2
 REFUSED_DUTY = 3
 REFUSED_CHANNEL = 4
+REFUSED_ENERGY = 5
 FLAG_WATCHDOG_TRIPPED = 0x01
 SET_FORMAT = ">BIIH"
 STATUS_FORMAT = ">BBIII" + "BIIH" * 2 + "IIIIIH"
+HOLD_FORMAT = ">BIII"  # channel, pulse heat [nJ], bias heat [uW], target resistance [uohm]
+PAIR_FORMAT = ">I" + "IIH" * 2  # onset offset of channel 1 [us], then (mHz, ns, amplitude) per channel
+SENSE_FORMAT = ">H" + "IIHIH" * 2  # rail [mV]; per channel R [uohm], I [uA], bias q16, width [ns], count
 
-# ---------------------------------------------------------------- host compatibility
-# MicroPython's time has ticks_ms/ticks_diff/sleep_us; CPython has monotonic.
-_ticks_ms = getattr(time, "ticks_ms", None)
-_ticks_diff = getattr(time, "ticks_diff", None)
-_sleep_us = getattr(time, "sleep_us", None)
-if _ticks_ms is None:
-
-    def _ticks_ms():
-        return int(time.monotonic() * 1000)
-
-    def _ticks_diff(a, b):
-        return a - b
-
-    def _sleep_us(us):
-        # A busy wait, as on the board: time.sleep would overshoot short pulses.
-        end = time.perf_counter() + us / 1e6
-        while time.perf_counter() < end:
-            pass
-
-
-def crc16(data, crc=0xFFFF):
-    """CRC-16/CCITT-FALSE over data (poly 0x1021, init 0xFFFF)."""
-    for byte in data:
-        crc ^= byte << 8
-        for _ in range(8):
-            if crc & 0x8000:
-                crc = ((crc << 1) ^ 0x1021) & 0xFFFF
-            else:
-                crc = (crc << 1) & 0xFFFF
-    return crc
-
-
-def encode_frame(seq, cmd, payload=b""):
-    body = bytes((len(payload), seq & 0xFF, cmd)) + bytes(payload)
-    return bytes((START,)) + body + struct.pack(">H", crc16(body))
-
-
-class Decoder:
-    """Splits a byte stream into frames; calls on_frame(seq, cmd, payload) for
-    each valid one and on_bad(seq) for each with a bad checksum.  After any
-    failure it drops just the candidate start byte and rescans, so a valid frame
-    hidden behind garbage or a corrupt header is still found."""
-
-    def __init__(self, on_frame, on_bad):
-        self.buf = bytearray()
-        self.on_frame = on_frame
-        self.on_bad = on_bad
-        # When the frame candidate now at buf[0] started waiting for its tail;
-        # None while no candidate waits.  Measured per candidate, not from the
-        # last byte received: heartbeats arriving behind a corrupt length byte
-        # must not keep that candidate alive.
-        self.pending_since_ms = None
-
-    def feed(self, data):
-        self.buf.extend(data)
-        self._scan()
-
-    def expire(self, now_ms):
-        if self.pending_since_ms is not None and _ticks_diff(now_ms, self.pending_since_ms) > FRAME_TIMEOUT_MS:
-            self.buf = self.buf[1:]
-            self.pending_since_ms = None
-            self._scan()
-
-    def _scan(self):
-        while self.buf:
-            buf = self.buf
-            if buf[0] != START:
-                i = 1
-                n = len(buf)
-                while i < n and buf[i] != START:
-                    i += 1
-                self.buf = buf[i:]
-                self.pending_since_ms = None
-                continue
-            if len(buf) < 2:
-                break
-            length = buf[1]
-            if length > MAX_PAYLOAD:
-                self.buf = buf[1:]
-                self.pending_since_ms = None
-                continue
-            total = 6 + length
-            if len(buf) < total:
-                break
-            self.pending_since_ms = None
-            got = (buf[4 + length] << 8) | buf[5 + length]
-            if crc16(buf[1 : 4 + length]) != got:
-                self.buf = buf[1:]
-                self.on_bad(buf[2])
-                continue
-            self.buf = buf[total:]
-            self.on_frame(buf[2], buf[3], bytes(buf[4 : 4 + length]))
-        if self.buf and self.pending_since_ms is None:
-            self.pending_since_ms = _ticks_ms()
+# The hardware watchdog once run() started it (fed also after each retune wait).
+_wdt = [None]
 
 
 class Channel:
-    """One actuator output: a PWM slice for fast trains, a soft timer for slow ones."""
+    """One actuator output: a PWM slice for fast trains, a soft timer for slow
+    ones, a second slice for the standby bias, and the sense path."""
 
-    def __init__(self, index, pin_id):
+    def __init__(self, index, pin_id, bias_pin_id=None, sense=None, hold=None):
         self.index = index
         self.pin_id = pin_id
         self.pin = machine.Pin(pin_id, machine.Pin.OUT, value=0)
@@ -190,10 +128,19 @@ class Channel:
         self.frequency_mhz = 0
         self.width_ns = 0
         self.amplitude_q16 = 0
+        self.bias_pin_id = bias_pin_id
+        self.bias_pwm = None
+        self.bias_q16 = 0
+        self.sense = sense
+        self.hold = hold
 
     @property
     def on(self):
         return self.frequency_mhz > 0
+
+    @property
+    def live(self):
+        return self.frequency_mhz > 0 or self.bias_q16 > 0
 
     def off(self):
         if self.timer is not None:
@@ -208,6 +155,29 @@ class Channel:
         self.frequency_mhz = 0
         self.width_ns = 0
         self.amplitude_q16 = 0
+        self.set_bias(0)
+        if self.hold is not None:
+            self.hold.clear()
+
+    def set_bias(self, q16):
+        """Standby bias: the switch chopped at BIAS_HZ, conducting q16 / 65536 of the time."""
+        if self.bias_pin_id is None:
+            return
+        if q16 <= 0:
+            if self.bias_pwm is not None:
+                self.bias_pwm.duty_u16(0)
+                self.bias_pwm.deinit()
+                self.bias_pwm = None
+                machine.Pin(self.bias_pin_id, machine.Pin.OUT, value=0)
+            self.bias_q16 = 0
+            return
+        if self.bias_pwm is None:
+            self.bias_pwm = machine.PWM(machine.Pin(self.bias_pin_id))
+            self.bias_pwm.duty_u16(0)
+            self.bias_pwm.freq(BIAS_HZ)
+        q16 = min(q16, 65535)
+        self.bias_pwm.duty_u16(q16)
+        self.bias_q16 = q16
 
     def set(self, frequency_mhz, width_ns, amplitude_q16):
         """Start (or retune) the pulse train; the caller has checked the limits.
@@ -216,13 +186,25 @@ class Channel:
             if self.timer is not None:
                 self.timer.deinit()
                 self.timer = None
-            if self.pwm is None:
-                self.pwm = machine.PWM(self.pin)
             hz = (frequency_mhz + 500) // 1000
-            # Width first to 0 so that a lower frequency never briefly meets an
-            # old, longer width (and a higher one never an impossible one).
-            self.pwm.duty_ns(0)
-            self.pwm.freq(hz)
+            if self.pwm is None:
+                # A fresh slice: its output is low until the first wrap latches these.
+                self.pwm = machine.PWM(self.pin)
+                self.pwm.duty_ns(0)
+                self.pwm.freq(hz)
+            elif self.pwm.freq() != hz:
+                # The RP2040 applies a new divider at once but TOP and compare at
+                # the wrap (docs/references.md, section 8 (PWM retune)): a pulse in
+                # flight would stretch.  So: compare 0, wait one old period (a wrap
+                # latches the 0 and the last pulse ends), then the new divider and
+                # TOP, and the new compare latches with TOP at the next wrap.
+                old_us = 1000000 // self.pwm.freq()
+                self.pwm.duty_ns(0)
+                _sleep_us(old_us + 50)
+                if _wdt[0] is not None:
+                    _wdt[0].feed()  # a train of retunes in one pass must not reset the chip
+                self.pwm.freq(hz)
+            # Same divider and TOP: the compare alone latches at the wrap.
             self.pwm.duty_ns(width_ns)
             applied_mhz = hz * 1000
         else:
@@ -244,10 +226,15 @@ class Channel:
 
     def _pulse(self, timer):
         # Soft-IRQ context on the board: the pulse is busy-waited so its width is
-        # exact to a microsecond even though the timer's edge may jitter.
+        # exact to a microsecond even though the timer's edge may jitter; the
+        # sense path is read in the middle of it.
         pin = self.pin
         pin.value(1)
-        _sleep_us(self.width_ns // 1000)
+        us = self.width_ns // 1000
+        _sleep_us(us // 2)
+        if self.sense is not None:
+            self.sense.sample(_ticks_ms())
+        _sleep_us(us - us // 2)
         pin.value(0)
 
 
@@ -259,10 +246,20 @@ class Controller:
     emulator prints it; the board lights its LED).
     """
 
-    def __init__(self, write, on_change=None, pins=CHANNEL_PINS):
+    def __init__(self, write, on_change=None, pins=CHANNEL_PINS, bias_pins=BIAS_PINS, store=""):
         self.write = write
         self.on_change = on_change
-        self.channels = [Channel(i, p) for i, p in enumerate(pins)]
+        # The wire and circuit stored on the board; the host cannot change them.
+        self.config = W.parse_config(W.read_text(store + W.CONFIG_FILE), W.DEFAULT_CONFIG)
+        self.limits = W.WireLimits(self.config)
+        self.store = store
+        cal = W.load_calibration(W.read_text(store + W.CAL_FILE), len(pins))
+        rail = machine.ADC(RAIL_ADC_PIN)
+        self.channels = []
+        for i, p in enumerate(pins):
+            sense = W.Sense(machine.ADC(SENSE_ADC_PINS[i % 2]), rail, cal[i][0], cal[i][1])
+            bias_pin = bias_pins[i] if bias_pins is not None and i < len(bias_pins) else None
+            self.channels.append(Channel(i, p, bias_pin, sense, W.Hold(self.limits, self.config)))
         try:
             self.led = machine.Pin(LED_PIN, machine.Pin.OUT, value=0)
         except (ValueError, TypeError):
@@ -270,6 +267,8 @@ class Controller:
         self.decoder = Decoder(self._on_frame, self._on_bad)
         self.start_ms = _ticks_ms()
         self.last_valid_ms = self.start_ms
+        self.hold_ms = self.start_ms
+        self.pair_timer = None
         self.watchdog_tripped = False
         self.frames_ok = 0
         self.frames_bad = 0
@@ -280,13 +279,52 @@ class Controller:
         self.decoder.feed(data)
 
     def tick(self):
-        """Called from the main loop at least every POLL_MS: watchdog and stale frames."""
+        """Called from the main loop at least every POLL_MS: watchdog, stale
+        frames, the sense readings and the hold."""
         now = _ticks_ms()
         self.decoder.expire(now)
         if _ticks_diff(now, self.last_valid_ms) > WATCHDOG_MS:
-            if any(ch.on for ch in self.channels):
+            if any(ch.live for ch in self.channels) or self.pair_timer is not None:
                 self.all_off("watchdog")
                 self.watchdog_tripped = True
+        for ch in self.channels:
+            if ch.live:
+                for _ in range(8):
+                    ch.sense.sample(now)
+        dt_ms = _ticks_diff(now, self.hold_ms)
+        if dt_ms >= HOLD_MS:
+            self.hold_ms = now
+            for ch in self.channels:
+                if ch.hold.active:
+                    self._hold(ch, now, dt_ms / 1000.0)
+
+    def _hold(self, ch, now, dt_s):
+        """Keep the host's heat between its messages: width and bias from the
+        measured heat while on, within the energy limits (tactile_wire.Hold)."""
+        ch.hold.frequency_hz = ch.frequency_mhz / 1000.0
+        sense = ch.sense
+        width_s, bias = ch.hold.step(
+            sense.resistance_ohm, sense.power_w(now, _ticks_diff), dt_s, ch.width_ns / 1e9,
+            sense.current_bound_a(now, _ticks_diff),
+        )
+        if ch.on and width_s > 0:
+            w_ns = int(width_s * 1e9)
+            if w_ns < MIN_WIDTH_NS:
+                w_ns = MIN_WIDTH_NS if self._fits(ch, ch.frequency_mhz, MIN_WIDTH_NS, bias) else 0
+            if w_ns == 0:
+                ch.off()
+                self._changed(ch, "limit")
+                return
+            w_ns = min(w_ns, MAX_WIDTH_NS)
+            if abs(w_ns - ch.width_ns) * 50 > ch.width_ns:  # more than 2 %
+                ch.set(ch.frequency_mhz, w_ns, ch.amplitude_q16)
+                self._changed(ch, "hold")
+        ch.set_bias(int(bias * 65536))
+
+    def _fits(self, ch, f_mhz, w_ns, bias):
+        """The energy limits (tactile_wire.WireLimits) with the channel's heat while on."""
+        p = self.limits.power(ch.sense.current_bound_a(_ticks_ms(), _ticks_diff))
+        return self.limits.allowed(f_mhz / 1000.0, w_ns / 1e9, bias, p)
 
     # -- frames
     def _reply(self, seq, cmd, payload=b""):
@@ -319,6 +357,14 @@ class Controller:
             return self._ack(seq, cmd)
         if cmd == CMD_STATUS:
             return self._reply(seq, CMD_STATUS_REPLY, self.status_payload())
+        if cmd == CMD_SENSE:
+            if payload:
+                return self._nak(seq, NAK_BAD_PAYLOAD)
+            return self._reply(seq, CMD_SENSE_REPLY, self.sense_payload())
+        if cmd == CMD_HOLD:
+            return self._hold_cmd(seq, payload)
+        if cmd == CMD_PAIR:
+            return self._pair(seq, payload)
         return self._nak(seq, NAK_UNKNOWN_COMMAND)
 
     def _set(self, seq, payload):
@@ -328,26 +374,103 @@ class Controller:
         if index >= len(self.channels):
             return self._nak(seq, NAK_BAD_PAYLOAD, REFUSED_CHANNEL)
         ch = self.channels[index]
-        if f_mhz == 0 or w_ns == 0 or amp == 0:
-            if ch.on:
-                ch.off()
-                self._changed(ch, "command")
-            self.watchdog_tripped = False
-            return self._ack(seq, CMD_SET)
-        refused = self.check_limits(f_mhz, w_ns)
+        if index == 1:
+            self._cancel_pair()
+        refused = self._refused(ch, f_mhz, w_ns, amp)
         if refused:
             # Refused: the channel keeps its previous (valid) drive.
             return self._nak(seq, NAK_REFUSED_LIMIT, refused)
-        before = (ch.frequency_mhz, ch.width_ns)
-        ch.set(f_mhz, w_ns, amp)
+        self._apply(ch, f_mhz, w_ns, amp)
+        return self._ack(seq, CMD_SET)
+
+    def _refused(self, ch, f_mhz, w_ns, amp):
+        """0 when a drive may run on a channel (off always may), else REFUSED_*."""
+        if f_mhz == 0 or w_ns == 0 or amp == 0:
+            return REFUSED_NONE
+        refused = self.check_limits(f_mhz, w_ns)
+        if refused:
+            return refused
+        # The pulses come first: the bias is cut to the room they leave (_apply).
+        if not self._fits(ch, f_mhz, w_ns, 0.0):
+            return REFUSED_ENERGY
+        return REFUSED_NONE
+
+    def _apply(self, ch, f_mhz, w_ns, amp):
         self.watchdog_tripped = False
+        if f_mhz == 0 or w_ns == 0 or amp == 0:
+            if ch.on:
+                bias, hold = ch.bias_q16, ch.hold
+                keep = (hold.frequency_hz, hold.energy_j, hold.bias_w, hold.target_ohm)
+                ch.off()
+                # Texture off: the standby bias and the hold stay.
+                hold.set(0.0, 0.0, keep[2], keep[3])
+                ch.set_bias(bias)
+                self._changed(ch, "command")
+            return
+        before = (ch.frequency_mhz, ch.width_ns)
+        p = self.limits.power(ch.sense.current_bound_a(_ticks_ms(), _ticks_diff))
+        room = self.limits.max_bias(f_mhz / 1000.0, w_ns / 1e9, p)
+        if ch.bias_q16 > int(room * 65536):
+            ch.set_bias(int(room * 65536))
+        ch.set(f_mhz, w_ns, amp)
         if (ch.frequency_mhz, ch.width_ns) != before:
             self._changed(ch, "command")
-        return self._ack(seq, CMD_SET)
+
+    def _hold_cmd(self, seq, payload):
+        if len(payload) != struct.calcsize(HOLD_FORMAT):
+            return self._nak(seq, NAK_BAD_PAYLOAD)
+        index, e_nj, bias_uw, target_uohm = struct.unpack(HOLD_FORMAT, payload)
+        if index >= len(self.channels):
+            return self._nak(seq, NAK_BAD_PAYLOAD, REFUSED_CHANNEL)
+        ch = self.channels[index]
+        f = ch.frequency_mhz / 1000.0
+        if not self.limits.heat_allowed(f, e_nj * 1e-9, bias_uw * 1e-6):
+            return self._nak(seq, NAK_REFUSED_LIMIT, REFUSED_ENERGY)
+        self.watchdog_tripped = False
+        ch.hold.set(f, e_nj * 1e-9, bias_uw * 1e-6, target_uohm * 1e-6)
+        if not ch.hold.active:
+            ch.set_bias(0)
+        else:
+            self._hold(ch, _ticks_ms(), 0.0)
+        return self._ack(seq, CMD_HOLD)
+
+    def _pair(self, seq, payload):
+        """Both channels at once, channel 1 starting soa_us after channel 0 (timed
+        here, for apparent movement between the two pins)."""
+        if len(payload) != struct.calcsize(PAIR_FORMAT):
+            return self._nak(seq, NAK_BAD_PAYLOAD)
+        if len(self.channels) < 2:
+            return self._nak(seq, NAK_BAD_PAYLOAD, REFUSED_CHANNEL)
+        v = struct.unpack(PAIR_FORMAT, payload)
+        soa_us, d0, d1 = v[0], v[1:4], v[4:7]
+        ch0, ch1 = self.channels[0], self.channels[1]
+        for ch, d in ((ch0, d0), (ch1, d1)):
+            refused = self._refused(ch, d[0], d[1], d[2])
+            if refused:
+                return self._nak(seq, NAK_REFUSED_LIMIT, refused)
+        self._cancel_pair()
+        self._apply(ch0, d0[0], d0[1], d0[2])
+        self._apply(ch1, 0, 0, 0)
+        if soa_us == 0:
+            self._apply(ch1, d1[0], d1[1], d1[2])
+        else:
+
+            def start(timer):
+                self.pair_timer = None
+                self._apply(ch1, d1[0], d1[1], d1[2])
+
+            self.pair_timer = machine.Timer(mode=machine.Timer.ONE_SHOT, freq=1000000.0 / soa_us, callback=start)
+        return self._ack(seq, CMD_PAIR)
+
+    def _cancel_pair(self):
+        if self.pair_timer is not None:
+            self.pair_timer.deinit()
+            self.pair_timer = None
 
     @staticmethod
     def check_limits(f_mhz, w_ns):
-        """0 when the drive is within the hard limits, else the REFUSED_* code."""
+        """0 when the drive's shape is within the hard limits, else the REFUSED_*
+        code (the heat is checked by the energy limits)."""
         if f_mhz < MIN_FREQUENCY_MHZ or f_mhz > MAX_FREQUENCY_MHZ:
             return REFUSED_FREQUENCY
         if w_ns < MIN_WIDTH_NS or w_ns > MAX_WIDTH_NS:
@@ -359,6 +482,7 @@ class Controller:
 
     # -- outputs
     def all_off(self, reason):
+        self._cancel_pair()
         for ch in self.channels:
             if ch.on:
                 ch.off()
@@ -389,10 +513,27 @@ class Controller:
         fields += [MIN_FREQUENCY_MHZ, MAX_FREQUENCY_MHZ, MIN_WIDTH_NS, MAX_WIDTH_NS, MAX_DUTY_PPM, WATCHDOG_MS]
         return struct.pack(STATUS_FORMAT, *fields)
 
+    def sense_payload(self):
+        rail = 0
+        fields = []
+        for i in range(2):
+            if i < len(self.channels):
+                ch = self.channels[i]
+                s = ch.sense
+                rail = max(rail, int(s.rail_v * 1000))
+                fields += [int(s.resistance_ohm * 1e6), int(s.current_a * 1e6), ch.bias_q16, ch.width_ns, s.count]
+            else:
+                fields += [0, 0, 0, 0, 0]
+        return struct.pack(SENSE_FORMAT, min(rail, 0xFFFF), *fields)
 
-def run(read, controller):
-    """The main loop: read(timeout_ms) returns received bytes (maybe empty)."""
+
+def run(read, controller, wdt=None):
+    """The main loop: read(timeout_ms) returns received bytes (maybe empty);
+    wdt (machine.WDT) is fed once per pass, so a hung loop resets the chip."""
+    _wdt[0] = wdt
     while controller.running:
+        if wdt is not None:
+            wdt.feed()
         data = read(POLL_MS)
         if data:
             controller.feed(data)
@@ -436,8 +577,11 @@ def main():
         micropython = None
     port = UsbSerial()
     controller = Controller(port.write)
+    # The hardware watchdog: cannot be stopped once started, so never in
+    # maintenance mode (the jumper above returned already).
+    wdt = machine.WDT(timeout=WDT_TIMEOUT_MS)
     try:
-        run(port.read, controller)
+        run(port.read, controller, wdt)
     finally:
         controller.all_off("exit")
         if micropython is not None:

@@ -27,7 +27,10 @@ import time
 from collections import deque
 from typing import Any, Callable
 
-__all__ = ["Pin", "PWM", "Timer", "WDT", "freq", "reset", "pin_state", "events", "add_listener", "remove_listener"]
+__all__ = [
+    "Pin", "PWM", "ADC", "Timer", "WDT", "freq", "reset", "pin_state", "events", "add_listener", "remove_listener",
+    "pwm_pulses",
+]
 
 #: RP2040 default system clock [Hz]
 _SYSTEM_CLOCK_HZ = 125_000_000
@@ -60,7 +63,13 @@ def reset() -> None:
         events.clear()
         _listeners.clear()
         _live_pwms.clear()
+        _pwm_logs.clear()
         Pin.inputs.clear()
+        ADC.sources.clear()
+        for w in list(_watchdogs):
+            w._stop.set()
+        _watchdogs.clear()
+        resets.clear()
 
 
 def pin_state(pin_id: Any) -> dict[str, Any]:
@@ -157,6 +166,74 @@ def _slice_of(pin_id: Any) -> Any:
 
 
 _live_pwms: list["PWM"] = []
+#: per pin: the RP2040 slice's register writes, (time [s], name, value): "start"
+#: (div16, top, cc), "div" (takes effect at once), "top" and "cc" (at the next wrap)
+_pwm_logs: dict[Any, list[tuple[float, str, Any]]] = {}
+
+
+def _div_top(hz: int) -> tuple[int, int]:
+    """Divider (in 1/16) and TOP for a frequency [Hz]: the smallest divider whose
+    period fits the 16-bit counter (the RP2040's fractional divider)."""
+    counts16 = _SYSTEM_CLOCK_HZ * 16 / hz
+    div16 = max(16, -(-int(counts16) // 65536))
+    top = max(1, int(round(counts16 / div16)) - 1)
+    return div16, top
+
+
+def _log(pin_id: Any, name: str, value: Any) -> None:
+    with _lock:
+        _pwm_logs.setdefault(pin_id, []).append((time.perf_counter(), name, value))
+
+
+def pwm_pulses(pin_id: Any, until_s: float | None = None) -> list[tuple[float, float]]:
+    """The high pulses a slice output made, from its register writes and the
+    RP2040's timing: the divider applies at once, TOP and compare at the wrap.
+
+    Returns
+    -------
+    list of (start [s, perf_counter], width [s])
+        Complete pulses only.
+    """
+    with _lock:
+        log = list(_pwm_logs.get(pin_id, ()))
+    if not log:
+        return []
+    end = time.perf_counter() if until_s is None else until_s
+    t, _, (div, top, cc) = log[0]
+    pend: dict[str, int] = {}
+    c, i, high_at, out = 0.0, 1, None, []
+    while t < end:
+        while i < len(log) and log[i][0] <= t:
+            _, name, v = log[i]
+            i += 1
+            if name == "div":
+                div = v
+            elif name == "stop":
+                return out
+            else:
+                pend[name] = v
+        t_event = log[i][0] if i < len(log) else end
+        rate = _SYSTEM_CLOCK_HZ * 16 / div  # counts per second
+        falls = high_at is not None and c < cc <= top
+        target = cc if falls else top + 1
+        t_b = t + (target - c) / rate
+        if t_b > t_event:
+            c += (t_event - t) * rate
+            t = t_event
+            continue
+        t, c = t_b, float(target)
+        if falls:
+            out.append((high_at, t - high_at))
+            high_at = None
+            continue
+        c = 0.0
+        top, cc = pend.pop("top", top), pend.pop("cc", cc)
+        if cc > 0 and high_at is None:
+            high_at = t
+        elif cc == 0 and high_at is not None:
+            out.append((high_at, t - high_at))
+            high_at = None
+    return out
 
 
 class PWM:
@@ -174,6 +251,10 @@ class PWM:
                     self._freq = other._freq
             _live_pwms.append(self)
         _record("pwm", pin.id, mode="pwm", frequency_hz=float(self._freq), duty_ns=0)
+        self._div16, self._top = _div_top(self._freq)
+        with _lock:
+            _pwm_logs[pin.id] = []
+        _log(pin.id, "start", (self._div16, self._top, 0))
         if freq is not None:
             self.freq(freq)
         if duty_ns is not None:
@@ -189,16 +270,27 @@ class PWM:
             raise ValueError("freq out of range")
         with _lock:
             sharing = [p for p in _live_pwms if _slice_of(p._pin.id) == _slice_of(self._pin.id)]
+        div16, top = _div_top(value)
         for pwm in sharing:
             pwm._freq = value
+            pwm._div16, pwm._top = div16, top
+            _log(pwm._pin.id, "div", div16)
+            _log(pwm._pin.id, "top", top)
+            # MicroPython keeps the duty asked for across a frequency change.
+            pwm._write_cc()
             _record("pwm", pwm._pin.id, mode="pwm", frequency_hz=float(value), duty_ns=pwm._duty_ns)
         return None
+
+    def _write_cc(self) -> None:
+        cc = int(round(self._duty_ns * _SYSTEM_CLOCK_HZ * 16 / (self._div16 * 1e9)))
+        _log(self._pin.id, "cc", min(cc, self._top + 1))
 
     def duty_ns(self, value: int | None = None) -> int | None:
         if value is None:
             return self._duty_ns
         period_ns = 1_000_000_000 // self._freq
         self._duty_ns = max(0, min(int(value), period_ns))
+        self._write_cc()
         _record("pwm", self._pin.id, mode="pwm", frequency_hz=float(self._freq), duty_ns=self._duty_ns)
         return None
 
@@ -214,6 +306,7 @@ class PWM:
             with _lock:
                 if self in _live_pwms:
                     _live_pwms.remove(self)
+            _log(self._pin.id, "stop", None)
             # A stopped slice holds its output low.
             _record("pwm", self._pin.id, mode="gpio", value=0, duty_ns=0)
 
@@ -269,12 +362,52 @@ class Timer:
             t.join(timeout=1.0)
 
 
+class ADC:
+    """An ADC input (``machine.ADC``): ``read_u16`` returns what a test puts in
+    :attr:`sources` for the pin (an int or a function of no arguments), 0 by default."""
+
+    #: pin -> value in [0, 65535] or a callable returning one
+    sources: dict[Any, Any] = {}
+
+    def __init__(self, pin: Any) -> None:
+        self.id = pin.id if isinstance(pin, Pin) else pin
+
+    def read_u16(self) -> int:
+        src = ADC.sources.get(self.id, 0)
+        value = src() if callable(src) else src
+        return max(0, min(65535, int(value)))
+
+
+_watchdogs: list["WDT"] = []
+#: set when a watchdog expired and "reset the chip"
+resets: list[float] = []
+
+
 class WDT:
-    """The hardware watchdog (``machine.WDT``): records feeds; never resets the host."""
+    """The hardware watchdog (``machine.WDT``).  When it is not fed for
+    ``timeout`` ms it resets the "chip": every PWM slice stops and every pin goes
+    back to an input with its gate pulled low (recorded as a ``reset`` event)."""
 
     def __init__(self, id: int = 0, timeout: int = 5000) -> None:
         self.timeout_ms = timeout
         self.last_feed_s = time.perf_counter()
+        self._stop = threading.Event()
+        with _lock:
+            _watchdogs.append(self)
+        threading.Thread(target=self._watch, daemon=True).start()
 
     def feed(self) -> None:
         self.last_feed_s = time.perf_counter()
+
+    def _watch(self) -> None:
+        while not self._stop.wait(0.002):
+            if time.perf_counter() - self.last_feed_s > self.timeout_ms / 1e3:
+                with _lock:
+                    pwms = list(_live_pwms)
+                    pins = list(_pins)
+                for pwm in pwms:
+                    pwm.deinit()
+                for pin_id in pins:
+                    _record("reset", pin_id, mode="gpio", value=0)
+                resets.append(time.perf_counter())
+                return

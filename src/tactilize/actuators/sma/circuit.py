@@ -4,7 +4,8 @@ The heat a wire gets is ``I^2 R``, and which of the two is fixed depends on the
 driver, not on the wire.  The paper's controller switches two AA cells onto the
 wire; 3 mm of 75 um wire is only 0.54 .. 0.68 ohm, so with nothing else in the
 loop the pulse current would be 2.3 .. 3.4 A, several times the ~0.5 A operating
-point (docs/references.md, section 8).  A :class:`Circuit` says what is in the
+point (docs/references.md, section 8).  The board these presets describe, with
+its schematic, parts and energy budget, is docs/hardware.md.  A :class:`Circuit` says what is in the
 loop, and the current into the wire follows from it and from the wire's
 resistance, which changes by about 25 % with its phase.
 
@@ -47,9 +48,10 @@ from .wire import WireSpec
 __all__ = ["Circuit", "circuit_names", "SWITCH_OHM", "SENSE_OHM"]
 
 #: On-resistance [ohm] of a logic-level N-MOSFET fully on at the Pico's 3.3 V gate
-#: drive (docs/references.md, section 8 (logic-level switch)).
+#: drive: the AO3400A of docs/hardware.md (Q1) at its upper bound
+#: (docs/references.md, section 8 (logic-level switch)).
 SWITCH_OHM = 0.05
-#: The current-sense resistor in each channel's return path [ohm] (docs/signals-and-wire.md).
+#: The current-sense resistor in each channel's return path [ohm] (docs/hardware.md, R3).
 SENSE_OHM = 0.1
 #: Two alkaline AA cells, new: 1.5 V and about 0.15 ohm each (docs/references.md, section 8).
 AA_PAIR_V = 3.0
@@ -81,7 +83,7 @@ class Circuit:
 
     Notes
     -----
-    Use :meth:`preset` for the circuits of ``docs/signals-and-wire.md``.
+    Use :meth:`preset` for the circuits of ``docs/hardware.md`` (schematic, parts, energy budget).
     """
 
     name: str = "custom"
@@ -110,7 +112,7 @@ class Circuit:
 
     @classmethod
     def preset(cls, name: str, wire: WireSpec | str | None = None, **changes: Any) -> "Circuit":
-        """A circuit of ``docs/signals-and-wire.md`` sized for a wire.
+        """A circuit of ``docs/hardware.md`` sized for a wire.
 
         ``aa-resistor`` (the default): two AA cells, a series resistor sized so the
         relaxed wire takes the wire's ``rated_current_a``, the MOSFET, the sense

@@ -1,0 +1,112 @@
+# The frame codec of the tactile controller (MicroPython module, copied to the
+# board next to main.py; see controller.py).  The tests run the host's
+# tactilize/actuators/protocol.py against it, so the two cannot drift.
+
+import struct
+import time
+
+START = 0xA5
+MAX_PAYLOAD = 64
+# A frame of at most 70 bytes takes well under a millisecond at USB speed; a
+# partial frame older than this was corrupted, and waiting longer would let a
+# bad length byte swallow the heartbeats and trip the watchdog.
+FRAME_TIMEOUT_MS = 50
+
+# ---------------------------------------------------------------- host compatibility
+# MicroPython's time has ticks_ms/ticks_diff/sleep_us; CPython has monotonic.
+_ticks_ms = getattr(time, "ticks_ms", None)
+_ticks_diff = getattr(time, "ticks_diff", None)
+_sleep_us = getattr(time, "sleep_us", None)
+_ticks_us = getattr(time, "ticks_us", None)
+if _ticks_ms is None:
+
+    def _ticks_us():
+        return int(time.monotonic() * 1000000)
+
+    def _ticks_ms():
+        return int(time.monotonic() * 1000)
+
+    def _ticks_diff(a, b):
+        return a - b
+
+    def _sleep_us(us):
+        # A busy wait, as on the board: time.sleep would overshoot short pulses.
+        end = time.perf_counter() + us / 1e6
+        while time.perf_counter() < end:
+            pass
+
+
+def crc16(data, crc=0xFFFF):
+    """CRC-16/CCITT-FALSE over data (poly 0x1021, init 0xFFFF)."""
+    for byte in data:
+        crc ^= byte << 8
+        for _ in range(8):
+            if crc & 0x8000:
+                crc = ((crc << 1) ^ 0x1021) & 0xFFFF
+            else:
+                crc = (crc << 1) & 0xFFFF
+    return crc
+
+
+def encode_frame(seq, cmd, payload=b""):
+    body = bytes((len(payload), seq & 0xFF, cmd)) + bytes(payload)
+    return bytes((START,)) + body + struct.pack(">H", crc16(body))
+
+
+class Decoder:
+    """Splits a byte stream into frames; calls on_frame(seq, cmd, payload) for
+    each valid one and on_bad(seq) for each with a bad checksum.  After any
+    failure it drops just the candidate start byte and rescans, so a valid frame
+    hidden behind garbage or a corrupt header is still found."""
+
+    def __init__(self, on_frame, on_bad):
+        self.buf = bytearray()
+        self.on_frame = on_frame
+        self.on_bad = on_bad
+        # When the frame candidate now at buf[0] started waiting for its tail;
+        # None while no candidate waits.  Measured per candidate, not from the
+        # last byte received: heartbeats arriving behind a corrupt length byte
+        # must not keep that candidate alive.
+        self.pending_since_ms = None
+
+    def feed(self, data):
+        self.buf.extend(data)
+        self._scan()
+
+    def expire(self, now_ms):
+        if self.pending_since_ms is not None and _ticks_diff(now_ms, self.pending_since_ms) > FRAME_TIMEOUT_MS:
+            self.buf = self.buf[1:]
+            self.pending_since_ms = None
+            self._scan()
+
+    def _scan(self):
+        while self.buf:
+            buf = self.buf
+            if buf[0] != START:
+                i = 1
+                n = len(buf)
+                while i < n and buf[i] != START:
+                    i += 1
+                self.buf = buf[i:]
+                self.pending_since_ms = None
+                continue
+            if len(buf) < 2:
+                break
+            length = buf[1]
+            if length > MAX_PAYLOAD:
+                self.buf = buf[1:]
+                self.pending_since_ms = None
+                continue
+            total = 6 + length
+            if len(buf) < total:
+                break
+            self.pending_since_ms = None
+            got = (buf[4 + length] << 8) | buf[5 + length]
+            if crc16(buf[1 : 4 + length]) != got:
+                self.buf = buf[1:]
+                self.on_bad(buf[2])
+                continue
+            self.buf = buf[total:]
+            self.on_frame(buf[2], buf[3], bytes(buf[4 : 4 + length]))
+        if self.buf and self.pending_since_ms is None:
+            self.pending_since_ms = _ticks_ms()

