@@ -38,13 +38,16 @@ CSV_COLUMNS = [
 ]
 
 
-def tidy_answers(store, protocol_name: str | None = None):
-    """One row per answer as a pandas DataFrame (columns :data:`CSV_COLUMNS`)."""
+def tidy_answers(store, protocol_name: str | None = None, include_simulated: bool = True):
+    """One row per answer as a pandas DataFrame (columns :data:`CSV_COLUMNS`).
+
+    ``include_simulated=False`` leaves out synthetic participants (the analysis
+    and the figures do so unless asked otherwise)."""
     import pandas as pd
 
     from .. import __version__
 
-    rows = store.answer_rows(protocol_name)
+    rows = [r for r in store.answer_rows(protocol_name) if include_simulated or not r["simulated"]]
     df = pd.DataFrame(rows, columns=CSV_COLUMNS[:-1])
     df["tactilize_version"] = __version__
     return df[CSV_COLUMNS]
@@ -81,7 +84,7 @@ def export_strokes(store, fmt: str = "csv", protocol_name: str | None = None) ->
     sessions = {s["session"]: s for s in store.sessions_overview(protocol_name)}
     rows = [dict(r, participant=sessions[r["session"]]["participant"], protocol=sessions[r["session"]]["protocol"])
             for r in store.stroke_rows() if r["session"] in sessions]
-    cols = ["protocol", "participant", "session", "trial", "image", "t_s", "x_m", "y_m", "pressure", "speed_m_s",
+    cols = ["protocol", "participant", "session", "trial", "condition", "image", "t_s", "x_m", "y_m", "pressure", "speed_m_s",
             "pulse_frequency_hz", "pulse_width_s", "amplitude", "received_at"]
     df = pd.DataFrame(rows, columns=cols)
     if fmt == "csv":
@@ -209,8 +212,11 @@ def pairwise_wilcoxon(cell) -> list[dict[str, Any]]:
     return out
 
 
-def analyze(store_or_df, protocol_name: str | None = None) -> dict[str, Any]:
+def analyze(store_or_df, protocol_name: str | None = None, include_simulated: bool = False) -> dict[str, Any]:
     """Analyse every protocol in the store (or a tidy DataFrame).
+
+    Simulated participants are left out unless ``include_simulated`` is true
+    (the provenance block says which).
 
     Returns
     -------
@@ -222,11 +228,14 @@ def analyze(store_or_df, protocol_name: str | None = None) -> dict[str, Any]:
     from .store import provenance
 
     if hasattr(store_or_df, "answer_rows"):
-        df = tidy_answers(store_or_df, protocol_name)
+        df = tidy_answers(store_or_df, protocol_name, include_simulated)
         prov = provenance(db=_redact(store_or_df.url))
     else:
         df = store_or_df if protocol_name is None else store_or_df[store_or_df["protocol"] == protocol_name]
+        if not include_simulated and "simulated" in df:
+            df = df[~df["simulated"].astype(bool)]
         prov = provenance()
+    prov["simulated_participants"] = "included" if include_simulated else "excluded"
     import pingouin
     import scipy
 

@@ -75,7 +75,8 @@ def status_cmd(db_url: str | None, protocol_name: str | None, as_json: bool) -> 
     """Sessions and their progress."""
     from .store import Store
 
-    store = Store(db_url)
+    store = Store(db_url, must_exist=True)
+    store.require_protocol(protocol_name)
     rows = store.sessions_overview(protocol_name)
     if as_json:
         _emit({"db": _redact(store.url), "sessions": rows})
@@ -101,7 +102,8 @@ def export_cmd(db_url: str | None, fmt: str, protocol_name: str | None, output: 
     from .analysis import export_answers, export_strokes
     from .store import Store, provenance
 
-    store = Store(db_url)
+    store = Store(db_url, must_exist=True)
+    store.require_protocol(protocol_name)
     text = export_strokes(store, fmt, protocol_name) if strokes else export_answers(store, fmt, protocol_name)
     if output is None:
         sys.stdout.write(text)
@@ -119,21 +121,26 @@ def export_cmd(db_url: str | None, fmt: str, protocol_name: str | None, output: 
 @experiment.command("analyze")
 @click.option("--db", "db_url", default=None, help=DB_HELP)
 @click.option("--protocol", "protocol_name", default=None, help="Only this protocol.")
-@click.option("--figures", "figures_dir", default=None, help="Write PNG and SVG figures into this directory.")
+@click.option("--figures", "figures_dir", default=None, help="Write PNG (300 dpi), PDF and SVG figures into this directory.")
+@click.option("--include-simulated", is_flag=True, help="Count simulated participants too (left out by default).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
-def analyze_cmd(db_url: str | None, protocol_name: str | None, figures_dir: str | None, as_json: bool) -> None:
+def analyze_cmd(db_url: str | None, protocol_name: str | None, figures_dir: str | None, include_simulated: bool,
+                as_json: bool) -> None:
     """Descriptives, Friedman (F) with Kendall's W, Wilcoxon with Holm; optional figures."""
     from .analysis import analyze
     from .store import Store
 
-    store = Store(db_url)
-    result = analyze(store, protocol_name)
+    store = Store(db_url, must_exist=True)
+    store.require_protocol(protocol_name)
+    result = analyze(store, protocol_name, include_simulated=include_simulated)
     if not result["protocols"]:
-        raise TactilizeError(_redact(store.url), "no answers to analyse" + (f" for {protocol_name}" if protocol_name else ""))
+        raise TactilizeError(_redact(store.url), "no answers to analyse" + (f" for {protocol_name}" if protocol_name else "")
+                             + ("" if include_simulated else " from real participants (simulated ones are left out; "
+                                "add --include-simulated)"))
     if figures_dir:
         from .figures import make_figures
 
-        result["figures"] = make_figures(store, figures_dir, protocol_name)
+        result["figures"] = make_figures(store, figures_dir, protocol_name, include_simulated=include_simulated)
     if as_json:
         _emit(result)
         return
@@ -155,7 +162,7 @@ def analyze_cmd(db_url: str | None, protocol_name: str | None, figures_dir: str 
                            + ("".join(f"\n      {p['a']} vs {p['b']}: p_holm = {p['p_holm']:.3g}, "
                                       f"r_rb = {p['rbc']:.2f}" for p in sig[:12])))
     for pname, files in result.get("figures", {}).items():
-        click.echo(f"figure {pname}: {files['png']}, {files['svg']}")
+        click.echo(f"figure {pname}: {files['png']}, {files['pdf']}, {files['svg']}")
 
 
 @experiment.command("simulate")
@@ -189,7 +196,7 @@ def calibrate_cmd(participant: str, output: str, db_url: str | None, base: str, 
     from .calibration import fit_personal_profile
     from .store import Store
 
-    prof, report = fit_personal_profile(Store(db_url), participant, base=base, questions=list(questions) or None)
+    prof, report = fit_personal_profile(Store(db_url, must_exist=True), participant, base=base, questions=list(questions) or None)
     prof.save(output)
     report["output"] = output
     if as_json:
@@ -216,7 +223,7 @@ def refine_cmd(participant: str, output: str, db_url: str | None, role: str | No
     from .calibration import refinement_protocol
     from .store import Store
 
-    text = refinement_protocol(Store(db_url), participant, role, span_octaves=span_octaves, steps=steps,
+    text = refinement_protocol(Store(db_url, must_exist=True), participant, role, span_octaves=span_octaves, steps=steps,
                                repetitions=repetitions)
     try:
         Path(output).write_text(text, "utf-8")

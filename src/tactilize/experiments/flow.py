@@ -117,10 +117,12 @@ class Flow:
         code = self._check_code(code)
         if consent is not True:
             raise FlowError("consent", "the participant must give consent before the session starts", 422)
+        if not simulated and code.upper().startswith("SIM-"):
+            # The prefix belongs to synthetic participants (simulate.py), who are
+            # numbered and analysed apart; a person must not be mistaken for one.
+            raise FlowError("participant_id", "IDs starting with SIM- are reserved for simulated participants", 422)
         try:
-            # Synthetic participants (see simulate.py) are flagged by their code prefix,
-            # so that they travel the same HTTP path as people and stay separable.
-            sess = self.store.create_session(self.protocol, code, simulated=simulated or code.startswith("SIM-"),
+            sess = self.store.create_session(self.protocol, code, simulated=simulated,
                                              extra_provenance=extra_provenance)
         except KeyError:
             existing = self.store.session_by_code(self.protocol.name, code)

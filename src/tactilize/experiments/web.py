@@ -261,7 +261,11 @@ def serve_flow(protocol, db_url: str | None, host: str = "127.0.0.1", port: int 
     if not is_loopback(host) and not admin_token:
         admin_token = secrets.token_urlsafe(16)
     flow = Flow(protocol, Store(db_url), admin_token=admin_token)
-    echo(f"tactilize experiment: {protocol.name} v{protocol.version} ({protocol.sha256[:12]}), database {flow.store.url}")
+    from .analysis import _redact
+
+    # The URL may hold a database password: a terminal (and its scrollback) must not.
+    echo(f"tactilize experiment: {protocol.name} v{protocol.version} ({protocol.sha256[:12]}), "
+         f"database {_redact(flow.store.url)}")
 
     def relay(line: str) -> None:
         echo(line)
