@@ -34,7 +34,7 @@ __all__ = ["tidy_answers", "analyze", "describe", "friedman", "pairwise_wilcoxon
 CSV_COLUMNS = [
     "protocol", "protocol_version", "protocol_sha256", "seed", "participant", "participant_number", "simulated",
     "session", "trial", "repetition", "condition", "image", "question", "rating", "trial_started_at",
-    "answered_at", "response_time_s", "tactilize_version",
+    "answered_at", "response_time_s", "stroke_interrupted", "tactilize_version",
 ]
 
 
@@ -48,7 +48,14 @@ def tidy_answers(store, protocol_name: str | None = None, include_simulated: boo
     from .. import __version__
 
     rows = [r for r in store.answer_rows(protocol_name) if include_simulated or not r["simulated"]]
-    df = pd.DataFrame(rows, columns=CSV_COLUMNS[:-1])
+    df = pd.DataFrame(rows, columns=CSV_COLUMNS[:-2])
+    if hasattr(store, "Session"):
+        from .labdata import interrupted_trials
+
+        gaps = interrupted_trials(store)
+        df["stroke_interrupted"] = [(s, t) in gaps for s, t in zip(df["session"], df["trial"])]
+    else:
+        df["stroke_interrupted"] = False
     df["tactilize_version"] = __version__
     return df[CSV_COLUMNS]
 

@@ -334,8 +334,12 @@ class StrokeHandler:
         {"trial": 3, "image": "image2",
          "samples": [[t_ms, x_mm, y_mm, pressure or null], ...]}
         {"type": "lift"}
+        {"type": "reconnected", "trial": 3, "gap_s": 2.5, "queued": 120}
 
-    Positions are millimetres on the displayed image (the page converts CSS
+    The page stamps every sample with the trial and image shown when it was
+    taken, so samples queued while the socket was down arrive under their own
+    trial; a ``reconnected`` message marks that trial ``interrupted``
+    (:mod:`.labdata`).  Positions are millimetres on the displayed image (the page converts CSS
     pixels with the calibrated scale); the answer carries the drive at the last
     sample.  Speed and direction come from the pen page's
     :class:`~tactilize.pen.StrokeTracker` (one per image, so switching pictures
@@ -359,6 +363,21 @@ class StrokeHandler:
         if self.output is not None:
             self.output.stop()
 
+    def _reconnected(self, msg: dict) -> dict[str, Any]:
+        """The page lost its socket during trial ``msg["trial"]`` and is back: mark
+        the trial interrupted (once per reconnection), whatever samples follow."""
+        from .labdata import record_event
+
+        idx = msg.get("trial")
+        trials = {t.index: t for t in self.flow.store.trials(self.session.id)}
+        if isinstance(idx, bool) or not isinstance(idx, int) or idx not in trials:
+            raise FlowError("stroke", "unknown trial", 422)
+        gap = msg.get("gap_s")
+        gap = float(gap) if isinstance(gap, (int, float)) and not isinstance(gap, bool) and math.isfinite(gap) else None
+        record_event(self.flow.store, trials[idx].id, "interrupted",
+                     {"gap_s": gap, "queued_samples": msg.get("queued") if isinstance(msg.get("queued"), int) else None})
+        return {"type": "marked", "trial": idx, "kind": "interrupted"}
+
     def handle(self, msg: Any) -> dict[str, Any]:
         from ..pen import StrokeTracker
         from ..web.rows import sample_error, samples_from_css
@@ -368,6 +387,8 @@ class StrokeHandler:
         if msg.get("type") == "lift":
             self.stop()
             return {"type": "lifted"}
+        if msg.get("type") == "reconnected":
+            return self._reconnected(msg)
         idx = msg.get("trial")
         image_id = msg.get("image")
         samples = msg.get("samples")

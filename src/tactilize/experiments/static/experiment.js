@@ -21,11 +21,18 @@ function message(text) {
 }
 
 async function call(method, path, body) {
-  const res = await fetch(new URL(path, api), {
-    method,
-    headers: body ? { "Content-Type": "application/json" } : {},
-    body: body ? JSON.stringify(body) : undefined,
-  });
+  let res;
+  try {
+    res = await fetch(new URL(path, api), {
+      method,
+      headers: body ? { "Content-Type": "application/json" } : {},
+      body: body ? JSON.stringify(body) : undefined,
+    });
+  } catch {
+    // The browser's own text ("Failed to fetch") tells a participant nothing.
+    throw new Error("The experiment server cannot be reached. Your answers on this page are kept; " +
+                    "please wait a moment and try again, or call the experimenter.");
+  }
   let doc = null;
   try { doc = await res.json(); } catch { doc = { error: `server answered ${res.status}` }; }
   if (!res.ok) {
@@ -194,7 +201,9 @@ function updateSubmit() {
   const ready = strokeMs / 1000 >= trial.min_stroke_s;
   $("answers").hidden = !ready;
   $("stroke-time").textContent = (strokeMs / 1000).toFixed(1);
-  $("submit").disabled = busy || !ready || Object.keys(ratings()).length !== trial.questions.length;
+  // The rating waits until the pen is live and every sample of this trial is sent.
+  $("submit").disabled = busy || !ready || !penLive() || queue.length > 0
+    || Object.keys(ratings()).length !== trial.questions.length;
 }
 
 $("submit").addEventListener("click", () => guarded(async () => {
@@ -212,27 +221,81 @@ $("end-break").addEventListener("click", () => guarded(async () => {
 }));
 
 // ---------------------------------------------------------------- pen
+// The stroke stream survives a server restart: every sample is stamped with its
+// trial and image when it is taken (not when it is sent), queued while the
+// socket is down, and sent under its own trial once it is back.  The socket
+// reconnects with a growing delay; meanwhile the page says the pen is not live
+// and the rating waits, because the participant no longer feels the condition.
+
+let wsDelay = 250, wsDownSince = null, wsTimer = null, wsWanted = false;
+const WS_DELAY_MAX = 5000;
+
+function penLive() { return !!(ws && ws.readyState === 1); }
+
+function penStatus() {
+  const live = penLive();
+  document.body.dataset.pen = live ? "live" : "down";
+  $("pen-status").hidden = live || !wsWanted;
+  if (current && current.state === "trial") updateSubmit();
+}
 
 function openSocket() {
+  wsWanted = true;
   if (ws && ws.readyState <= 1) return;
+  clearTimeout(wsTimer);
   const u = new URL(`ws/${session}`, document.baseURI);
   u.protocol = u.protocol === "https:" ? "wss:" : "ws:";
-  ws = new WebSocket(u);
-  ws.onmessage = (ev) => {
+  const sock = new WebSocket(u);
+  ws = sock;
+  sock.onopen = () => {
+    wsDelay = 250;
+    if (wsDownSince !== null && trial) {
+      // Tell the server this trial's stream had a gap; it marks the trial interrupted.
+      sock.send(JSON.stringify({ type: "reconnected", trial: trial.index,
+                                 gap_s: (performance.now() - wsDownSince) / 1000, queued: queue.length }));
+    }
+    wsDownSince = null;
+    flush();
+    penStatus();
+  };
+  sock.onmessage = (ev) => {
     const msg = JSON.parse(ev.data);
     if (msg.type === "drive") { audio.set(msg.drive); document.body.dataset.lastDriveHz = msg.drive.pulse_frequency_hz; }
     else if (msg.type === "error") message(msg.error);
     document.body.dataset.wsMessages = String(Number(document.body.dataset.wsMessages || 0) + 1);
   };
-  ws.onclose = () => { ws = null; };
+  sock.onclose = () => {
+    if (ws !== sock) return;
+    ws = null;
+    audio.set(null);  // nothing drives the pen now: do not leave the last drive playing
+    if (wsDownSince === null) wsDownSince = performance.now();
+    penStatus();
+    if (wsWanted) {
+      wsTimer = setTimeout(openSocket, wsDelay);
+      wsDelay = Math.min(WS_DELAY_MAX, wsDelay * 2);
+      document.body.dataset.wsRetries = String(Number(document.body.dataset.wsRetries || 0) + 1);
+    }
+  };
 }
 
-function closeSocket() { if (ws) ws.close(); ws = null; }
+function closeSocket() {
+  wsWanted = false;
+  clearTimeout(wsTimer);
+  if (ws) { const s = ws; ws = null; s.close(); }
+  penStatus();
+}
 
 function flush() {
-  if (!queue.length || !ws || ws.readyState !== 1 || !trial) return;
-  ws.send(JSON.stringify({ trial: trial.index, image: image.id, samples: queue }));
-  queue = [];
+  if (!queue.length || !penLive()) return;
+  // Consecutive samples of one trial and image go together, at most 500 a message.
+  while (queue.length) {
+    const head = queue[0];
+    let n = 0;
+    while (n < queue.length && n < 500 && queue[n].trial === head.trial && queue[n].image === head.image) n++;
+    ws.send(JSON.stringify({ trial: head.trial, image: head.image, samples: queue.slice(0, n).map((q) => q.s) }));
+    queue = queue.slice(n);
+  }
+  if (current && current.state === "trial") updateSubmit();
 }
 setInterval(flush, 30);
 
@@ -243,7 +306,7 @@ const up = () => {
   lastT = null; audio.set(null);
   flush();
   // The actuator stops the moment the pen leaves the surface.
-  if (ws && ws.readyState === 1) ws.send(JSON.stringify({ type: "lift" }));
+  if (penLive()) ws.send(JSON.stringify({ type: "lift" }));
 };
 surface.addEventListener("pointerup", up);
 surface.addEventListener("pointercancel", up);
@@ -256,7 +319,8 @@ function onMove(ev) {
   const rect = surface.getBoundingClientRect();
   for (const e of list) {
     const xPx = e.clientX - rect.left, yPx = e.clientY - rect.top;
-    queue.push([e.timeStamp, xPx * mmPerPx, yPx * mmPerPx, e.pointerType === "mouse" ? null : e.pressure]);
+    queue.push({ trial: trial.index, image: image.id,
+                 s: [e.timeStamp, xPx * mmPerPx, yPx * mmPerPx, e.pointerType === "mouse" ? null : e.pressure] });
     points.push([xPx, yPx]);
     if (lastT !== null && e.timeStamp - lastT < 200) strokeMs += e.timeStamp - lastT;
     lastT = e.timeStamp;
