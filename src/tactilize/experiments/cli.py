@@ -93,7 +93,8 @@ def status_cmd(db_url: str | None, protocol_name: str | None, as_json: bool) -> 
 
 @experiment.command("export")
 @click.option("--db", "db_url", default=None, help=DB_HELP)
-@click.option("--format", "fmt", type=click.Choice(["csv", "json"]), default="csv", show_default=True)
+@click.option("--format", "fmt", type=click.Choice(["csv", "json", "wide", "parquet"]), default="csv", show_default=True,
+              help="csv/json: one row per answer; wide: one row per participant (SPSS/JASP); parquet: the csv rows.")
 @click.option("--protocol", "protocol_name", default=None, help="Only this protocol.")
 @click.option("-o", "--output", default=None, help="Write to this file (default: stdout).")
 @click.option("--strokes", is_flag=True, help="Export the stroke log (pen samples and drives) instead of the answers.")
@@ -104,13 +105,36 @@ def export_cmd(db_url: str | None, fmt: str, protocol_name: str | None, output: 
 
     store = Store(db_url, must_exist=True)
     store.require_protocol(protocol_name)
-    text = export_strokes(store, fmt, protocol_name) if strokes else export_answers(store, fmt, protocol_name)
+    if fmt == "parquet":
+        from .analysis import tidy_answers
+
+        if output is None:
+            raise TactilizeError("--format parquet", "needs -o FILE (Parquet is binary)")
+        if strokes:
+            raise TactilizeError("--format parquet", "is for the answers; export --strokes as csv or json")
+        try:
+            tidy_answers(store, protocol_name).to_parquet(output, index=False)
+        except ImportError:
+            raise TactilizeError("--format parquet", "needs pyarrow (pip install pyarrow)") from None
+        except OSError as exc:
+            raise TactilizeError(output, f"cannot write ({exc.strerror or exc})") from None
+        click.echo(f"wrote {output}")
+        return
+    if fmt == "wide":
+        from .analysis import tidy_answers
+        from .labdata import wide_table
+
+        if strokes:
+            raise TactilizeError("--format wide", "is for the answers; export --strokes as csv or json")
+        text = wide_table(tidy_answers(store, protocol_name)).to_csv(index=False, lineterminator="\n")
+    else:
+        text = export_strokes(store, fmt, protocol_name) if strokes else export_answers(store, fmt, protocol_name)
     if output is None:
         sys.stdout.write(text)
         return
     try:
         Path(output).write_text(text, "utf-8")
-        if fmt == "csv":
+        if fmt in ("csv", "wide"):
             # CSV has no place for metadata that every reader skips; the versions go beside it.
             Path(output + ".provenance.json").write_text(json.dumps(provenance(protocol_filter=protocol_name),
                                                                     indent=2), "utf-8")
@@ -230,6 +254,36 @@ def refine_cmd(participant: str, output: str, db_url: str | None, role: str | No
     except OSError as exc:
         raise TactilizeError(output, f"cannot write ({exc.strerror or exc})") from None
     click.echo(f"wrote {output}; run it with: tactilize experiment run {output}")
+
+
+@experiment.command("backup")
+@click.argument("target")
+@click.option("--db", "db_url", default=None, help=DB_HELP)
+def backup_cmd(target: str, db_url: str | None) -> None:
+    """Copy the (SQLite) store to TARGET, safely while the server runs (SQLite's online backup)."""
+    from .labdata import backup
+    from .store import Store
+
+    doc = backup(Store(db_url, must_exist=True), target)
+    click.echo(f"wrote {doc['backup']}: {doc['answers']} answers")
+
+
+@experiment.command("withdraw")
+@click.argument("protocol")
+@click.argument("participant")
+@click.option("--db", "db_url", default=None, help=DB_HELP)
+@click.option("--yes", is_flag=True, help="Do not ask for confirmation.")
+def withdraw_cmd(protocol: str, participant: str, db_url: str | None, yes: bool) -> None:
+    """Delete PARTICIPANT's data in PROTOCOL (a withdrawal of consent); cannot be undone."""
+    from .labdata import withdraw
+    from .store import Store
+
+    store = Store(db_url, must_exist=True)
+    store.require_protocol(protocol)
+    if not yes:
+        click.confirm(f"Delete every answer and stroke of {participant} in {protocol}?", abort=True)
+    counts = withdraw(store, protocol, participant)
+    click.echo(f"withdrew {participant} from {protocol}: " + ", ".join(f"{v} {k}" for k, v in counts.items()))
 
 
 def _redact(url: str) -> str:

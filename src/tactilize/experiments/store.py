@@ -524,7 +524,7 @@ class Store:
                 rows.append({
                     "protocol": pv.name,
                     "protocol_version": pv.version,
-                    "protocol_sha256": pv.sha256[:12],
+                    "protocol_sha256": pv.sha256,
                     "seed": sess.seed,
                     "participant": part.code,
                     "participant_number": abs(part.number),

@@ -1,0 +1,285 @@
+"""Issue 14: what a lab runs into -- simulation beside real data, silent conditions,
+paper-ready figures, error paths, backups, withdrawals, exports."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import sqlite3
+import subprocess
+import sys
+import threading
+
+import numpy as np
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+
+from tactilize.cli import main
+from tactilize.experiments.flow import Flow, FlowError
+from tactilize.experiments.protocols import ProtocolError, load_protocol, protocol_from_toml
+from tactilize.experiments.simulate import simulate
+from tactilize.experiments.store import Store
+
+ENV = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in [os.path.join(os.path.dirname(__file__), "..", "src"),
+                                                              os.environ.get("PYTHONPATH", "")] if p))
+
+
+def _cli(*args):
+    return CliRunner().invoke(main, ["experiment", *args])
+
+
+def _one_line_exit_2(r):
+    assert r.exit_code == 2, r.output
+    assert r.output.count("\n") == 1 and r.output.startswith("tactilize: "), r.output
+    assert "internal error" not in r.output and "Traceback" not in r.output
+
+
+def _real_participant(flow, code, rating=5):
+    state = flow.start(code, True)
+    token = state["session"]
+    state = flow.calibrate(token, {"mm_per_px": 0.25, "felt": True})
+    handler = flow.stroke_handler(token)
+    while state["state"] != "done":
+        if state["state"] == "break":
+            state = flow.end_break(token, state["next_trial"])
+            continue
+        t = state["trial"]
+        handler.handle({"trial": t["index"], "image": t["images"][0]["id"], "samples": [[0, 1, 1, 0.5], [20, 3, 1, 0.5]]})
+        state = flow.submit(token, t["index"], {q["id"]: rating for q in t["questions"]})
+    return token
+
+
+# ------------------------------------------------------------ simulated vs real
+
+
+def test_simulation_into_a_study_leaves_real_numbering_and_analysis_unchanged(tmp_path):
+    proto = load_protocol("alpha-law")
+    db = str(tmp_path / "study.sqlite3")
+    flow = Flow(proto, Store(db))
+    for i, code in enumerate(("P01", "P02")):
+        _real_participant(flow, code, rating=3 + i)
+    before = json.loads(_cli("analyze", "--db", db, "--json").output)
+    assert simulate(proto, 3, seed=7, db_url=db)["started"] == 3
+    _real_participant(flow, "P03", rating=6)  # registered after the simulation
+    numbers = {r["participant"]: (r["participant_number"], r["simulated"]) for r in Store(db).sessions_overview()}
+    assert numbers["P03"] == (3, False)  # not 6: the simulated ones do not take real square rows
+    assert [numbers[f"SIM-7-00{i}"] for i in (1, 2, 3)] == [(1, True), (2, True), (3, True)]
+    # P03's order is row 3 of the square, exactly as without the simulation.
+    assert json.loads(Store(db).session_by_code("alpha-law", "P03").order_json) == [t.condition_id for t in proto.plan(3)]
+    after = json.loads(_cli("analyze", "--db", db, "--json").output)
+    assert after["protocols"]["alpha-law"]["n_participants"] == 3  # P01..P03 only
+    with_sim = json.loads(_cli("analyze", "--db", db, "--json", "--include-simulated").output)
+    assert with_sim["protocols"]["alpha-law"]["n_participants"] == 6
+    # Removing P03 again from the picture: the two earlier real participants' statistics are untouched.
+    from tactilize.experiments.analysis import analyze, tidy_answers
+
+    df = tidy_answers(Store(db), include_simulated=False)
+    again = analyze(df[df["participant"] != "P03"])
+    assert again["protocols"]["alpha-law"]["questions"] == before["protocols"]["alpha-law"]["questions"]
+
+
+def test_a_person_cannot_register_as_a_simulated_participant(tmp_path):
+    flow = Flow(load_protocol("alpha-law"), Store(str(tmp_path / "s.db")))
+    with pytest.raises(FlowError, match="reserved"):
+        flow.start("SIM-1-001", True)
+
+
+def test_simulate_needs_no_http_client(tmp_path):
+    # httpx (fastapi.testclient's transport) is only in the test extra: block it.
+    code = ("import sys, importlib.abc\n"
+            "class Block(importlib.abc.MetaPathFinder):\n"
+            "    def find_spec(self, name, path=None, target=None):\n"
+            "        if name.split('.')[0] == 'httpx' or name == 'fastapi.testclient':\n"
+            "            raise ImportError('blocked: ' + name)\n"
+            "sys.meta_path.insert(0, Block())\n"
+            "from tactilize.cli import main\n"
+            "main(['experiment', 'simulate', 'alpha-law', '--participants', '2', '--seed', '1', '--db', sys.argv[1]])\n")
+    r = subprocess.run([sys.executable, "-c", code, str(tmp_path / "p.db")], capture_output=True, text=True, env=ENV,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "2 started" in r.stdout
+
+
+# ------------------------------------------------------------ protocol check
+
+
+def test_a_silent_condition_is_refused_with_one_line(tmp_path):
+    text = load_protocol("g-law").text
+    assert 'k2 = 30.0' in text
+    bad = tmp_path / "silent.toml"
+    bad.write_text(text.replace("k2 = 30.0", "k2 = -30.0", 1))
+    with pytest.raises(ProtocolError, match="silent"):
+        protocol_from_toml(bad.read_text(), str(bad))
+    for cmd in (["run", str(bad), "--port", "0", "--db", str(tmp_path / "x.db")],
+                ["simulate", str(bad), "--participants", "1", "--seed", "1", "--db", str(tmp_path / "x.db")]):
+        r = _cli(*cmd)
+        _one_line_exit_2(r)
+        assert "condition H" in r.output and "silent" in r.output
+    assert not (tmp_path / "x.db").exists()
+
+
+# ------------------------------------------------------------ error paths
+
+
+@pytest.fixture(scope="module")
+def piloted(tmp_path_factory):
+    db = str(tmp_path_factory.mktemp("pilot") / "pilot.sqlite3")
+    simulate("alpha-law", 8, seed=2, db_url=db)
+    return db
+
+
+def test_error_paths_are_one_line_exit_2_and_create_nothing(tmp_path, piloted):
+    (tmp_path / "afile").write_text("x")
+    r = _cli("analyze", "--db", piloted, "--include-simulated", "--figures", str(tmp_path / "afile" / "figs"))
+    _one_line_exit_2(r)
+    assert "afile" in r.output
+
+    typo = tmp_path / "typo.db"
+    for cmd in (["status"], ["export"], ["analyze"], ["backup", str(tmp_path / "b.db")]):
+        r = _cli(*cmd, "--db", str(typo))
+        _one_line_exit_2(r)
+        assert "no such database" in r.output
+    assert not typo.exists() and not (tmp_path / "b.db").exists()
+
+    out = tmp_path / "nosuch.csv"
+    for cmd in (["export", "--protocol", "nosuch", "-o", str(out)], ["status", "--protocol", "nosuch"],
+                ["analyze", "--protocol", "nosuch"]):
+        r = _cli(*cmd, "--db", piloted)
+        _one_line_exit_2(r)
+        assert "nosuch" in r.output and "alpha-law" in r.output
+    assert not out.exists()
+
+
+def test_status_into_a_closed_pipe_exits_cleanly(piloted):
+    proc = subprocess.Popen([sys.executable, "-m", "tactilize.cli", "experiment", "status", "--db", piloted],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=ENV)
+    proc.stdout.readline()
+    proc.stdout.close()  # what `| head -1` does
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=60) == 0, err
+    assert "BrokenPipe" not in err and "Traceback" not in err and "internal error" not in err
+
+
+def test_run_never_prints_the_database_password(tmp_path, monkeypatch):
+    import tactilize.experiments.store as store_mod
+    import tactilize.web.serve as web_serve
+
+    real = Store(str(tmp_path / "s.db"))
+    real.url = "postgresql+psycopg://lab:s3cret-pw@db.example/study"
+    monkeypatch.setattr(store_mod, "Store", lambda url=None, **kw: real)
+    monkeypatch.setattr(web_serve, "serve", lambda *a, **k: k["echo"]("serving at http://127.0.0.1:1/"))
+    r = _cli("run", "alpha-law", "--db", "ignored")
+    assert r.exit_code == 0, r.output
+    assert "s3cret" not in r.output and "db.example/study" in r.output
+
+
+# ------------------------------------------------------------ figures
+
+
+def _strong_effect_df(n=10):
+    rng = np.random.default_rng(1)
+    rows = []
+    for p in range(n):
+        for cond, mu in (("A", 6.5), ("B", 2.0), ("C", 6.0)):
+            rows.append({"protocol": "alpha-law", "participant": f"P{p}", "condition": cond, "question": "speed_match",
+                         "rating": int(np.clip(round(mu + rng.normal(0, 0.4)), 1, 7)), "seed": 1,
+                         "protocol_sha256": "x" * 64, "simulated": False})
+    return pd.DataFrame(rows)
+
+
+def test_figures_are_paper_ready(tmp_path):
+    from PIL import Image
+
+    from tactilize.experiments.analysis import analyze
+    from tactilize.experiments.figures import make_figures, significance_pairs
+
+    df = _strong_effect_df()
+    sig = significance_pairs(analyze(df), "alpha-law", "speed_match")
+    assert {(a, b) for a, b, _ in sig} == {("A", "B"), ("B", "C")}  # A vs C is not different
+    files = make_figures(df, tmp_path)["alpha-law"]
+    svg = open(files["svg"], encoding="utf-8").read()
+    assert 'id="sig:A:B"' in svg and 'id="sig:B:C"' in svg and "sig:A:C" not in svg
+    assert "cf. paper" not in svg
+    with Image.open(files["png"]) as im:
+        assert round(im.info["dpi"][0]) == 300
+    assert open(files["pdf"], "rb").read(4) == b"%PDF"
+    assert "Fig. 14" in open(files["caption"], encoding="utf-8").read()
+
+
+def test_figure_labels_come_from_the_protocol(tmp_path, piloted):
+    from tactilize.experiments.figures import make_figures
+
+    files = make_figures(Store(piloted), tmp_path, include_simulated=True)["alpha-law"]
+    svg = open(files["svg"], encoding="utf-8").read()
+    labels = [c.label for c in load_protocol("alpha-law").conditions]
+    # Matplotlib writes text as glyph paths; the labels are in the SVG as its text comments.
+    assert all(lab in svg for lab in labels), labels
+    assert load_protocol("alpha-law").title.split(":")[0] in svg
+
+
+# ------------------------------------------------------------ data out
+
+
+def test_backup_while_a_session_writes_holds_every_committed_answer(tmp_path):
+    db = str(tmp_path / "live.sqlite3")
+    Store(db)
+    done = threading.Event()
+    failure = []
+
+    def writer():
+        try:
+            simulate("alpha-law", 6, seed=4, db_url=db)
+        except Exception as exc:  # pragma: no cover - reported below
+            failure.append(exc)
+        finally:
+            done.set()
+
+    th = threading.Thread(target=writer)
+    th.start()
+    k = 0
+    while not done.is_set() or k < 2:
+        with sqlite3.connect(db) as con:
+            committed = con.execute("select count(*) from answers").fetchone()[0]
+        target = tmp_path / f"backup-{k}.sqlite3"
+        r = _cli("backup", str(target), "--db", db)
+        assert r.exit_code == 0, r.output
+        with sqlite3.connect(target) as con:
+            assert con.execute("pragma integrity_check").fetchone()[0] == "ok"
+            assert con.execute("select count(*) from answers").fetchone()[0] >= committed
+        k += 1
+    th.join()
+    assert not failure
+    r = _cli("backup", str(tmp_path / "backup-0.sqlite3"), "--db", db)
+    _one_line_exit_2(r)  # never overwrites
+
+
+def test_withdraw_deletes_one_participant_and_keeps_the_others_rows(tmp_path):
+    db = str(tmp_path / "w.sqlite3")
+    flow = Flow(load_protocol("alpha-law"), Store(db))
+    for code in ("P01", "P02"):
+        _real_participant(flow, code)
+    r = _cli("withdraw", "alpha-law", "P01", "--db", db, "--yes")
+    assert r.exit_code == 0, r.output
+    store = Store(db)
+    assert {r["participant"] for r in store.answer_rows()} == {"P02"}
+    assert all(s["session"] != 1 for s in store.stroke_rows())
+    _real_participant(flow, "P03")
+    assert {r["participant"]: r["participant_number"] for r in store.sessions_overview()} == {"P02": 2, "P03": 3}
+    _one_line_exit_2(_cli("withdraw", "alpha-law", "P01", "--db", db, "--yes"))
+
+
+def test_exports_wide_parquet_full_hash_and_stroke_conditions(tmp_path, piloted):
+    r = _cli("export", "--db", piloted, "--format", "wide")
+    assert r.exit_code == 0, r.output
+    wide = list(csv.DictReader(io.StringIO(r.output)))
+    assert len(wide) == 8 and "B_speed_match" in wide[0]
+    pq = tmp_path / "a.parquet"
+    assert _cli("export", "--db", piloted, "--format", "parquet", "-o", str(pq)).exit_code == 0
+    tidy = pd.read_parquet(pq)
+    assert len(tidy) == 8 * 4 * 2 and len(tidy["protocol_sha256"].iloc[0]) == 64
+    assert tidy["protocol_sha256"].iloc[0] == load_protocol("alpha-law").sha256
+    strokes = list(csv.DictReader(io.StringIO(_cli("export", "--db", piloted, "--strokes").output)))
+    assert {"condition", "image"} <= set(strokes[0]) and {s["condition"] for s in strokes} == {"A", "B", "C", "D"}
