@@ -283,3 +283,43 @@ def test_exports_wide_parquet_full_hash_and_stroke_conditions(tmp_path, piloted)
     assert tidy["protocol_sha256"].iloc[0] == load_protocol("alpha-law").sha256
     strokes = list(csv.DictReader(io.StringIO(_cli("export", "--db", piloted, "--strokes").output)))
     assert {"condition", "image"} <= set(strokes[0]) and {s["condition"] for s in strokes} == {"A", "B", "C", "D"}
+
+
+# ------------------------------------------------------------ participants
+
+
+def test_assessment_rating_waits_until_every_image_is_stroked(tmp_path):
+    proto = load_protocol("assessment")
+    assert proto.require_every_image
+    flow = Flow(proto, Store(str(tmp_path / "a.db")))
+    token = flow.start("P01", True)["session"]
+    state = flow.calibrate(token, {"mm_per_px": 0.25, "felt": True})
+    t = state["trial"]
+    assert t["require_every_image"] and len(t["images"]) == 6
+    handler = flow.stroke_handler(token)
+    ratings = {q["id"]: 4 for q in t["questions"]}
+    for im in t["images"][:5]:
+        handler.handle({"trial": 0, "image": im["id"], "samples": [[0, 1, 1, 0.5], [20, 3, 1, 0.5]]})
+    with pytest.raises(FlowError, match="stroke every picture") as exc:
+        flow.submit(token, 0, ratings)
+    assert exc.value.detail["unstroked"] == [t["images"][5]["id"]]
+    assert flow.store.answer_rows() == []
+    handler.handle({"trial": 0, "image": t["images"][5]["id"], "samples": [[0, 1, 1, 0.5]]})
+    assert flow.submit(token, 0, ratings)["recorded"] == "recorded"
+
+
+def test_an_id_alone_does_not_resume_a_session_beyond_loopback(tmp_path):
+    from fastapi.testclient import TestClient
+
+    from tactilize.experiments.web import create_experiment_app
+
+    app = create_experiment_app("alpha-law", str(tmp_path / "r.db"), admin_token="experimenter-secret")
+    with TestClient(app) as client:  # its client address, "testclient", is not loopback
+        token = client.post("/experiment/api/sessions", json={"participant_id": "P01", "consent": True}).json()["session"]
+        assert len(token) >= 24  # unguessable: 18 random bytes
+        r = client.post("/experiment/api/resume", json={"participant_id": "P01"})
+        assert r.status_code == 401 and "token" in r.json()["error"]
+        r = client.post("/experiment/api/resume", json={"participant_id": "P01"},
+                        headers={"X-Tactilize-Token": "experimenter-secret"})
+        assert r.status_code == 200 and r.json()["session"] == token
+        assert client.get(f"/experiment/api/sessions/{token}").status_code == 200  # the page's own token works

@@ -121,7 +121,7 @@ def fit_personal_profile(store, participant: str, base: str | None = None, quest
         from .store import ProtocolVersion
 
         for pv in s.query(ProtocolVersion):
-            texts[pv.sha256[:12]] = pv.text
+            texts[pv.sha256] = pv.text  # exports carry the full hash (issue 14)
     data = base_profile.to_dict()
     reports = []
     # Oldest protocol first: a later one (a refinement round) supersedes an

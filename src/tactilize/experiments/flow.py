@@ -224,6 +224,14 @@ class Flow:
                             f"{(current or 0) + 1}. Reload to continue.", 409, current_trial=current)
         if self._break_due(sess, current):
             raise FlowError("trial", "a break is due first; reload the page", 409, current_trial=current)
+        if self.protocol.require_every_image:
+            from .labdata import stroked_images
+
+            missing = [i for i in trial.image_ids if i not in stroked_images(self.store, trial.id)]
+            if missing:
+                labels = ", ".join(self.protocol.image(i).label for i in missing)
+                raise FlowError("trial", f"stroke every picture before rating; not yet: {labels}", 409,
+                                current_trial=current, unstroked=missing)
         try:
             status = self.store.record_answers(trial.id, ratings, response_time_s=response_time_s,
                                                submission_id=str(submission_id)[:64] if submission_id else None)
@@ -315,6 +323,7 @@ class Flow:
                         "url": f"images/{iid}.png"} for iid in t.image_ids],
             "questions": [q.to_dict() for q in self.protocol.questions],
             "min_stroke_s": self.protocol.min_stroke_s,
+            "require_every_image": self.protocol.require_every_image,
         }
         return doc
 

@@ -30,7 +30,7 @@ from sqlalchemy.orm import Mapped, mapped_column
 from ..errors import TactilizeError
 from .store import Answer, Base, ExperimentSession, Participant, StrokeSample, Trial, iso, utcnow
 
-__all__ = ["TrialEvent", "record_event", "trial_events", "backup", "withdraw", "wide_table"]
+__all__ = ["TrialEvent", "record_event", "trial_events", "stroked_images", "backup", "withdraw", "wide_table"]
 
 
 class TrialEvent(Base):
@@ -58,6 +58,12 @@ def trial_events(store, session_id: int | None = None) -> list[dict[str, Any]]:
             q = q.where(Trial.session_id == session_id)
         return [{"session": t.session_id, "trial": t.index, "kind": e.kind, "detail": json.loads(e.detail_json),
                  "at": iso(e.at)} for e, t in s.execute(q.order_by(TrialEvent.id))]
+
+
+def stroked_images(store, trial_id: int) -> set[str]:
+    """Ids of the images of a trial with at least one logged pen sample."""
+    with store.Session() as s:
+        return set(s.scalars(select(StrokeSample.image_id).where(StrokeSample.trial_id == trial_id).distinct()))
 
 
 def interrupted_trials(store) -> set[tuple[int, int]]:

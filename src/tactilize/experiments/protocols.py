@@ -229,6 +229,7 @@ class Protocol:
     shuffle_images: bool = True
     participants_planned: int = 0
     calibration_card_mm: float = 85.60
+    require_every_image: bool = False  # the rating opens only once every picture of the trial was stroked
     text: str = ""
     source: str = "<protocol>"
 
@@ -361,6 +362,12 @@ def _int(source: str, where: str, value: Any, lo: int = 0) -> int:
     return value
 
 
+def _bool(source: str, where: str, value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise ProtocolError(source, f"{where} must be true or false, got {value!r}")
+    return value
+
+
 def _id(source: str, where: str, value: Any) -> str:
     if not isinstance(value, str) or not _ID.match(value):
         raise ProtocolError(source, f"{where} must be a short id (letters, digits, _ . -), got {value!r}")
@@ -376,7 +383,7 @@ def protocol_from_toml(text: str, source: str = "<toml>") -> Protocol:
     known = {
         "name", "version", "title", "description", "reference", "base_profile", "repetitions",
         "trial_unit", "break_every", "min_stroke_s", "participants_planned", "order", "images",
-        "conditions", "questions", "calibration",
+        "conditions", "questions", "calibration", "require_every_image",
     }
     unknown = set(data) - known
     if unknown:
@@ -477,6 +484,7 @@ def protocol_from_toml(text: str, source: str = "<toml>") -> Protocol:
         shuffle_images=bool(order.get("shuffle_images", True)),
         participants_planned=_int(source, "participants_planned", data.get("participants_planned", 0), 0),
         calibration_card_mm=_num(source, "[calibration].card_width_mm", calib.get("card_width_mm", 85.60), 10, 500),
+        require_every_image=_bool(source, "require_every_image", data.get("require_every_image", False)),
         text=text,
         source=source,
     )

@@ -6,7 +6,8 @@
 
     GET  api/protocol                         title, description, questions (no conditions: blind)
     POST api/sessions        {participant_id, consent}        -> state   (409: ID taken)
-    POST api/resume          {participant_id}                  -> state   (404: unknown ID)
+    POST api/resume          {participant_id}                  -> state   (404: unknown ID;
+                             beyond loopback only with the experimenter token)
     GET  api/sessions/{s}                                       -> state
     POST api/sessions/{s}/calibration {card_width_px|mm_per_px, felt}
     POST api/sessions/{s}/break       {trial}
@@ -115,6 +116,12 @@ def experiment_router(flow: Flow) -> APIRouter:
     @router.post("/api/resume")
     async def resume(request: Request) -> Response:
         body = await _json_object(request)
+        client = request.client.host if request.client else ""
+        if not is_loopback(client) and flow.admin_token:
+            # An ID is short and guessable; beyond loopback it alone must not open
+            # someone's session.  The page resumes by its unguessable session token;
+            # resuming by ID needs the experimenter (their token).
+            require_admin(request)
         return JSONResponse(await run_in_threadpool(flow.resume, body.get("participant_id")))
 
     @router.get("/api/sessions/{token}")

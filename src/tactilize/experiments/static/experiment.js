@@ -78,6 +78,7 @@ function render(state, keepMessage = false) {
   $("title").textContent = state.protocol.title;
   $("progress").textContent = `${state.participant} · ${state.progress.done} of ${state.progress.total} done`;
   show(state.state);
+  $("not-me").hidden = state.state === "done";
   document.body.dataset.state = state.state;
   if (state.state === "calibration") renderCalibration(state);
   if (state.state === "trial") renderTrial(state.trial);
@@ -100,6 +101,20 @@ async function welcome() {
 $("start").addEventListener("click", () => guarded(async () => {
   render(await call("POST", "sessions", { participant_id: $("participant-id").value.trim(), consent: $("consent").checked }));
 }));
+// "Not me": a shared computer may show the previous person's session; leave it
+// without touching its data (the session stays resumable by its owner).
+$("not-me").addEventListener("click", () => {
+  closeSocket();
+  localStorage.removeItem("tactilize.session");
+  session = null; current = null; trial = null; queue = [];
+  document.body.dataset.state = "welcome";
+  $("progress").textContent = "";
+  $("participant-id").value = "";
+  $("consent").checked = false;
+  message("");
+  show("welcome");
+});
+
 $("resume").addEventListener("click", () => guarded(async () => {
   render(await call("POST", "resume", { participant_id: $("participant-id").value.trim() }));
 }));
@@ -124,7 +139,7 @@ $("calibrate").addEventListener("click", () => guarded(async () => {
 // ---------------------------------------------------------------- trial
 
 let trial = null, image = null, strokeMs = 0, lastT = null, shownAt = 0;
-let ws = null, queue = [], points = [];
+let ws = null, queue = [], points = [], stroked = new Set();
 
 function renderTrial(t) {
   const fresh = !trial || trial.index !== t.index;
@@ -132,7 +147,7 @@ function renderTrial(t) {
   mmPerPx = current.calibration ? current.calibration.mm_per_px : 0.2646;
   $("trial-title").textContent = `Trial ${t.number} of ${current.progress.total}`;
   $("min-stroke").textContent = t.min_stroke_s;
-  if (fresh) { strokeMs = 0; shownAt = performance.now(); buildForm(t.questions); }
+  if (fresh) { strokeMs = 0; stroked = new Set(); shownAt = performance.now(); buildForm(t.questions); }
   const tabs = $("tabs");
   tabs.replaceChildren();
   t.images.forEach((im, i) => {
@@ -198,7 +213,9 @@ function ratings() {
 
 function updateSubmit() {
   if (!trial) return;
-  const ready = strokeMs / 1000 >= trial.min_stroke_s;
+  const unstroked = trial.require_every_image ? trial.images.filter((im) => !stroked.has(im.id)) : [];
+  const ready = strokeMs / 1000 >= trial.min_stroke_s && unstroked.length === 0;
+  $("unstroked").textContent = unstroked.length ? `Still to stroke: ${unstroked.map((im) => im.label).join(", ")}.` : "";
   $("answers").hidden = !ready;
   $("stroke-time").textContent = (strokeMs / 1000).toFixed(1);
   // The rating waits until the pen is live and every sample of this trial is sent.
@@ -322,6 +339,7 @@ function onMove(ev) {
     queue.push({ trial: trial.index, image: image.id,
                  s: [e.timeStamp, xPx * mmPerPx, yPx * mmPerPx, e.pointerType === "mouse" ? null : e.pressure] });
     points.push([xPx, yPx]);
+    stroked.add(image.id);
     if (lastT !== null && e.timeStamp - lastT < 200) strokeMs += e.timeStamp - lastT;
     lastT = e.timeStamp;
   }
