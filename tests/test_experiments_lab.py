@@ -323,3 +323,30 @@ def test_an_id_alone_does_not_resume_a_session_beyond_loopback(tmp_path):
                         headers={"X-Tactilize-Token": "experimenter-secret"})
         assert r.status_code == 200 and r.json()["session"] == token
         assert client.get(f"/experiment/api/sessions/{token}").status_code == 200  # the page's own token works
+
+
+def test_consent_file_next_to_the_protocol_and_free_text_comments(tmp_path):
+    text = load_protocol("alpha-law").text.replace('name = "alpha-law"', 'name = "alpha-law"\nconsent_file = "consent.md"', 1)
+    proto_path = tmp_path / "with-consent.toml"
+    proto_path.write_text(text)
+    with pytest.raises(ProtocolError, match="consent file"):
+        load_protocol(str(proto_path))
+    (tmp_path / "consent.md").write_text("You may stop at any time.\nYour data are kept under your ID only.\n")
+    proto = load_protocol(str(proto_path))
+    assert proto.consent.startswith("You may stop")
+    db = str(tmp_path / "c.db")
+    flow = Flow(proto, Store(db))
+    token = flow.start("P01", True)["session"]
+    prov = json.loads(flow.store.session_by_token(token).provenance_json)
+    import hashlib
+
+    assert prov["consent_sha256"] == hashlib.sha256(proto.consent.encode()).hexdigest()
+    state = flow.calibrate(token, {"mm_per_px": 0.25, "felt": True})
+    ratings = {q["id"]: 4 for q in state["trial"]["questions"]}
+    with pytest.raises(FlowError, match="2000"):
+        flow.submit(token, 0, ratings, comment="x" * 2001)
+    flow.submit(token, 0, ratings, comment="  felt a buzz on image 2  ")
+    flow.submit(token, 0, ratings, comment="again")  # a duplicate: nothing changes
+    from tactilize.experiments.analysis import tidy_answers
+
+    assert set(tidy_answers(Store(db))["comment"]) == {"felt a buzz on image 2"}

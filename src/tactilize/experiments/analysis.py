@@ -34,7 +34,7 @@ __all__ = ["tidy_answers", "analyze", "describe", "friedman", "pairwise_wilcoxon
 CSV_COLUMNS = [
     "protocol", "protocol_version", "protocol_sha256", "seed", "participant", "participant_number", "simulated",
     "session", "trial", "repetition", "condition", "image", "question", "rating", "trial_started_at",
-    "answered_at", "response_time_s", "stroke_interrupted", "tactilize_version",
+    "answered_at", "response_time_s", "stroke_interrupted", "comment", "tactilize_version",
 ]
 
 
@@ -48,14 +48,19 @@ def tidy_answers(store, protocol_name: str | None = None, include_simulated: boo
     from .. import __version__
 
     rows = [r for r in store.answer_rows(protocol_name) if include_simulated or not r["simulated"]]
-    df = pd.DataFrame(rows, columns=CSV_COLUMNS[:-2])
+    df = pd.DataFrame(rows, columns=CSV_COLUMNS[:-3])
+    gaps, comments = set(), {}
     if hasattr(store, "Session"):
-        from .labdata import interrupted_trials
+        from .labdata import trial_events
 
-        gaps = interrupted_trials(store)
-        df["stroke_interrupted"] = [(s, t) in gaps for s, t in zip(df["session"], df["trial"])]
-    else:
-        df["stroke_interrupted"] = False
+        for e in trial_events(store):
+            if e["kind"] == "interrupted":
+                gaps.add((e["session"], e["trial"]))
+            elif e["kind"] == "comment":
+                comments[(e["session"], e["trial"])] = e["detail"].get("text", "")
+    keys = list(zip(df["session"], df["trial"]))
+    df["stroke_interrupted"] = [k in gaps for k in keys]
+    df["comment"] = [comments.get(k, "") for k in keys]
     df["tactilize_version"] = __version__
     return df[CSV_COLUMNS]
 

@@ -122,8 +122,12 @@ class Flow:
             # numbered and analysed apart; a person must not be mistaken for one.
             raise FlowError("participant_id", "IDs starting with SIM- are reserved for simulated participants", 422)
         try:
+            import hashlib
+
+            # The consent text may live in its own file: record which text was agreed to.
+            consent = {"consent_sha256": hashlib.sha256(self.protocol.consent.encode("utf-8")).hexdigest()}
             sess = self.store.create_session(self.protocol, code, simulated=simulated,
-                                             extra_provenance=extra_provenance)
+                                             extra_provenance={**consent, **(extra_provenance or {})})
         except KeyError:
             existing = self.store.session_by_code(self.protocol.name, code)
             done = existing is not None and existing.completed_at is not None
@@ -192,12 +196,17 @@ class Flow:
         return self.state(token)
 
     def submit(self, token: str, trial_index: Any, ratings: Any, *, response_time_s: Any = None,
-               submission_id: Any = None) -> dict:
+               submission_id: Any = None, comment: Any = None) -> dict:
         """Record the answers of one trial; returns the next state plus ``recorded``.
 
         Idempotent: resubmitting the same answers (a double click, a retry
         after a lost response) reports ``"duplicate"`` and changes nothing.
+        ``comment`` is optional free text (at most 2000 characters), stored
+        with the trial when the answers are recorded.
         """
+        if comment is not None and (not isinstance(comment, str) or len(comment) > 2000):
+            raise FlowError("comment", "must be text of at most 2000 characters", 422)
+        comment = (comment or "").strip()
         sess = self._session(token)
         trials = self.store.trials(sess.id)
         if isinstance(trial_index, bool) or not isinstance(trial_index, int) or not 0 <= trial_index < len(trials):
@@ -238,6 +247,10 @@ class Flow:
         except ValueError:
             raise FlowError("trial", f"trial {trial_index + 1} was already answered differently; answers are never "
                             "overwritten. Reload to continue.", 409, current_trial=current) from None
+        if status == "recorded" and comment:
+            from .labdata import record_event
+
+            record_event(self.store, trial.id, "comment", {"text": comment})
         out = self.state(token)
         out["recorded"] = status
         return out

@@ -230,6 +230,7 @@ class Protocol:
     participants_planned: int = 0
     calibration_card_mm: float = 85.60
     require_every_image: bool = False  # the rating opens only once every picture of the trial was stroked
+    consent: str = ""  # the information a participant consents to (``consent`` or ``consent_file``)
     text: str = ""
     source: str = "<protocol>"
 
@@ -362,6 +363,25 @@ def _int(source: str, where: str, value: Any, lo: int = 0) -> int:
     return value
 
 
+def _consent(source: str, data: dict) -> str:
+    """The consent text: inline ``consent``, or ``consent_file`` next to the protocol file."""
+    if "consent" in data and "consent_file" in data:
+        raise ProtocolError(source, "give consent or consent_file, not both")
+    if "consent_file" in data:
+        name = data["consent_file"]
+        if not isinstance(name, str) or not name or not source.endswith(".toml"):
+            raise ProtocolError(source, "consent_file must name a file next to a protocol file")
+        path = Path(source).parent / name
+        try:
+            return path.read_text("utf-8").strip()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ProtocolError(str(path), f"cannot read the consent file ({exc.__class__.__name__})") from None
+    text = data.get("consent", "")
+    if not isinstance(text, str):
+        raise ProtocolError(source, "consent must be text")
+    return text.strip()
+
+
 def _bool(source: str, where: str, value: Any) -> bool:
     if not isinstance(value, bool):
         raise ProtocolError(source, f"{where} must be true or false, got {value!r}")
@@ -383,7 +403,7 @@ def protocol_from_toml(text: str, source: str = "<toml>") -> Protocol:
     known = {
         "name", "version", "title", "description", "reference", "base_profile", "repetitions",
         "trial_unit", "break_every", "min_stroke_s", "participants_planned", "order", "images",
-        "conditions", "questions", "calibration", "require_every_image",
+        "conditions", "questions", "calibration", "require_every_image", "consent", "consent_file",
     }
     unknown = set(data) - known
     if unknown:
@@ -485,6 +505,7 @@ def protocol_from_toml(text: str, source: str = "<toml>") -> Protocol:
         participants_planned=_int(source, "participants_planned", data.get("participants_planned", 0), 0),
         calibration_card_mm=_num(source, "[calibration].card_width_mm", calib.get("card_width_mm", 85.60), 10, 500),
         require_every_image=_bool(source, "require_every_image", data.get("require_every_image", False)),
+        consent=_consent(source, data),
         text=text,
         source=source,
     )

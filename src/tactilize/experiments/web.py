@@ -11,7 +11,7 @@
     GET  api/sessions/{s}                                       -> state
     POST api/sessions/{s}/calibration {card_width_px|mm_per_px, felt}
     POST api/sessions/{s}/break       {trial}
-    POST api/sessions/{s}/answers     {trial, ratings, response_time_s, submission_id}
+    POST api/sessions/{s}/answers     {trial, ratings, response_time_s, submission_id, comment}
     GET  api/images/{id}.png
     WS   ws/{s}          pen samples in, drives out (see flow.StrokeHandler)
 
@@ -104,7 +104,7 @@ def experiment_router(flow: Flow) -> APIRouter:
     @router.get("/api/protocol")
     def protocol_info() -> dict:
         p = flow.protocol
-        return {"name": p.name, "title": p.title, "description": p.description,
+        return {"name": p.name, "title": p.title, "description": p.description, "consent": p.consent,
                 "questions": [q.to_dict() for q in p.questions], "calibration_card_mm": p.calibration_card_mm,
                 "trials": len(p.plan(1))}
 
@@ -145,7 +145,7 @@ def experiment_router(flow: Flow) -> APIRouter:
         doc = await run_in_threadpool(
             lambda: flow.submit(token, body.get("trial"), body.get("ratings"),
                                 response_time_s=body.get("response_time_s"),
-                                submission_id=body.get("submission_id")))
+                                submission_id=body.get("submission_id"), comment=body.get("comment")))
         return JSONResponse(doc)
 
     @router.get("/api/images/{image_id}.png")

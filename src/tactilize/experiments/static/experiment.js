@@ -91,6 +91,7 @@ async function welcome() {
   const info = await call("GET", "protocol");
   $("title").textContent = info.title;
   $("description").textContent = info.description;
+  if (info.consent) $("consent-text").textContent = info.consent;  // the protocol's own information sheet
   $("card-mm").textContent = info.calibration_card_mm;
   if (session) {
     try { render(await call("GET", `sessions/${session}`)); return; } catch { localStorage.removeItem("tactilize.session"); session = null; }
@@ -200,6 +201,13 @@ function buildForm(questions) {
     fs.append(scale);
     form.append(fs);
   }
+  const lab = document.createElement("label");
+  lab.className = "row";
+  lab.textContent = "Comments (optional)";
+  const ta = document.createElement("textarea");
+  ta.id = "comment"; ta.maxLength = 2000; ta.rows = 2;
+  lab.append(ta);
+  form.append(lab);
 }
 
 function ratings() {
@@ -228,6 +236,7 @@ $("submit").addEventListener("click", () => guarded(async () => {
     trial: trial.index, ratings: ratings(),
     response_time_s: (performance.now() - shownAt) / 1000,
     submission_id: `${session}:${trial.index}`,
+    comment: $("comment") ? $("comment").value : "",
   });
   audio.stop();
   render(doc);
