@@ -350,3 +350,25 @@ def test_consent_file_next_to_the_protocol_and_free_text_comments(tmp_path):
     from tactilize.experiments.analysis import tidy_answers
 
     assert set(tidy_answers(Store(db))["comment"]) == {"felt a buzz on image 2"}
+
+
+def test_an_excluded_participant_s_square_row_goes_to_the_next_one(tmp_path):
+    proto = load_protocol("alpha-law")
+    db = str(tmp_path / "x.sqlite3")
+    flow = Flow(proto, Store(db))
+    for code, rating in (("P01", 5), ("P02", 2), ("P03", 4)):
+        _real_participant(flow, code, rating)
+    r = _cli("exclude", "alpha-law", "P02", "--reason", "did not feel the pen", "--db", db)
+    assert r.exit_code == 0 and "row 2" in r.output, r.output
+    _one_line_exit_2(_cli("exclude", "alpha-law", "P02", "--db", db))
+    _real_participant(flow, "P04", 6)
+    store = Store(db)
+    p04 = store.session_by_code("alpha-law", "P04")
+    assert json.loads(p04.order_json) == [t.condition_id for t in proto.plan(2)]  # P02's row
+    _real_participant(flow, "P05", 6)
+    assert json.loads(store.session_by_code("alpha-law", "P05").order_json) == [t.condition_id for t in proto.plan(4)]
+    from tactilize.experiments.analysis import analyze, tidy_answers
+
+    df = tidy_answers(store)
+    assert df[df["participant"] == "P02"]["excluded"].all() and set(df[df["participant"] == "P02"]["participant_number"]) == {2}
+    assert analyze(store)["protocols"]["alpha-law"]["n_participants"] == 4

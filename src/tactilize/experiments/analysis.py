@@ -33,7 +33,7 @@ __all__ = ["tidy_answers", "analyze", "describe", "friedman", "pairwise_wilcoxon
 
 CSV_COLUMNS = [
     "protocol", "protocol_version", "protocol_sha256", "seed", "participant", "participant_number", "simulated",
-    "session", "trial", "repetition", "condition", "image", "question", "rating", "trial_started_at",
+    "excluded", "session", "trial", "repetition", "condition", "image", "question", "rating", "trial_started_at",
     "answered_at", "response_time_s", "stroke_interrupted", "comment", "tactilize_version",
 ]
 
@@ -48,16 +48,22 @@ def tidy_answers(store, protocol_name: str | None = None, include_simulated: boo
     from .. import __version__
 
     rows = [r for r in store.answer_rows(protocol_name) if include_simulated or not r["simulated"]]
-    df = pd.DataFrame(rows, columns=CSV_COLUMNS[:-3])
-    gaps, comments = set(), {}
+    df = pd.DataFrame(rows, columns=[c for c in CSV_COLUMNS[:-3] if c != "excluded"])
+    gaps, comments, excluded = set(), {}, {}
     if hasattr(store, "Session"):
-        from .labdata import trial_events
+        from .labdata import excluded_codes, trial_events
+
+        excluded = excluded_codes(store)
 
         for e in trial_events(store):
             if e["kind"] == "interrupted":
                 gaps.add((e["session"], e["trial"]))
             elif e["kind"] == "comment":
                 comments[(e["session"], e["trial"])] = e["detail"].get("text", "")
+    who = list(zip(df["protocol"], df["participant"]))
+    df["excluded"] = [k in excluded for k in who]
+    # An excluded participant's row of the square went to the next person; report the one they had.
+    df["participant_number"] = [excluded.get(k, n) for k, n in zip(who, df["participant_number"])]
     keys = list(zip(df["session"], df["trial"]))
     df["stroke_interrupted"] = [k in gaps for k in keys]
     df["comment"] = [comments.get(k, "") for k in keys]
@@ -241,6 +247,7 @@ def analyze(store_or_df, protocol_name: str | None = None, include_simulated: bo
 
     if hasattr(store_or_df, "answer_rows"):
         df = tidy_answers(store_or_df, protocol_name, include_simulated)
+        df = df[~df["excluded"].astype(bool)]  # excluded by the experimenter's decision (labdata.exclude)
         prov = provenance(db=_redact(store_or_df.url))
     else:
         df = store_or_df if protocol_name is None else store_or_df[store_or_df["protocol"] == protocol_name]

@@ -286,6 +286,23 @@ def withdraw_cmd(protocol: str, participant: str, db_url: str | None, yes: bool)
     click.echo(f"withdrew {participant} from {protocol}: " + ", ".join(f"{v} {k}" for k, v in counts.items()))
 
 
+@experiment.command("exclude")
+@click.argument("protocol")
+@click.argument("participant")
+@click.option("--reason", default="", help="Why (kept with the exclusion).")
+@click.option("--db", "db_url", default=None, help=DB_HELP)
+def exclude_cmd(protocol: str, participant: str, reason: str, db_url: str | None) -> None:
+    """Exclude PARTICIPANT from PROTOCOL's analysis; the next participant takes their square row."""
+    from .labdata import exclude
+    from .store import Store
+
+    store = Store(db_url, must_exist=True)
+    store.require_protocol(protocol)
+    doc = exclude(store, protocol, participant, reason)
+    click.echo(f"excluded {participant} from {protocol}; the next participant gets square row "
+               f"{doc['freed_square_number']}")
+
+
 def _redact(url: str) -> str:
     from .analysis import _redact as r
 

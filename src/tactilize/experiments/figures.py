@@ -190,6 +190,7 @@ def make_figures(store_or_df, out_dir: str | Path, protocol_name: str | None = N
 
     if hasattr(store_or_df, "answer_rows"):
         df = tidy_answers(store_or_df, protocol_name, include_simulated)
+        df = df[~df["excluded"].astype(bool)]
     else:
         df = store_or_df
         if not include_simulated and "simulated" in df:

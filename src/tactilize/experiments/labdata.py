@@ -30,7 +30,8 @@ from sqlalchemy.orm import Mapped, mapped_column
 from ..errors import TactilizeError
 from .store import Answer, Base, ExperimentSession, Participant, StrokeSample, Trial, iso, utcnow
 
-__all__ = ["TrialEvent", "record_event", "trial_events", "stroked_images", "backup", "withdraw", "wide_table"]
+__all__ = ["TrialEvent", "Exclusion", "record_event", "trial_events", "stroked_images", "backup", "withdraw", "exclude",
+           "excluded_codes", "wide_table"]
 
 
 class TrialEvent(Base):
@@ -137,6 +138,55 @@ def withdraw(store, protocol_name: str, code: str) -> dict[str, int]:
         # so that later participants keep their square rows.
         part.code = f"withdrawn-{part.id}"
         return counts
+
+
+#: Excluded participants' numbers are moved above this, out of the square's rows.
+PARKED = 1_000_000_000
+
+
+class Exclusion(Base):
+    """A participant excluded from the analysis (their data stay), and the square row they had."""
+
+    __tablename__ = "exclusions"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    participant_id: Mapped[int] = mapped_column(ForeignKey("participants.id"), unique=True)
+    square_number: Mapped[int] = mapped_column(Integer)
+    reason: Mapped[str] = mapped_column(Text, default="")
+    at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+def exclude(store, protocol_name: str, code: str, reason: str = "") -> dict[str, Any]:
+    """Exclude participant ``code`` from ``protocol_name``'s analysis and free their square row.
+
+    Their data stay in the store (flagged ``excluded`` in exports, left out of
+    :func:`.analysis.analyze` and the figures by default); the next participant
+    who registers takes their row of the Latin square, so the planned balance
+    still holds when the study is complete.
+
+    Raises
+    ------
+    TactilizeError
+        When the participant is unknown or already excluded.
+    """
+    with store.Session.begin() as s:
+        part = s.scalar(select(Participant).where(Participant.protocol_name == protocol_name,
+                                                  Participant.code == code))
+        if part is None:
+            raise TactilizeError(code, f"not registered for {protocol_name}")
+        if s.scalar(select(Exclusion).where(Exclusion.participant_id == part.id)) is not None:
+            raise TactilizeError(code, "already excluded")
+        row = abs(part.number)
+        s.add(Exclusion(participant_id=part.id, square_number=row, reason=str(reason)[:500], at=utcnow()))
+        part.number = (PARKED + part.id) * (-1 if part.simulated else 1)
+        return {"participant": code, "freed_square_number": row}
+
+
+def excluded_codes(store) -> dict[tuple[str, str], int]:
+    """``{(protocol, participant code): square number they had}`` of the excluded participants."""
+    with store.Session() as s:
+        q = (select(Participant.protocol_name, Participant.code, Exclusion.square_number)
+             .join(Exclusion, Exclusion.participant_id == Participant.id))
+        return {(p, c): n for p, c, n in s.execute(q)}
 
 
 def wide_table(df):

@@ -321,11 +321,12 @@ class Store:
                     raise KeyError(code)
                 # Simulated participants count apart (stored as -1, -2, ...): a pilot run
                 # into the study database must not take real participants' square rows.
+                # The lowest free row: an excluded participant's row (moved out of the way,
+                # see labdata.exclude) goes to the next person, so the square stays balanced.
                 sign = -1 if simulated else 1
-                agg = func.min if simulated else func.max
-                last = s.scalar(select(agg(Participant.number)).where(
-                    Participant.protocol_name == protocol.name, Participant.number * sign > 0)) or 0
-                number = abs(last) + 1
+                taken = set(s.scalars(select(Participant.number).where(
+                    Participant.protocol_name == protocol.name, Participant.number * sign > 0)))
+                number = next(n for n in range(1, len(taken) + 2) if sign * n not in taken)
                 part = Participant(protocol_name=protocol.name, code=code, number=sign * number, simulated=simulated)
                 s.add(part)
                 plan = protocol.plan(number)
