@@ -372,3 +372,39 @@ def test_an_excluded_participant_s_square_row_goes_to_the_next_one(tmp_path):
     df = tidy_answers(store)
     assert df[df["participant"] == "P02"]["excluded"].all() and set(df[df["participant"] == "P02"]["participant_number"]) == {2}
     assert analyze(store)["protocols"]["alpha-law"]["n_participants"] == 4
+
+
+def test_optional_demographics_are_validated_stored_exported_and_withdrawn(tmp_path):
+    text = load_protocol("alpha-law").text + (
+        '\n[[demographics]]\nid = "age"\ntext = "Age"\nkind = "integer"\nmin = 18\nmax = 99\n'
+        '\n[[demographics]]\nid = "handedness"\ntext = "Writing hand"\nkind = "choice"\noptions = ["left", "right"]\n')
+    proto = protocol_from_toml(text, "demo.toml")
+    assert [d.id for d in proto.demographics] == ["age", "handedness"]
+    with pytest.raises(ProtocolError, match="kind"):
+        protocol_from_toml(text.replace('kind = "integer"', 'kind = "text"'), "demo.toml")
+    db = str(tmp_path / "d.db")
+    flow = Flow(proto, Store(db))
+    with pytest.raises(FlowError, match="18 .. 99"):
+        flow.start("P01", True, demographics={"age": 7})
+    with pytest.raises(FlowError, match="left, right"):
+        flow.start("P01", True, demographics={"handedness": "up"})
+    assert Store(db).sessions_overview() == []  # a refused form registers nobody
+    flow.start("P01", True, demographics={"age": "34", "handedness": "left"})
+    flow.start("P02", True, demographics={"age": "", "handedness": "right"})  # age declined
+    from tactilize.experiments.demographics import all_answers
+    from tactilize.experiments.labdata import withdraw
+
+    assert all_answers(Store(db)) == {("alpha-law", "P01"): {"age": "34", "handedness": "left"},
+                                      ("alpha-law", "P02"): {"handedness": "right"}}
+    assert withdraw(Store(db), "alpha-law", "P01")["demographics"] == 2
+    assert list(all_answers(Store(db))) == [("alpha-law", "P02")]
+
+
+def test_wide_table_carries_demographics_beside_the_ratings():
+    from tactilize.experiments.labdata import wide_table
+
+    df = _strong_effect_df(3)
+    wide = wide_table(df, {("alpha-law", "P0"): {"age": "30"}, ("alpha-law", "P2"): {"age": "41"}})
+    assert list(wide.columns) == ["protocol", "participant", "age", "A_speed_match", "B_speed_match", "C_speed_match"]
+    assert list(wide["age"]) == ["30", "", "41"]
+    assert wide["B_speed_match"].tolist() == df[df["condition"] == "B"]["rating"].tolist()

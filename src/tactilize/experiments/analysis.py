@@ -85,6 +85,8 @@ def export_answers(store, fmt: str = "csv", protocol_name: str | None = None) ->
             "provenance": provenance(db=_redact(store.url), protocol_filter=protocol_name),
             "protocol_versions": store.protocol_texts(),
             "sessions": store.sessions_overview(protocol_name),
+            "demographics": [{"protocol": p, "participant": c, **v} for (p, c), v in _demographics(store).items()
+                             if protocol_name is None or p == protocol_name],
             "answers": json.loads(df.to_json(orient="records")),
         }
         return json.dumps(doc, indent=2)
@@ -115,6 +117,12 @@ def export_strokes(store, fmt: str = "csv", protocol_name: str | None = None) ->
     from ..errors import TactilizeError
 
     raise TactilizeError("--format", f"must be csv or json, got {fmt!r}")
+
+
+def _demographics(store) -> dict:
+    from .demographics import all_answers
+
+    return all_answers(store)
 
 
 def _redact(url: str) -> str:

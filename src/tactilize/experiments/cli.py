@@ -126,7 +126,10 @@ def export_cmd(db_url: str | None, fmt: str, protocol_name: str | None, output: 
 
         if strokes:
             raise TactilizeError("--format wide", "is for the answers; export --strokes as csv or json")
-        text = wide_table(tidy_answers(store, protocol_name)).to_csv(index=False, lineterminator="\n")
+        from .demographics import all_answers
+
+        text = wide_table(tidy_answers(store, protocol_name), all_answers(store)).to_csv(index=False,
+                                                                                        lineterminator="\n")
     else:
         text = export_strokes(store, fmt, protocol_name) if strokes else export_answers(store, fmt, protocol_name)
     if output is None:

@@ -112,9 +112,16 @@ class Flow:
 
     # ------------------------------------------------------------ transitions
 
-    def start(self, code: Any, consent: Any, *, simulated: bool = False, extra_provenance: dict | None = None) -> dict:
-        """Consent given and participant ID entered: register and plan the session."""
+    def start(self, code: Any, consent: Any, *, simulated: bool = False, extra_provenance: dict | None = None,
+              demographics: Any = None) -> dict:
+        """Consent given and participant ID entered: register and plan the session.
+
+        ``demographics``: optional answers to the protocol's demographic items
+        (``{id: value}``; empty values are declined answers)."""
+        from . import demographics as demo
+
         code = self._check_code(code)
+        info = demo.check_answers(self.protocol.demographics, demographics)
         if consent is not True:
             raise FlowError("consent", "the participant must give consent before the session starts", 422)
         if not simulated and code.upper().startswith("SIM-"):
@@ -138,6 +145,7 @@ class Flow:
                 409,
                 finished=done,
             ) from None
+        demo.record(self.store, sess.id, info)
         return self.state(sess.token)
 
     def resume(self, code: Any) -> dict:

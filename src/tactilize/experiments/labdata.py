@@ -132,6 +132,9 @@ def withdraw(store, protocol_name: str, code: str) -> dict[str, int]:
         for name, model, col in (("events", TrialEvent, TrialEvent.trial_id), ("answers", Answer, Answer.trial_id),
                                  ("stroke_samples", StrokeSample, StrokeSample.trial_id)):
             counts[name] = s.execute(delete(model).where(col.in_(trial_ids))).rowcount
+        from .demographics import ParticipantInfo
+
+        counts["demographics"] = s.execute(delete(ParticipantInfo).where(ParticipantInfo.session_id.in_(sess_ids))).rowcount
         counts["trials"] = s.execute(delete(Trial).where(Trial.id.in_(trial_ids))).rowcount
         counts["sessions"] = s.execute(delete(ExperimentSession).where(ExperimentSession.id.in_(sess_ids))).rowcount
         # The registration row goes too, but its number is kept as a placeholder
@@ -189,11 +192,19 @@ def excluded_codes(store) -> dict[tuple[str, str], int]:
         return {(p, c): n for p, c, n in s.execute(q)}
 
 
-def wide_table(df):
+def wide_table(df, demographics: dict | None = None):
     """One row per participant, one column ``<condition>_<question>`` of their mean
-    rating (over images and repetitions): the repeated-measures layout of SPSS and JASP."""
+    rating (over images and repetitions): the repeated-measures layout of SPSS and JASP.
+
+    ``demographics`` (``{(protocol, code): {item: value}}``) adds a column per item."""
     cell = df.groupby(["protocol", "participant", "condition", "question"], as_index=False)["rating"].mean()
     cell["column"] = cell["condition"].astype(str) + "_" + cell["question"].astype(str)
     wide = cell.pivot_table(index=["protocol", "participant"], columns="column", values="rating", aggfunc="first")
     wide.columns.name = None
-    return wide.reset_index()
+    wide = wide.reset_index()
+    if demographics:
+        items = sorted({k for v in demographics.values() for k in v})
+        for item in items:
+            wide.insert(2, item, [demographics.get((p, c), {}).get(item, "") for p, c in
+                                  zip(wide["protocol"], wide["participant"])])
+    return wide

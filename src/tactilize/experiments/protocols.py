@@ -231,6 +231,7 @@ class Protocol:
     calibration_card_mm: float = 85.60
     require_every_image: bool = False  # the rating opens only once every picture of the trial was stroked
     consent: str = ""  # the information a participant consents to (``consent`` or ``consent_file``)
+    demographics: tuple = ()  # optional questions (:mod:`.demographics`)
     text: str = ""
     source: str = "<protocol>"
 
@@ -363,6 +364,12 @@ def _int(source: str, where: str, value: Any, lo: int = 0) -> int:
     return value
 
 
+def _demographics(source: str, items: Any) -> tuple:
+    from .demographics import parse_demographics
+
+    return parse_demographics(source, items)
+
+
 def _consent(source: str, data: dict) -> str:
     """The consent text: inline ``consent``, or ``consent_file`` next to the protocol file."""
     if "consent" in data and "consent_file" in data:
@@ -404,6 +411,7 @@ def protocol_from_toml(text: str, source: str = "<toml>") -> Protocol:
         "name", "version", "title", "description", "reference", "base_profile", "repetitions",
         "trial_unit", "break_every", "min_stroke_s", "participants_planned", "order", "images",
         "conditions", "questions", "calibration", "require_every_image", "consent", "consent_file",
+        "demographics",
     }
     unknown = set(data) - known
     if unknown:
@@ -506,6 +514,7 @@ def protocol_from_toml(text: str, source: str = "<toml>") -> Protocol:
         calibration_card_mm=_num(source, "[calibration].card_width_mm", calib.get("card_width_mm", 85.60), 10, 500),
         require_every_image=_bool(source, "require_every_image", data.get("require_every_image", False)),
         consent=_consent(source, data),
+        demographics=_demographics(source, data.get("demographics")),
         text=text,
         source=source,
     )

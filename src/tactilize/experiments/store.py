@@ -256,7 +256,7 @@ class Store:
             raise TactilizeError(url, f"cannot open database ({exc.__class__.__name__}: {exc})") from None
         if self.engine.dialect.name == "sqlite":
             event.listen(self.engine, "connect", _sqlite_pragmas)
-        from . import labdata  # noqa: F401  (registers the trial_events table before create_all)
+        from . import demographics, labdata  # noqa: F401  (their tables, before create_all)
 
         try:
             Base.metadata.create_all(self.engine)

@@ -5,7 +5,7 @@
 :func:`create_experiment_app`).  Participant routes (``/experiment/api/...``)::
 
     GET  api/protocol                         title, description, questions (no conditions: blind)
-    POST api/sessions        {participant_id, consent}        -> state   (409: ID taken)
+    POST api/sessions        {participant_id, consent, demographics} -> state   (409: ID taken)
     POST api/resume          {participant_id}                  -> state   (404: unknown ID;
                              beyond loopback only with the experimenter token)
     GET  api/sessions/{s}                                       -> state
@@ -105,13 +105,15 @@ def experiment_router(flow: Flow) -> APIRouter:
     def protocol_info() -> dict:
         p = flow.protocol
         return {"name": p.name, "title": p.title, "description": p.description, "consent": p.consent,
+                "demographics": [d.to_dict() for d in p.demographics],
                 "questions": [q.to_dict() for q in p.questions], "calibration_card_mm": p.calibration_card_mm,
                 "trials": len(p.plan(1))}
 
     @router.post("/api/sessions")
     async def start(request: Request) -> Response:
         body = await _json_object(request)
-        return JSONResponse(await run_in_threadpool(flow.start, body.get("participant_id"), body.get("consent")))
+        return JSONResponse(await run_in_threadpool(lambda: flow.start(body.get("participant_id"), body.get("consent"),
+                                                                      demographics=body.get("demographics"))))
 
     @router.post("/api/resume")
     async def resume(request: Request) -> Response:

@@ -92,6 +92,7 @@ async function welcome() {
   $("title").textContent = info.title;
   $("description").textContent = info.description;
   if (info.consent) $("consent-text").textContent = info.consent;  // the protocol's own information sheet
+  buildDemographics(info.demographics || []);
   $("card-mm").textContent = info.calibration_card_mm;
   if (session) {
     try { render(await call("GET", `sessions/${session}`)); return; } catch { localStorage.removeItem("tactilize.session"); session = null; }
@@ -99,8 +100,41 @@ async function welcome() {
   show("welcome");
 }
 
+// Optional questions the protocol defines (age, handedness...): every one may be left empty.
+function buildDemographics(items) {
+  const box = $("demographics");
+  box.replaceChildren();
+  for (const d of items) {
+    const lab = document.createElement("label");
+    lab.className = "row";
+    lab.textContent = `${d.text} (optional) `;
+    let inp;
+    if (d.kind === "integer") {
+      inp = document.createElement("input");
+      inp.type = "number"; inp.min = d.min; inp.max = d.max; inp.step = 1;
+    } else {
+      inp = document.createElement("select");
+      for (const o of ["", ...d.options]) {
+        const opt = document.createElement("option");
+        opt.value = o; opt.textContent = o || "(prefer not to say)";
+        inp.append(opt);
+      }
+    }
+    inp.dataset.demographic = d.id;
+    lab.append(inp);
+    box.append(lab);
+  }
+}
+
+function demographics() {
+  const out = {};
+  document.querySelectorAll("[data-demographic]").forEach((el) => { if (el.value !== "") out[el.dataset.demographic] = el.value; });
+  return out;
+}
+
 $("start").addEventListener("click", () => guarded(async () => {
-  render(await call("POST", "sessions", { participant_id: $("participant-id").value.trim(), consent: $("consent").checked }));
+  render(await call("POST", "sessions", { participant_id: $("participant-id").value.trim(), consent: $("consent").checked,
+                                          demographics: demographics() }));
 }));
 // "Not me": a shared computer may show the previous person's session; leave it
 // without touching its data (the session stays resumable by its owner).
