@@ -408,3 +408,21 @@ def test_wide_table_carries_demographics_beside_the_ratings():
     assert list(wide.columns) == ["protocol", "participant", "age", "A_speed_match", "B_speed_match", "C_speed_match"]
     assert list(wide["age"]) == ["30", "", "41"]
     assert wide["B_speed_match"].tolist() == df[df["condition"] == "B"]["rating"].tolist()
+
+
+def test_practice_trials_come_first_and_stay_out_of_the_analysis(tmp_path):
+    proto = protocol_from_toml(load_protocol("alpha-law").text.replace("repetitions = ", "practice_trials = 2\nrepetitions = ", 1),
+                               "practice.toml")
+    plan = proto.plan(1)
+    assert [t.repetition for t in plan[:3]] == [-1, -1, 0] and len(plan) == 2 + len(load_protocol("alpha-law").plan(1))
+    db = str(tmp_path / "p.db")
+    flow = Flow(proto, Store(db))
+    state = flow.start("P01", True)
+    state = flow.calibrate(state["session"], {"mm_per_px": 0.25, "felt": True})
+    assert state["trial"]["practice"] is True
+    _ = flow.submit(state["session"], 0, {q.id: 1 for q in proto.questions})
+    from tactilize.experiments.analysis import export_answers, tidy_answers
+
+    assert tidy_answers(Store(db)).empty  # the practice answer is not data
+    rows = list(csv.DictReader(io.StringIO(export_answers(Store(db), "csv"))))
+    assert [(r["trial"], r["repetition"]) for r in rows] == [("0", "-1")] * len(proto.questions)  # but is exported

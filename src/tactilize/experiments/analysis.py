@@ -38,16 +38,19 @@ CSV_COLUMNS = [
 ]
 
 
-def tidy_answers(store, protocol_name: str | None = None, include_simulated: bool = True):
+def tidy_answers(store, protocol_name: str | None = None, include_simulated: bool = True,
+                 include_practice: bool = False):
     """One row per answer as a pandas DataFrame (columns :data:`CSV_COLUMNS`).
 
     ``include_simulated=False`` leaves out synthetic participants (the analysis
-    and the figures do so unless asked otherwise)."""
+    and the figures do so unless asked otherwise).  Practice trials (repetition
+    -1) are left out unless ``include_practice`` (the exports keep them)."""
     import pandas as pd
 
     from .. import __version__
 
-    rows = [r for r in store.answer_rows(protocol_name) if include_simulated or not r["simulated"]]
+    rows = [r for r in store.answer_rows(protocol_name) if (include_simulated or not r["simulated"])
+            and (include_practice or r["repetition"] >= 0)]
     df = pd.DataFrame(rows, columns=[c for c in CSV_COLUMNS[:-3] if c != "excluded"])
     gaps, comments, excluded = set(), {}, {}
     if hasattr(store, "Session"):
@@ -75,7 +78,7 @@ def export_answers(store, fmt: str = "csv", protocol_name: str | None = None) ->
     """The answers as CSV (tidy, one row per answer) or JSON (with provenance and sessions)."""
     from .store import provenance
 
-    df = tidy_answers(store, protocol_name)
+    df = tidy_answers(store, protocol_name, include_practice=True)
     if fmt == "csv":
         buf = io.StringIO()
         df.to_csv(buf, index=False, lineterminator="\n")

@@ -345,6 +345,7 @@ class Flow:
             "questions": [q.to_dict() for q in self.protocol.questions],
             "min_stroke_s": self.protocol.min_stroke_s,
             "require_every_image": self.protocol.require_every_image,
+            "practice": t.repetition < 0,
         }
         return doc
 

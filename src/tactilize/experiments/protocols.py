@@ -232,6 +232,7 @@ class Protocol:
     require_every_image: bool = False  # the rating opens only once every picture of the trial was stroked
     consent: str = ""  # the information a participant consents to (``consent`` or ``consent_file``)
     demographics: tuple = ()  # optional questions (:mod:`.demographics`)
+    practice_trials: int = 0  # trials first, with repetition -1, left out of the analysis
     text: str = ""
     source: str = "<protocol>"
 
@@ -311,6 +312,9 @@ class Protocol:
         """Every trial of one participant, in order."""
         trials: list[TrialPlan] = []
         image_ids = [im.id for im in self.images]
+        first = self.condition_order(participant_number, 0)
+        for k in range(self.practice_trials):  # familiarisation: repetition -1, never analysed
+            trials.append(TrialPlan(len(trials), first[k % len(first)], -1, tuple(image_ids)))
         for rep in range(self.repetitions):
             for cid in self.condition_order(participant_number, rep):
                 imgs = list(image_ids)
@@ -411,7 +415,7 @@ def protocol_from_toml(text: str, source: str = "<toml>") -> Protocol:
         "name", "version", "title", "description", "reference", "base_profile", "repetitions",
         "trial_unit", "break_every", "min_stroke_s", "participants_planned", "order", "images",
         "conditions", "questions", "calibration", "require_every_image", "consent", "consent_file",
-        "demographics",
+        "demographics", "practice_trials",
     }
     unknown = set(data) - known
     if unknown:
@@ -515,6 +519,7 @@ def protocol_from_toml(text: str, source: str = "<toml>") -> Protocol:
         require_every_image=_bool(source, "require_every_image", data.get("require_every_image", False)),
         consent=_consent(source, data),
         demographics=_demographics(source, data.get("demographics")),
+        practice_trials=_int(source, "practice_trials", data.get("practice_trials", 0), 0),
         text=text,
         source=source,
     )

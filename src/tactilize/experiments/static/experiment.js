@@ -180,7 +180,8 @@ function renderTrial(t) {
   const fresh = !trial || trial.index !== t.index;
   trial = t;
   mmPerPx = current.calibration ? current.calibration.mm_per_px : 0.2646;
-  $("trial-title").textContent = `Trial ${t.number} of ${current.progress.total}`;
+  $("trial-title").textContent = t.practice ? `Practice trial ${t.number} (not counted)`
+    : `Trial ${t.number} of ${current.progress.total}`;
   $("min-stroke").textContent = t.min_stroke_s;
   if (fresh) { strokeMs = 0; stroked = new Set(); shownAt = performance.now(); buildForm(t.questions); }
   const tabs = $("tabs");
