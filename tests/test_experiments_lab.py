@@ -426,3 +426,45 @@ def test_practice_trials_come_first_and_stay_out_of_the_analysis(tmp_path):
     assert tidy_answers(Store(db)).empty  # the practice answer is not data
     rows = list(csv.DictReader(io.StringIO(export_answers(Store(db), "csv"))))
     assert [(r["trial"], r["repetition"]) for r in rows] == [("0", "-1")] * len(proto.questions)  # but is exported
+
+
+def test_one_visit_runs_several_protocols_with_one_calibration(tmp_path):
+    from tactilize.experiments.visit import Visit
+
+    store = Store(str(tmp_path / "v.db"))
+    visit = Visit([Flow(load_protocol("alpha-law"), store), Flow(load_protocol("assessment"), store)])
+    state = visit.start("P01", True)
+    assert state["visit"] == {"part": 1, "parts": 2, "protocols": ["alpha-law", "assessment"]}
+    token = state["session"]
+    state = visit.calibrate(token, {"mm_per_px": 0.3, "felt": True})
+    seen = set()
+    while state["state"] != "done":
+        if state["state"] == "break":
+            state = visit.end_break(state["session"], state["next_trial"])
+            continue
+        assert state["state"] == "trial"  # never a second calibration
+        seen.add(state["visit"]["part"])
+        tok, t = state["session"], state["trial"]
+        handler = visit.stroke_handler(tok)
+        for im in t["images"]:
+            assert im["url"].endswith(f"?protocol={visit.flows[state['visit']['part'] - 1].protocol.name}")
+            handler.handle({"trial": t["index"], "image": im["id"], "samples": [[0, 1, 1, 0.5], [20, 3, 1, 0.5]]})
+        state = visit.submit(tok, t["index"], {q["id"]: 4 for q in t["questions"]})
+        assert state["recorded"] == "recorded"
+    assert seen == {1, 2}
+    overview = {r["protocol"]: r for r in store.sessions_overview()}
+    assert set(overview) == {"alpha-law", "assessment"} and all(r["completed_at"] for r in overview.values())
+    second = store.session_by_code("assessment", "P01")
+    assert json.loads(second.calibration_json)["mm_per_px"] == 0.3
+    assert visit.state(token)["state"] == "done" and visit.resume("P01")["state"] == "done"
+    assert visit.image_png("image6", "assessment").startswith(b"\x89PNG")
+
+
+def test_run_with_several_protocols_serves_one_visit(tmp_path, monkeypatch):
+    import tactilize.web.serve as web_serve
+
+    routers = []
+    monkeypatch.setattr(web_serve, "serve", lambda *a, **k: routers.extend(k["extra_routers"]))
+    r = _cli("run", "g-law", "h-law", "alpha-law", "assessment", "--db", str(tmp_path / "v.db"))
+    assert r.exit_code == 0, r.output
+    assert "one visit: g-law -> h-law -> alpha-law -> assessment" in r.output and len(routers) == 1

@@ -46,14 +46,18 @@ def protocols_cmd(as_json: bool) -> None:
 
 
 @experiment.command("run")
-@click.argument("protocol")
+@click.argument("protocols", nargs=-1, required=True)
 @click.option("--db", "db_url", default=None, help=DB_HELP)
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address to bind (beyond loopback a token is required).")
 @click.option("--port", default=8765, show_default=True, type=int)
 @click.option("--token", default=None, help="Experimenter token (generated when binding beyond loopback).")
 @click.option("--output", "output_spec", default="simulated", show_default=True, help="simulated | serial:PORT | audio[:DEVICE]")
-def run_cmd(protocol: str, db_url: str | None, host: str, port: int, token: str | None, output_spec: str) -> None:
-    """Serve the participant flow of PROTOCOL (a built-in name or a TOML file).
+def run_cmd(protocols: tuple[str, ...], db_url: str | None, host: str, port: int, token: str | None,
+            output_spec: str) -> None:
+    """Serve the participant flow of PROTOCOLS (built-in names or TOML files).
+
+    Several protocols make one visit: each participant takes them in the order
+    given (e.g. g-law h-law alpha-law assessment) with one calibration.
 
     The pages are at /experiment/ (participant) and /experiment/admin
     (experimenter), inside the pen app; the conditions' drives go to --output.
@@ -63,7 +67,7 @@ def run_cmd(protocol: str, db_url: str | None, host: str, port: int, token: str 
 
     if not 0 <= port < 65536:
         raise TactilizeError("--port", f"must be 0 .. 65535, got {port}")
-    serve_flow(load_protocol(protocol), db_url, host=host, port=port, admin_token=token, output=output_spec,
+    serve_flow([load_protocol(p) for p in protocols], db_url, host=host, port=port, admin_token=token, output=output_spec,
                echo=click.echo, warn=lambda s: click.echo(s, err=True))
 
 

@@ -151,8 +151,10 @@ def experiment_router(flow: Flow) -> APIRouter:
         return JSONResponse(doc)
 
     @router.get("/api/images/{image_id}.png")
-    def image(image_id: str) -> Response:
-        return Response(flow.image_png(image_id), media_type="image/png", headers={"Cache-Control": "max-age=3600"})
+    def image(image_id: str, protocol: str | None = None) -> Response:
+        # A visit (several protocols) names the protocol: image ids may repeat across them.
+        png = flow.image_png(image_id, protocol) if protocol else flow.image_png(image_id)
+        return Response(png, media_type="image/png", headers={"Cache-Control": "max-age=3600"})
 
     @router.websocket("/ws/{token}")
     async def pen(ws: WebSocket, token: str) -> None:
@@ -192,8 +194,9 @@ def experiment_router(flow: Flow) -> APIRouter:
     @router.get("/api/admin/sessions")
     def admin_sessions(request: Request) -> Response:
         require_admin(request)
-        return JSONResponse({"protocol": flow.protocol.to_dict(),
-                             "sessions": flow.store.sessions_overview(flow.protocol.name)})
+        names = getattr(flow, "protocol_names", [flow.protocol.name])
+        return JSONResponse({"protocol": flow.protocol.to_dict(), "protocols": names,
+                             "sessions": [r for n in names for r in flow.store.sessions_overview(n)]})
 
     @router.get("/api/admin/export.csv")
     def admin_csv(request: Request) -> Response:
@@ -254,6 +257,8 @@ def serve_flow(protocol, db_url: str | None, host: str = "127.0.0.1", port: int 
                echo=print, warn=None) -> None:
     """Run the flow inside ``tactilize serve``'s app (the CLI's ``experiment run``).
 
+    ``protocol`` may be a list: one visit runs them in sequence (:mod:`.visit`).
+
     The participant pages live at ``/experiment/``, beside the pen page, and the
     condition's drives go to the same actuator output (``--output``).  Beyond
     loopback an experimenter token is mandatory: one is generated and printed
@@ -265,11 +270,18 @@ def serve_flow(protocol, db_url: str | None, host: str = "127.0.0.1", port: int 
     from .protocols import Protocol, load_protocol
     from .store import Store
 
-    if not isinstance(protocol, Protocol):
-        protocol = load_protocol(protocol)
+    protocols = [p if isinstance(p, Protocol) else load_protocol(p)
+                 for p in (protocol if isinstance(protocol, (list, tuple)) else [protocol])]
+    protocol = protocols[0]
     if not is_loopback(host) and not admin_token:
         admin_token = secrets.token_urlsafe(16)
-    flow = Flow(protocol, Store(db_url), admin_token=admin_token)
+    store = Store(db_url)
+    flow = Flow(protocol, store, admin_token=admin_token)
+    if len(protocols) > 1:
+        from .visit import Visit
+
+        flow = Visit([flow] + [Flow(p, store, admin_token=admin_token) for p in protocols[1:]])
+        echo("one visit: " + " -> ".join(p.name for p in protocols))
     from .analysis import _redact
 
     # The URL may hold a database password: a terminal (and its scrollback) must not.

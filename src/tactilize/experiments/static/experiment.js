@@ -73,10 +73,13 @@ async function guarded(fn) {
 function render(state, keepMessage = false) {
   current = state;
   if (!keepMessage) message("");
+  // A visit moves on to its next protocol under a new session: the pen socket follows.
+  if (session && state.session !== session) { closeSocket(); queue = []; trial = null; }
   session = state.session;
   localStorage.setItem("tactilize.session", session);
   $("title").textContent = state.protocol.title;
-  $("progress").textContent = `${state.participant} · ${state.progress.done} of ${state.progress.total} done`;
+  $("progress").textContent = `${state.participant} · ${state.progress.done} of ${state.progress.total} done`
+    + (state.visit && state.visit.parts > 1 ? ` · part ${state.visit.part} of ${state.visit.parts}` : "");
   show(state.state);
   $("not-me").hidden = state.state === "done";
   document.body.dataset.state = state.state;
