@@ -16,9 +16,9 @@ Written in the protocol next to its rating questions::
     options = ["left", "right", "both"]
 
 Every item is optional for the participant (an empty answer is stored as
-nothing): docs/references.md, section 7 (experiment practice) -- collect no more
-than the study needs, and let people decline.  Answers are stored with the
-session (table ``participant_info``) and exported beside the ratings.
+nothing): a person may decline any of them and still take part.  Answers are
+stored with the session (table ``participant_info``) and exported beside the
+ratings.
 """
 
 from __future__ import annotations

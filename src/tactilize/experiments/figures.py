@@ -154,7 +154,7 @@ def protocol_figure(df, protocol_name: str, labels: dict[str, str] | None = None
 
 def caption(protocol_name: str, n_part: int, labels: dict[str, str] | None = None) -> str:
     """The figure's caption, with the paper's figure number it corresponds to
-    (docs/references.md, section 1) -- in the caption, not the title."""
+    (docs/references.md, section 7 (experiment practice)) -- in the caption, not the title."""
     fig_no = PAPER_FIGURE.get(protocol_name)
     title = (labels or {}).get("__title__", protocol_name)
     return (f"{title}: mean rating per condition (bars) with one SD (whiskers), median (diamonds) and each "
