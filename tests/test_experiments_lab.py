@@ -372,6 +372,9 @@ def test_an_excluded_participant_s_square_row_goes_to_the_next_one(tmp_path):
     df = tidy_answers(store)
     assert df[df["participant"] == "P02"]["excluded"].all() and set(df[df["participant"] == "P02"]["participant_number"]) == {2}
     assert analyze(store)["protocols"]["alpha-law"]["n_participants"] == 4
+    status = {r["participant"]: (r["participant_number"], r["excluded"]) for r in store.sessions_overview()}
+    assert status["P02"] == (2, True) and status["P04"] == (2, False)
+    assert "(excluded)" in _cli("status", "--db", db).output
 
 
 def test_optional_demographics_are_validated_stored_exported_and_withdrawn(tmp_path):

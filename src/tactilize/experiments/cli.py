@@ -92,7 +92,7 @@ def status_cmd(db_url: str | None, protocol_name: str | None, as_json: bool) -> 
         state = "done" if r["completed_at"] else f"{r['trials_done']}/{r['trials_total']}"
         click.echo(f"{r['protocol']:<11} {r['participant']:<16} #{r['participant_number']:<3} {state:<8} "
                    f"{r['stroke_samples']:>6} samples  started {r['created_at']}"
-                   + ("  (simulated)" if r["simulated"] else ""))
+                   + ("  (simulated)" if r["simulated"] else "") + ("  (excluded)" if r["excluded"] else ""))
 
 
 @experiment.command("export")

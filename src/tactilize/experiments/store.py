@@ -480,6 +480,9 @@ class Store:
             q = select(ExperimentSession, Participant, ProtocolVersion).join(Participant).join(ProtocolVersion)
             if protocol_name:
                 q = q.where(Participant.protocol_name == protocol_name)
+            from .labdata import Exclusion
+
+            excluded = {e.participant_id: e.square_number for e in s.scalars(select(Exclusion))}
             out = []
             for sess, part, pv in s.execute(q.order_by(ExperimentSession.id)):
                 n_trials = s.scalar(select(func.count(Trial.id)).where(Trial.session_id == sess.id))
@@ -492,8 +495,9 @@ class Store:
                 out.append({
                     "session": sess.id,
                     "participant": part.code,
-                    "participant_number": abs(part.number),
+                    "participant_number": excluded.get(part.id, abs(part.number)),
                     "simulated": part.simulated,
+                    "excluded": part.id in excluded,
                     "protocol": pv.name,
                     "protocol_version": pv.version,
                     "protocol_sha256": pv.sha256,
