@@ -471,3 +471,21 @@ def test_run_with_several_protocols_serves_one_visit(tmp_path, monkeypatch):
     r = _cli("run", "g-law", "h-law", "alpha-law", "assessment", "--db", str(tmp_path / "v.db"))
     assert r.exit_code == 0, r.output
     assert "one visit: g-law -> h-law -> alpha-law -> assessment" in r.output and len(routers) == 1
+
+
+def test_the_protocol_check_plays_each_condition_on_the_simulated_wire(monkeypatch):
+    import tactilize.experiments.checks as checks
+
+    # Every built-in condition is followed by the simulated paper wire (the real check).
+    text = load_protocol("g-law").text
+    played = []
+
+    def fussy_wire(drive):  # a wire that cannot follow more than 250 Hz
+        played.append(drive.pulse_frequency_hz)
+        return drive.pulse_frequency_hz <= 250
+
+    monkeypatch.setattr(checks, "_follows", fussy_wire)
+    with pytest.raises(ProtocolError, match=r"^g.toml: condition C .* the wire would not follow its drive on image\d "
+                                            r"at 60 mm/s \(300 Hz"):
+        protocol_from_toml(text, "g.toml")
+    assert played == pytest.approx([123.845, 247.69, 300.0], abs=0.5)  # A passes, B passes, C is refused

@@ -523,46 +523,18 @@ def protocol_from_toml(text: str, source: str = "<toml>") -> Protocol:
         text=text,
         source=source,
     )
-    # Fail now, not in front of a participant: every condition must make a valid profile.
+    # Fail now, not in front of a participant: every condition must make a valid profile
+    # that the wire follows.
     from ..errors import ProfileError
+    from .checks import check_condition
 
     for c in proto.conditions:
         try:
             proto.profile(c.id)
         except ProfileError as exc:
             raise ProtocolError(source, f"condition {c.id}: {exc.fault}") from None
-        _check_felt(proto, c, source)
+        check_condition(proto, c, source)
     return proto
-
-
-#: Pen speeds [m/s] a condition is tried at before a participant sits down.
-CHECK_SPEEDS_M_S = (0.01, 0.03, 0.06, 0.12, 0.2)
-
-
-def _check_felt(proto: "Protocol", cond: "Condition", source: str) -> None:
-    """Refuse a condition the wire would not follow: every image at every speed
-    of :data:`CHECK_SPEEDS_M_S` through the condition's profile (its controller
-    limits) and the default safety envelope gives no pulses at all.
-
-    A law that loads but renders silence (``k2 = -30``: 0 Hz everywhere) would
-    otherwise be rated by people who feel nothing.  Images given by a picture
-    file are measured when the flow starts; their stated stand-in features
-    (or the defaults) stand for them here.
-    """
-    from ..actuators.sma.envelope import default_envelope
-    from ..mapping import DriveFeatures
-
-    profile = proto.profile(cond.id)
-    envelope = default_envelope()
-    for im in proto.images:
-        feats = DriveFeatures(im.spatial_frequency_per_m, im.spectral_intensity, im.orientation_deg, im.anisotropy)
-        for v in CHECK_SPEEDS_M_S:
-            d = envelope.apply(profile.drive(feats, speed_m_s=v))
-            if not d.is_off and d.pulse_frequency_hz > 0 and d.pulse_width_s > 0 and d.amplitude > 0:
-                return
-    raise ProtocolError(source, f"condition {cond.id} ({cond.label}) is silent: no pulses at any image and speed "
-                        f"{min(CHECK_SPEEDS_M_S) * 1e3:g} .. {max(CHECK_SPEEDS_M_S) * 1e3:g} mm/s after the "
-                        "controller and the safety envelope; check its law coefficients")
 
 
 def builtin_names() -> list[str]:
