@@ -11,6 +11,7 @@ import sqlite3
 import subprocess
 import sys
 import threading
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -19,7 +20,11 @@ from click.testing import CliRunner
 
 from tactilize.cli import main
 from tactilize.experiments.flow import Flow, FlowError
-from tactilize.experiments.protocols import ProtocolError, load_protocol, protocol_from_toml
+from tactilize.experiments.protocols import (
+    ProtocolError,
+    load_protocol,
+    protocol_from_toml,
+)
 from tactilize.experiments.simulate import simulate
 from tactilize.experiments.store import Store
 
@@ -98,7 +103,7 @@ def test_simulate_needs_no_http_client(tmp_path):
             "from tactilize.cli import main\n"
             "main(['experiment', 'simulate', 'alpha-law', '--participants', '2', '--seed', '1', '--db', sys.argv[1]])\n")
     r = subprocess.run([sys.executable, "-c", code, str(tmp_path / "p.db")], capture_output=True, text=True, env=ENV,
-                       timeout=300)
+                       timeout=300, check=False)
     assert r.returncode == 0, r.stderr
     assert "2 started" in r.stdout
 
@@ -200,20 +205,20 @@ def test_figures_are_paper_ready(tmp_path):
     sig = significance_pairs(analyze(df), "alpha-law", "speed_match")
     assert {(a, b) for a, b, _ in sig} == {("A", "B"), ("B", "C")}  # A vs C is not different
     files = make_figures(df, tmp_path)["alpha-law"]
-    svg = open(files["svg"], encoding="utf-8").read()
+    svg = Path(files["svg"]).read_text("utf-8")
     assert 'id="sig:A:B"' in svg and 'id="sig:B:C"' in svg and "sig:A:C" not in svg
     assert "cf. paper" not in svg
     with Image.open(files["png"]) as im:
         assert round(im.info["dpi"][0]) == 300
-    assert open(files["pdf"], "rb").read(4) == b"%PDF"
-    assert "Fig. 14" in open(files["caption"], encoding="utf-8").read()
+    assert Path(files["pdf"]).read_bytes()[:4] == b"%PDF"
+    assert "Fig. 14" in Path(files["caption"]).read_text("utf-8")
 
 
 def test_figure_labels_come_from_the_protocol(tmp_path, piloted):
     from tactilize.experiments.figures import make_figures
 
     files = make_figures(Store(piloted), tmp_path, include_simulated=True)["alpha-law"]
-    svg = open(files["svg"], encoding="utf-8").read()
+    svg = Path(files["svg"]).read_text("utf-8")
     labels = [c.label for c in load_protocol("alpha-law").conditions]
     # Matplotlib writes text as glyph paths; the labels are in the SVG as its text comments.
     assert all(lab in svg for lab in labels), labels
@@ -232,7 +237,7 @@ def test_backup_while_a_session_writes_holds_every_committed_answer(tmp_path):
     def writer():
         try:
             simulate("alpha-law", 6, seed=4, db_url=db)
-        except Exception as exc:  # pragma: no cover - reported below
+        except Exception as exc:  # noqa: BLE001 - any failure of the writer is reported below
             failure.append(exc)
         finally:
             done.set()
@@ -474,7 +479,7 @@ def test_run_with_several_protocols_serves_one_visit(tmp_path, monkeypatch):
 
 
 def test_the_protocol_check_plays_each_condition_on_the_simulated_wire(monkeypatch):
-    import tactilize.experiments.checks as checks
+    from tactilize.experiments import checks
 
     # Every built-in condition is followed by the simulated paper wire (the real check).
     text = load_protocol("g-law").text

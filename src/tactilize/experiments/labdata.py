@@ -28,7 +28,16 @@ from sqlalchemy import DateTime, ForeignKey, Integer, String, Text, delete, sele
 from sqlalchemy.orm import Mapped, mapped_column
 
 from ..errors import TactilizeError
-from .store import Answer, Base, ExperimentSession, Participant, StrokeSample, Trial, iso, utcnow
+from .store import (
+    Answer,
+    Base,
+    ExperimentSession,
+    Participant,
+    StrokeSample,
+    Trial,
+    iso,
+    utcnow,
+)
 
 __all__ = ["TrialEvent", "Exclusion", "record_event", "trial_events", "stroked_images", "backup", "withdraw", "exclude",
            "excluded_codes", "wide_table"]
