@@ -50,13 +50,17 @@ def test_simulate_export_analyze_calibrate(tmp_path):
     assert doc["provenance"]["python"] and len(doc["answers"]) == 32
     assert doc["protocol_versions"][0]["name"] == "alpha-law"
 
-    r = _run("analyze", "--db", db, "--figures", str(tmp_path / "figs"), "--json")
+    # Simulated participants are left out of the analysis unless asked for.
+    r = _run("analyze", "--db", db)
+    assert r.exit_code == 2 and "--include-simulated" in r.output
+    r = _run("analyze", "--db", db, "--figures", str(tmp_path / "figs"), "--include-simulated", "--json")
     assert r.exit_code == 0, r.output
     res = json.loads(r.output)
     q = res["protocols"]["alpha-law"]["questions"]["speed_match"]
     assert q["friedman"]["n"] == 4 and len(q["pairwise"]) == 6
     assert (tmp_path / "figs" / "alpha-law.png").stat().st_size > 1000
     assert (tmp_path / "figs" / "alpha-law.svg").exists()
+    assert (tmp_path / "figs" / "alpha-law.pdf").read_bytes().startswith(b"%PDF")
 
     prof = tmp_path / "me.toml"
     r = _run("calibrate", "SIM-3-001", "--db", db, "-o", str(prof), "--json")

@@ -37,6 +37,11 @@ class _Group(click.Group):
         except KeyboardInterrupt:
             click.echo("tactilize: interrupted", err=True)
             ctx.exit(130)
+        except BrokenPipeError:
+            # The reader went away (`... | head`): not an error.  Point stdout at
+            # /dev/null so that the interpreter's final flush cannot fail again.
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            ctx.exit(0)
         except Exception as exc:  # a bug, not bad input: still one line, unless asked
             if os.environ.get("TACTILIZE_DEBUG"):
                 raise

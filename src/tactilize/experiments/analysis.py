@@ -33,19 +33,43 @@ __all__ = ["tidy_answers", "analyze", "describe", "friedman", "pairwise_wilcoxon
 
 CSV_COLUMNS = [
     "protocol", "protocol_version", "protocol_sha256", "seed", "participant", "participant_number", "simulated",
-    "session", "trial", "repetition", "condition", "image", "question", "rating", "trial_started_at",
-    "answered_at", "response_time_s", "tactilize_version",
+    "excluded", "session", "trial", "repetition", "condition", "image", "question", "rating", "trial_started_at",
+    "answered_at", "response_time_s", "stroke_interrupted", "comment", "tactilize_version",
 ]
 
 
-def tidy_answers(store, protocol_name: str | None = None):
-    """One row per answer as a pandas DataFrame (columns :data:`CSV_COLUMNS`)."""
+def tidy_answers(store, protocol_name: str | None = None, include_simulated: bool = True,
+                 include_practice: bool = False):
+    """One row per answer as a pandas DataFrame (columns :data:`CSV_COLUMNS`).
+
+    ``include_simulated=False`` leaves out synthetic participants (the analysis
+    and the figures do so unless asked otherwise).  Practice trials (repetition
+    -1) are left out unless ``include_practice`` (the exports keep them)."""
     import pandas as pd
 
     from .. import __version__
 
-    rows = store.answer_rows(protocol_name)
-    df = pd.DataFrame(rows, columns=CSV_COLUMNS[:-1])
+    rows = [r for r in store.answer_rows(protocol_name) if (include_simulated or not r["simulated"])
+            and (include_practice or r["repetition"] >= 0)]
+    df = pd.DataFrame(rows, columns=[c for c in CSV_COLUMNS[:-3] if c != "excluded"])
+    gaps, comments, excluded = set(), {}, {}
+    if hasattr(store, "Session"):
+        from .labdata import excluded_codes, trial_events
+
+        excluded = excluded_codes(store)
+
+        for e in trial_events(store):
+            if e["kind"] == "interrupted":
+                gaps.add((e["session"], e["trial"]))
+            elif e["kind"] == "comment":
+                comments[(e["session"], e["trial"])] = e["detail"].get("text", "")
+    who = list(zip(df["protocol"], df["participant"]))
+    df["excluded"] = [k in excluded for k in who]
+    # An excluded participant's row of the square went to the next person; report the one they had.
+    df["participant_number"] = [excluded.get(k, n) for k, n in zip(who, df["participant_number"])]
+    keys = list(zip(df["session"], df["trial"]))
+    df["stroke_interrupted"] = [k in gaps for k in keys]
+    df["comment"] = [comments.get(k, "") for k in keys]
     df["tactilize_version"] = __version__
     return df[CSV_COLUMNS]
 
@@ -54,7 +78,7 @@ def export_answers(store, fmt: str = "csv", protocol_name: str | None = None) ->
     """The answers as CSV (tidy, one row per answer) or JSON (with provenance and sessions)."""
     from .store import provenance
 
-    df = tidy_answers(store, protocol_name)
+    df = tidy_answers(store, protocol_name, include_practice=True)
     if fmt == "csv":
         buf = io.StringIO()
         df.to_csv(buf, index=False, lineterminator="\n")
@@ -64,6 +88,8 @@ def export_answers(store, fmt: str = "csv", protocol_name: str | None = None) ->
             "provenance": provenance(db=_redact(store.url), protocol_filter=protocol_name),
             "protocol_versions": store.protocol_texts(),
             "sessions": store.sessions_overview(protocol_name),
+            "demographics": [{"protocol": p, "participant": c, **v} for (p, c), v in _demographics(store).items()
+                             if protocol_name is None or p == protocol_name],
             "answers": json.loads(df.to_json(orient="records")),
         }
         return json.dumps(doc, indent=2)
@@ -81,7 +107,7 @@ def export_strokes(store, fmt: str = "csv", protocol_name: str | None = None) ->
     sessions = {s["session"]: s for s in store.sessions_overview(protocol_name)}
     rows = [dict(r, participant=sessions[r["session"]]["participant"], protocol=sessions[r["session"]]["protocol"])
             for r in store.stroke_rows() if r["session"] in sessions]
-    cols = ["protocol", "participant", "session", "trial", "image", "t_s", "x_m", "y_m", "pressure", "speed_m_s",
+    cols = ["protocol", "participant", "session", "trial", "condition", "image", "t_s", "x_m", "y_m", "pressure", "speed_m_s",
             "pulse_frequency_hz", "pulse_width_s", "amplitude", "received_at"]
     df = pd.DataFrame(rows, columns=cols)
     if fmt == "csv":
@@ -94,6 +120,12 @@ def export_strokes(store, fmt: str = "csv", protocol_name: str | None = None) ->
     from ..errors import TactilizeError
 
     raise TactilizeError("--format", f"must be csv or json, got {fmt!r}")
+
+
+def _demographics(store) -> dict:
+    from .demographics import all_answers
+
+    return all_answers(store)
 
 
 def _redact(url: str) -> str:
@@ -209,8 +241,11 @@ def pairwise_wilcoxon(cell) -> list[dict[str, Any]]:
     return out
 
 
-def analyze(store_or_df, protocol_name: str | None = None) -> dict[str, Any]:
+def analyze(store_or_df, protocol_name: str | None = None, include_simulated: bool = False) -> dict[str, Any]:
     """Analyse every protocol in the store (or a tidy DataFrame).
+
+    Simulated participants are left out unless ``include_simulated`` is true
+    (the provenance block says which).
 
     Returns
     -------
@@ -222,11 +257,15 @@ def analyze(store_or_df, protocol_name: str | None = None) -> dict[str, Any]:
     from .store import provenance
 
     if hasattr(store_or_df, "answer_rows"):
-        df = tidy_answers(store_or_df, protocol_name)
+        df = tidy_answers(store_or_df, protocol_name, include_simulated)
+        df = df[~df["excluded"].astype(bool)]  # excluded by the experimenter's decision (labdata.exclude)
         prov = provenance(db=_redact(store_or_df.url))
     else:
         df = store_or_df if protocol_name is None else store_or_df[store_or_df["protocol"] == protocol_name]
+        if not include_simulated and "simulated" in df:
+            df = df[~df["simulated"].astype(bool)]
         prov = provenance()
+    prov["simulated_participants"] = "included" if include_simulated else "excluded"
     import pingouin
     import scipy
 

@@ -126,7 +126,7 @@ def fit_personal_profile(store, participant: str, base: str | None = None, quest
         from .store import ProtocolVersion
 
         for pv in s.query(ProtocolVersion):
-            texts[pv.sha256[:12]] = pv.text
+            texts[pv.sha256] = pv.text  # exports carry the full hash (issue 14)
     if base is None:
         newest = df.loc[df["answered_at"].idxmax()]
         base = protocol_from_toml(texts[newest["protocol_sha256"]], source=f"protocol {newest['protocol']}").base_profile

@@ -46,14 +46,18 @@ def protocols_cmd(as_json: bool) -> None:
 
 
 @experiment.command("run")
-@click.argument("protocol")
+@click.argument("protocols", nargs=-1, required=True)
 @click.option("--db", "db_url", default=None, help=DB_HELP)
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address to bind (beyond loopback a token is required).")
 @click.option("--port", default=8765, show_default=True, type=int)
 @click.option("--token", default=None, help="Experimenter token (generated when binding beyond loopback).")
 @click.option("--output", "output_spec", default="simulated", show_default=True, help="simulated | serial:PORT | audio[:DEVICE]")
-def run_cmd(protocol: str, db_url: str | None, host: str, port: int, token: str | None, output_spec: str) -> None:
-    """Serve the participant flow of PROTOCOL (a built-in name or a TOML file).
+def run_cmd(protocols: tuple[str, ...], db_url: str | None, host: str, port: int, token: str | None,
+            output_spec: str) -> None:
+    """Serve the participant flow of PROTOCOLS (built-in names or TOML files).
+
+    Several protocols make one visit: each participant takes them in the order
+    given (e.g. g-law h-law alpha-law assessment) with one calibration.
 
     The pages are at /experiment/ (participant) and /experiment/admin
     (experimenter), inside the pen app; the conditions' drives go to --output.
@@ -63,7 +67,7 @@ def run_cmd(protocol: str, db_url: str | None, host: str, port: int, token: str 
 
     if not 0 <= port < 65536:
         raise TactilizeError("--port", f"must be 0 .. 65535, got {port}")
-    serve_flow(load_protocol(protocol), db_url, host=host, port=port, admin_token=token, output=output_spec,
+    serve_flow([load_protocol(p) for p in protocols], db_url, host=host, port=port, admin_token=token, output=output_spec,
                echo=click.echo, warn=lambda s: click.echo(s, err=True))
 
 
@@ -75,7 +79,8 @@ def status_cmd(db_url: str | None, protocol_name: str | None, as_json: bool) -> 
     """Sessions and their progress."""
     from .store import Store
 
-    store = Store(db_url)
+    store = Store(db_url, must_exist=True)
+    store.require_protocol(protocol_name)
     rows = store.sessions_overview(protocol_name)
     if as_json:
         _emit({"db": _redact(store.url), "sessions": rows})
@@ -87,12 +92,13 @@ def status_cmd(db_url: str | None, protocol_name: str | None, as_json: bool) -> 
         state = "done" if r["completed_at"] else f"{r['trials_done']}/{r['trials_total']}"
         click.echo(f"{r['protocol']:<11} {r['participant']:<16} #{r['participant_number']:<3} {state:<8} "
                    f"{r['stroke_samples']:>6} samples  started {r['created_at']}"
-                   + ("  (simulated)" if r["simulated"] else ""))
+                   + ("  (simulated)" if r["simulated"] else "") + ("  (excluded)" if r["excluded"] else ""))
 
 
 @experiment.command("export")
 @click.option("--db", "db_url", default=None, help=DB_HELP)
-@click.option("--format", "fmt", type=click.Choice(["csv", "json"]), default="csv", show_default=True)
+@click.option("--format", "fmt", type=click.Choice(["csv", "json", "wide", "parquet"]), default="csv", show_default=True,
+              help="csv/json: one row per answer; wide: one row per participant (SPSS/JASP); parquet: the csv rows.")
 @click.option("--protocol", "protocol_name", default=None, help="Only this protocol.")
 @click.option("-o", "--output", default=None, help="Write to this file (default: stdout).")
 @click.option("--strokes", is_flag=True, help="Export the stroke log (pen samples and drives) instead of the answers.")
@@ -101,14 +107,41 @@ def export_cmd(db_url: str | None, fmt: str, protocol_name: str | None, output: 
     from .analysis import export_answers, export_strokes
     from .store import Store, provenance
 
-    store = Store(db_url)
-    text = export_strokes(store, fmt, protocol_name) if strokes else export_answers(store, fmt, protocol_name)
+    store = Store(db_url, must_exist=True)
+    store.require_protocol(protocol_name)
+    if fmt == "parquet":
+        from .analysis import tidy_answers
+
+        if output is None:
+            raise TactilizeError("--format parquet", "needs -o FILE (Parquet is binary)")
+        if strokes:
+            raise TactilizeError("--format parquet", "is for the answers; export --strokes as csv or json")
+        try:
+            tidy_answers(store, protocol_name).to_parquet(output, index=False)
+        except ImportError:
+            raise TactilizeError("--format parquet", "needs pyarrow (pip install pyarrow)") from None
+        except OSError as exc:
+            raise TactilizeError(output, f"cannot write ({exc.strerror or exc})") from None
+        click.echo(f"wrote {output}")
+        return
+    if fmt == "wide":
+        from .analysis import tidy_answers
+        from .labdata import wide_table
+
+        if strokes:
+            raise TactilizeError("--format wide", "is for the answers; export --strokes as csv or json")
+        from .demographics import all_answers
+
+        text = wide_table(tidy_answers(store, protocol_name), all_answers(store)).to_csv(index=False,
+                                                                                        lineterminator="\n")
+    else:
+        text = export_strokes(store, fmt, protocol_name) if strokes else export_answers(store, fmt, protocol_name)
     if output is None:
         sys.stdout.write(text)
         return
     try:
         Path(output).write_text(text, "utf-8")
-        if fmt == "csv":
+        if fmt in ("csv", "wide"):
             # CSV has no place for metadata that every reader skips; the versions go beside it.
             Path(output + ".provenance.json").write_text(json.dumps(provenance(protocol_filter=protocol_name),
                                                                     indent=2), "utf-8")
@@ -119,21 +152,26 @@ def export_cmd(db_url: str | None, fmt: str, protocol_name: str | None, output: 
 @experiment.command("analyze")
 @click.option("--db", "db_url", default=None, help=DB_HELP)
 @click.option("--protocol", "protocol_name", default=None, help="Only this protocol.")
-@click.option("--figures", "figures_dir", default=None, help="Write PNG and SVG figures into this directory.")
+@click.option("--figures", "figures_dir", default=None, help="Write PNG (300 dpi), PDF and SVG figures into this directory.")
+@click.option("--include-simulated", is_flag=True, help="Count simulated participants too (left out by default).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
-def analyze_cmd(db_url: str | None, protocol_name: str | None, figures_dir: str | None, as_json: bool) -> None:
+def analyze_cmd(db_url: str | None, protocol_name: str | None, figures_dir: str | None, include_simulated: bool,
+                as_json: bool) -> None:
     """Descriptives, Friedman (F) with Kendall's W, Wilcoxon with Holm; optional figures."""
     from .analysis import analyze
     from .store import Store
 
-    store = Store(db_url)
-    result = analyze(store, protocol_name)
+    store = Store(db_url, must_exist=True)
+    store.require_protocol(protocol_name)
+    result = analyze(store, protocol_name, include_simulated=include_simulated)
     if not result["protocols"]:
-        raise TactilizeError(_redact(store.url), "no answers to analyse" + (f" for {protocol_name}" if protocol_name else ""))
+        raise TactilizeError(_redact(store.url), "no answers to analyse" + (f" for {protocol_name}" if protocol_name else "")
+                             + ("" if include_simulated else " from real participants (simulated ones are left out; "
+                                "add --include-simulated)"))
     if figures_dir:
         from .figures import make_figures
 
-        result["figures"] = make_figures(store, figures_dir, protocol_name)
+        result["figures"] = make_figures(store, figures_dir, protocol_name, include_simulated=include_simulated)
     if as_json:
         _emit(result)
         return
@@ -155,7 +193,7 @@ def analyze_cmd(db_url: str | None, protocol_name: str | None, figures_dir: str 
                            + ("".join(f"\n      {p['a']} vs {p['b']}: p_holm = {p['p_holm']:.3g}, "
                                       f"r_rb = {p['rbc']:.2f}" for p in sig[:12])))
     for pname, files in result.get("figures", {}).items():
-        click.echo(f"figure {pname}: {files['png']}, {files['svg']}")
+        click.echo(f"figure {pname}: {files['png']}, {files['pdf']}, {files['svg']}")
 
 
 @experiment.command("simulate")
@@ -189,7 +227,7 @@ def calibrate_cmd(participant: str, output: str, db_url: str | None, base: str, 
     from .calibration import fit_personal_profile
     from .store import Store
 
-    prof, report = fit_personal_profile(Store(db_url), participant, base=base, questions=list(questions) or None)
+    prof, report = fit_personal_profile(Store(db_url, must_exist=True), participant, base=base, questions=list(questions) or None)
     prof.save(output)
     report["output"] = output
     if as_json:
@@ -216,13 +254,60 @@ def refine_cmd(participant: str, output: str, db_url: str | None, role: str | No
     from .calibration import refinement_protocol
     from .store import Store
 
-    text = refinement_protocol(Store(db_url), participant, role, span_octaves=span_octaves, steps=steps,
+    text = refinement_protocol(Store(db_url, must_exist=True), participant, role, span_octaves=span_octaves, steps=steps,
                                repetitions=repetitions)
     try:
         Path(output).write_text(text, "utf-8")
     except OSError as exc:
         raise TactilizeError(output, f"cannot write ({exc.strerror or exc})") from None
     click.echo(f"wrote {output}; run it with: tactilize experiment run {output}")
+
+
+@experiment.command("backup")
+@click.argument("target")
+@click.option("--db", "db_url", default=None, help=DB_HELP)
+def backup_cmd(target: str, db_url: str | None) -> None:
+    """Copy the (SQLite) store to TARGET, safely while the server runs (SQLite's online backup)."""
+    from .labdata import backup
+    from .store import Store
+
+    doc = backup(Store(db_url, must_exist=True), target)
+    click.echo(f"wrote {doc['backup']}: {doc['answers']} answers")
+
+
+@experiment.command("withdraw")
+@click.argument("protocol")
+@click.argument("participant")
+@click.option("--db", "db_url", default=None, help=DB_HELP)
+@click.option("--yes", is_flag=True, help="Do not ask for confirmation.")
+def withdraw_cmd(protocol: str, participant: str, db_url: str | None, yes: bool) -> None:
+    """Delete PARTICIPANT's data in PROTOCOL (a withdrawal of consent); cannot be undone."""
+    from .labdata import withdraw
+    from .store import Store
+
+    store = Store(db_url, must_exist=True)
+    store.require_protocol(protocol)
+    if not yes:
+        click.confirm(f"Delete every answer and stroke of {participant} in {protocol}?", abort=True)
+    counts = withdraw(store, protocol, participant)
+    click.echo(f"withdrew {participant} from {protocol}: " + ", ".join(f"{v} {k}" for k, v in counts.items()))
+
+
+@experiment.command("exclude")
+@click.argument("protocol")
+@click.argument("participant")
+@click.option("--reason", default="", help="Why (kept with the exclusion).")
+@click.option("--db", "db_url", default=None, help=DB_HELP)
+def exclude_cmd(protocol: str, participant: str, reason: str, db_url: str | None) -> None:
+    """Exclude PARTICIPANT from PROTOCOL's analysis; the next participant takes their square row."""
+    from .labdata import exclude
+    from .store import Store
+
+    store = Store(db_url, must_exist=True)
+    store.require_protocol(protocol)
+    doc = exclude(store, protocol, participant, reason)
+    click.echo(f"excluded {participant} from {protocol}; the next participant gets square row "
+               f"{doc['freed_square_number']}")
 
 
 def _redact(url: str) -> str:

@@ -112,16 +112,29 @@ class Flow:
 
     # ------------------------------------------------------------ transitions
 
-    def start(self, code: Any, consent: Any, *, simulated: bool = False, extra_provenance: dict | None = None) -> dict:
-        """Consent given and participant ID entered: register and plan the session."""
+    def start(self, code: Any, consent: Any, *, simulated: bool = False, extra_provenance: dict | None = None,
+              demographics: Any = None) -> dict:
+        """Consent given and participant ID entered: register and plan the session.
+
+        ``demographics``: optional answers to the protocol's demographic items
+        (``{id: value}``; empty values are declined answers)."""
+        from . import demographics as demo
+
         code = self._check_code(code)
+        info = demo.check_answers(self.protocol.demographics, demographics)
         if consent is not True:
             raise FlowError("consent", "the participant must give consent before the session starts", 422)
+        if not simulated and code.upper().startswith("SIM-"):
+            # The prefix belongs to synthetic participants (simulate.py), who are
+            # numbered and analysed apart; a person must not be mistaken for one.
+            raise FlowError("participant_id", "IDs starting with SIM- are reserved for simulated participants", 422)
         try:
-            # Synthetic participants (see simulate.py) are flagged by their code prefix,
-            # so that they travel the same HTTP path as people and stay separable.
-            sess = self.store.create_session(self.protocol, code, simulated=simulated or code.startswith("SIM-"),
-                                             extra_provenance=extra_provenance)
+            import hashlib
+
+            # The consent text may live in its own file: record which text was agreed to.
+            consent = {"consent_sha256": hashlib.sha256(self.protocol.consent.encode("utf-8")).hexdigest()}
+            sess = self.store.create_session(self.protocol, code, simulated=simulated,
+                                             extra_provenance={**consent, **(extra_provenance or {})})
         except KeyError:
             existing = self.store.session_by_code(self.protocol.name, code)
             done = existing is not None and existing.completed_at is not None
@@ -132,6 +145,7 @@ class Flow:
                 409,
                 finished=done,
             ) from None
+        demo.record(self.store, sess.id, info)
         return self.state(sess.token)
 
     def resume(self, code: Any) -> dict:
@@ -190,12 +204,17 @@ class Flow:
         return self.state(token)
 
     def submit(self, token: str, trial_index: Any, ratings: Any, *, response_time_s: Any = None,
-               submission_id: Any = None) -> dict:
+               submission_id: Any = None, comment: Any = None) -> dict:
         """Record the answers of one trial; returns the next state plus ``recorded``.
 
         Idempotent: resubmitting the same answers (a double click, a retry
         after a lost response) reports ``"duplicate"`` and changes nothing.
+        ``comment`` is optional free text (at most 2000 characters), stored
+        with the trial when the answers are recorded.
         """
+        if comment is not None and (not isinstance(comment, str) or len(comment) > 2000):
+            raise FlowError("comment", "must be text of at most 2000 characters", 422)
+        comment = (comment or "").strip()
         sess = self._session(token)
         trials = self.store.trials(sess.id)
         if isinstance(trial_index, bool) or not isinstance(trial_index, int) or not 0 <= trial_index < len(trials):
@@ -222,12 +241,24 @@ class Flow:
                             f"{(current or 0) + 1}. Reload to continue.", 409, current_trial=current)
         if self._break_due(sess, current):
             raise FlowError("trial", "a break is due first; reload the page", 409, current_trial=current)
+        if self.protocol.require_every_image:
+            from .labdata import stroked_images
+
+            missing = [i for i in trial.image_ids if i not in stroked_images(self.store, trial.id)]
+            if missing:
+                labels = ", ".join(self.protocol.image(i).label for i in missing)
+                raise FlowError("trial", f"stroke every picture before rating; not yet: {labels}", 409,
+                                current_trial=current, unstroked=missing)
         try:
             status = self.store.record_answers(trial.id, ratings, response_time_s=response_time_s,
                                                submission_id=str(submission_id)[:64] if submission_id else None)
         except ValueError:
             raise FlowError("trial", f"trial {trial_index + 1} was already answered differently; answers are never "
                             "overwritten. Reload to continue.", 409, current_trial=current) from None
+        if status == "recorded" and comment:
+            from .labdata import record_event
+
+            record_event(self.store, trial.id, "comment", {"text": comment})
         out = self.state(token)
         out["recorded"] = status
         return out
@@ -313,6 +344,8 @@ class Flow:
                         "url": f"images/{iid}.png"} for iid in t.image_ids],
             "questions": [q.to_dict() for q in self.protocol.questions],
             "min_stroke_s": self.protocol.min_stroke_s,
+            "require_every_image": self.protocol.require_every_image,
+            "practice": t.repetition < 0,
         }
         return doc
 
@@ -332,8 +365,12 @@ class StrokeHandler:
         {"trial": 3, "image": "image2",
          "samples": [[t_ms, x_mm, y_mm, pressure or null], ...]}
         {"type": "lift"}
+        {"type": "reconnected", "trial": 3, "gap_s": 2.5, "queued": 120}
 
-    Positions are millimetres on the displayed image (the page converts CSS
+    The page stamps every sample with the trial and image shown when it was
+    taken, so samples queued while the socket was down arrive under their own
+    trial; a ``reconnected`` message marks that trial ``interrupted``
+    (:mod:`.labdata`).  Positions are millimetres on the displayed image (the page converts CSS
     pixels with the calibrated scale); the answer carries the drive at the last
     sample.  Speed and direction come from the pen page's
     :class:`~tactilize.pen.StrokeTracker` (one per image, so switching pictures
@@ -357,6 +394,21 @@ class StrokeHandler:
         if self.output is not None:
             self.output.stop()
 
+    def _reconnected(self, msg: dict) -> dict[str, Any]:
+        """The page lost its socket during trial ``msg["trial"]`` and is back: mark
+        the trial interrupted (once per reconnection), whatever samples follow."""
+        from .labdata import record_event
+
+        idx = msg.get("trial")
+        trials = {t.index: t for t in self.flow.store.trials(self.session.id)}
+        if isinstance(idx, bool) or not isinstance(idx, int) or idx not in trials:
+            raise FlowError("stroke", "unknown trial", 422)
+        gap = msg.get("gap_s")
+        gap = float(gap) if isinstance(gap, (int, float)) and not isinstance(gap, bool) and math.isfinite(gap) else None
+        record_event(self.flow.store, trials[idx].id, "interrupted",
+                     {"gap_s": gap, "queued_samples": msg.get("queued") if isinstance(msg.get("queued"), int) else None})
+        return {"type": "marked", "trial": idx, "kind": "interrupted"}
+
     def handle(self, msg: Any) -> dict[str, Any]:
         from ..pen import StrokeTracker
         from ..web.rows import sample_error, samples_from_css
@@ -366,6 +418,8 @@ class StrokeHandler:
         if msg.get("type") == "lift":
             self.stop()
             return {"type": "lifted"}
+        if msg.get("type") == "reconnected":
+            return self._reconnected(msg)
         idx = msg.get("trial")
         image_id = msg.get("image")
         samples = msg.get("samples")

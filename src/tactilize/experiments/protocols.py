@@ -229,6 +229,10 @@ class Protocol:
     shuffle_images: bool = True
     participants_planned: int = 0
     calibration_card_mm: float = 85.60
+    require_every_image: bool = False  # the rating opens only once every picture of the trial was stroked
+    consent: str = ""  # the information a participant consents to (``consent`` or ``consent_file``)
+    demographics: tuple = ()  # optional questions (:mod:`.demographics`)
+    practice_trials: int = 0  # trials first, with repetition -1, left out of the analysis
     text: str = ""
     source: str = "<protocol>"
 
@@ -308,6 +312,9 @@ class Protocol:
         """Every trial of one participant, in order."""
         trials: list[TrialPlan] = []
         image_ids = [im.id for im in self.images]
+        first = self.condition_order(participant_number, 0)
+        for k in range(self.practice_trials):  # familiarisation: repetition -1, never analysed
+            trials.append(TrialPlan(len(trials), first[k % len(first)], -1, tuple(image_ids)))
         for rep in range(self.repetitions):
             for cid in self.condition_order(participant_number, rep):
                 imgs = list(image_ids)
@@ -361,6 +368,37 @@ def _int(source: str, where: str, value: Any, lo: int = 0) -> int:
     return value
 
 
+def _demographics(source: str, items: Any) -> tuple:
+    from .demographics import parse_demographics
+
+    return parse_demographics(source, items)
+
+
+def _consent(source: str, data: dict) -> str:
+    """The consent text: inline ``consent``, or ``consent_file`` next to the protocol file."""
+    if "consent" in data and "consent_file" in data:
+        raise ProtocolError(source, "give consent or consent_file, not both")
+    if "consent_file" in data:
+        name = data["consent_file"]
+        if not isinstance(name, str) or not name or not source.endswith(".toml"):
+            raise ProtocolError(source, "consent_file must name a file next to a protocol file")
+        path = Path(source).parent / name
+        try:
+            return path.read_text("utf-8").strip()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ProtocolError(str(path), f"cannot read the consent file ({exc.__class__.__name__})") from None
+    text = data.get("consent", "")
+    if not isinstance(text, str):
+        raise ProtocolError(source, "consent must be text")
+    return text.strip()
+
+
+def _bool(source: str, where: str, value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise ProtocolError(source, f"{where} must be true or false, got {value!r}")
+    return value
+
+
 def _id(source: str, where: str, value: Any) -> str:
     if not isinstance(value, str) or not _ID.match(value):
         raise ProtocolError(source, f"{where} must be a short id (letters, digits, _ . -), got {value!r}")
@@ -376,7 +414,8 @@ def protocol_from_toml(text: str, source: str = "<toml>") -> Protocol:
     known = {
         "name", "version", "title", "description", "reference", "base_profile", "repetitions",
         "trial_unit", "break_every", "min_stroke_s", "participants_planned", "order", "images",
-        "conditions", "questions", "calibration",
+        "conditions", "questions", "calibration", "require_every_image", "consent", "consent_file",
+        "demographics", "practice_trials",
     }
     unknown = set(data) - known
     if unknown:
@@ -477,17 +516,24 @@ def protocol_from_toml(text: str, source: str = "<toml>") -> Protocol:
         shuffle_images=bool(order.get("shuffle_images", True)),
         participants_planned=_int(source, "participants_planned", data.get("participants_planned", 0), 0),
         calibration_card_mm=_num(source, "[calibration].card_width_mm", calib.get("card_width_mm", 85.60), 10, 500),
+        require_every_image=_bool(source, "require_every_image", data.get("require_every_image", False)),
+        consent=_consent(source, data),
+        demographics=_demographics(source, data.get("demographics")),
+        practice_trials=_int(source, "practice_trials", data.get("practice_trials", 0), 0),
         text=text,
         source=source,
     )
-    # Fail now, not in front of a participant: every condition must make a valid profile.
+    # Fail now, not in front of a participant: every condition must make a valid profile
+    # that the wire follows.
     from ..errors import ProfileError
+    from .checks import check_condition
 
     for c in proto.conditions:
         try:
             proto.profile(c.id)
         except ProfileError as exc:
             raise ProtocolError(source, f"condition {c.id}: {exc.fault}") from None
+        check_condition(proto, c, source)
     return proto
 
 

@@ -1,8 +1,10 @@
 """Synthetic participants, for piloting a protocol and for power analysis.
 
-They go through the same HTTP and WebSocket routes as people (an in-process
-ASGI client on the app that ``experiment run`` serves), so a simulation tests
-the server code path as well as the analysis.  Like a real session, a
+They go through the same flow object as people's HTTP and WebSocket routes
+(:class:`~.flow.Flow` and its stroke handler, called directly, so that no HTTP
+client is needed), so a simulation tests the state machine, the checks and the
+store as well as the analysis.  Simulated participants are flagged and numbered
+apart from real ones (see :meth:`.store.Store.create_session`).  Like a real session, a
 simulation is resumable: participant *i* of seed *S* is ``SIM-S-i``; a rerun
 resumes unfinished ones at their first unanswered trial and skips finished ones,
 and since each participant's random stream depends only on ``(S, i)``, the rerun
@@ -31,6 +33,8 @@ import math
 from typing import Any, Callable
 
 import numpy as np
+
+from ..errors import RequestError
 
 __all__ = ["simulate", "RATING_MODEL", "ideal_profile", "mismatch"]
 
@@ -106,16 +110,10 @@ def simulate(protocol, participants: int, seed: int, db_url: str | None = None, 
         Counts of started, resumed, skipped participants and submitted trials,
         the rating model and the seed.
     """
-    import warnings
-
-    with warnings.catch_warnings():
-        # Starlette's note about a future httpx successor says nothing about our data.
-        warnings.simplefilter("ignore")
-        from fastapi.testclient import TestClient
-
     from ..errors import TactilizeError
+    from .flow import Flow
     from .protocols import Protocol, load_protocol
-    from .web import PREFIX, create_experiment_app
+    from .store import Store
 
     if not isinstance(protocol, Protocol):
         protocol = load_protocol(protocol)
@@ -123,83 +121,68 @@ def simulate(protocol, participants: int, seed: int, db_url: str | None = None, 
         raise TactilizeError("--participants", "must be at least 1")
     if seed < 0:
         raise TactilizeError("--seed", "must be >= 0")
-    app = create_experiment_app(protocol, db_url)
-    flow = app.state.experiment_flow
+    # The flow object the HTTP and WebSocket routes call, driven directly: the same
+    # state machine, checks and store, without an HTTP client (httpx is a test
+    # extra, and `pip install tactilize[experiments]` must be enough to pilot).
+    flow = Flow(protocol, Store(db_url))
     flow.store.set_meta(f"simulation:{protocol.name}:{seed}", json.dumps({"seed": seed, "model": RATING_MODEL}))
     counts = {"started": 0, "resumed": 0, "skipped": 0, "trials_submitted": 0}
-    api = f"{PREFIX}/api"
-    with TestClient(app) as client:
-        for i in range(1, participants + 1):
-            code = f"SIM-{seed}-{i:03d}"
-            rng = np.random.default_rng([seed, i])
-            ideal = ideal_profile(rng)
-            bias = rng.normal(0, BIAS_SD)
-            qbias = {q.id: rng.normal(0, QUESTION_SD) for q in protocol.questions}
-            r = client.post(f"{api}/sessions", json={"participant_id": code, "consent": True})
-            if r.status_code == 409:
-                if r.json().get("finished"):
-                    counts["skipped"] += 1
-                    continue
-                r = client.post(f"{api}/resume", json={"participant_id": code})
-                counts["resumed"] += 1
-            else:
-                counts["started"] += 1
-            _raise_for(r)
-            state = r.json()
-            token = state["session"]
-            if state["state"] == "calibration":
-                state = _ok(client.post(f"{api}/sessions/{token}/calibration",
-                                        json={"mm_per_px": 0.2646, "felt": True}))
-            with client.websocket_connect(f"{PREFIX}/ws/{token}") as ws:
-                while state["state"] != "done":
-                    if max_trials is not None and counts["trials_submitted"] >= max_trials:
-                        return _summary(counts, seed, protocol)
-                    if state["state"] == "break":
-                        state = _ok(client.post(f"{api}/sessions/{token}/break", json={"trial": state["next_trial"]}))
-                        continue
-                    trial = state["trial"]
-                    idx = trial["index"]
-                    # Per-trial random streams: a resumed participant gets the same
-                    # numbers for a trial as an uninterrupted one would have.
-                    trng = np.random.default_rng([seed, i, idx])
-                    cond = flow.store.trials(flow.store.session_by_token(token).id)[idx].condition_id
-                    feats = [flow.image_features(im["id"]) for im in trial["images"]]
-                    for im in trial["images"]:
-                        v_mm_s = float(trng.uniform(30, 120))
-                        samples = [[k * 5.0, 5.0 + k * 5.0 * v_mm_s / 1e3, 20.0, 0.5] for k in range(12)]
-                        ws.send_json({"trial": idx, "image": im["id"], "samples": samples})
-                        reply = ws.receive_json()
-                        if reply.get("type") != "drive":
-                            raise TactilizeError(code, f"stroke refused: {reply.get('error')}")
-                    # Drives, not law coefficients, are compared: a linear-g condition and the
-                    # person's ideal log-g profile meet in what is felt.
-                    d = mismatch(flow.profile(cond), ideal, feats)
-                    ratings = {}
-                    for q in trial["questions"]:
-                        x = MU + bias + qbias[q["id"]] - SLOPE * d + trng.normal(0, NOISE_SD)
-                        ratings[q["id"]] = int(min(q["scale_max"], max(q["scale_min"], round(x))))
-                    state = _ok(client.post(f"{api}/sessions/{token}/answers", json={
-                        "trial": idx, "ratings": ratings, "response_time_s": float(trng.uniform(3, 20)),
-                        "submission_id": f"{code}:{idx}"}))
-                    counts["trials_submitted"] += 1
-                    if progress:
-                        progress(f"{code} trial {idx + 1}/{state['progress']['total']}")
+    for i in range(1, participants + 1):
+        code = f"SIM-{seed}-{i:03d}"
+        rng = np.random.default_rng([seed, i])
+        ideal = ideal_profile(rng)
+        bias = rng.normal(0, BIAS_SD)
+        qbias = {q.id: rng.normal(0, QUESTION_SD) for q in protocol.questions}
+        try:
+            state = flow.start(code, True, simulated=True)
+            counts["started"] += 1
+        except RequestError as exc:
+            if exc.status != 409:
+                raise
+            if exc.detail.get("finished"):
+                counts["skipped"] += 1
+                continue
+            state = flow.resume(code)
+            counts["resumed"] += 1
+        token = state["session"]
+        if state["state"] == "calibration":
+            state = flow.calibrate(token, {"mm_per_px": 0.2646, "felt": True})
+        handler = flow.stroke_handler(token)
+        while state["state"] != "done":
+            if max_trials is not None and counts["trials_submitted"] >= max_trials:
+                return _summary(counts, seed, protocol)
+            if state["state"] == "break":
+                state = flow.end_break(token, state["next_trial"])
+                continue
+            trial = state["trial"]
+            idx = trial["index"]
+            # Per-trial random streams: a resumed participant gets the same
+            # numbers for a trial as an uninterrupted one would have.
+            trng = np.random.default_rng([seed, i, idx])
+            cond = flow.store.trials(flow.store.session_by_token(token).id)[idx].condition_id
+            feats = [flow.image_features(im["id"]) for im in trial["images"]]
+            for im in trial["images"]:
+                v_mm_s = float(trng.uniform(30, 120))
+                samples = [[k * 5.0, 5.0 + k * 5.0 * v_mm_s / 1e3, 20.0, 0.5] for k in range(12)]
+                reply = handler.handle({"trial": idx, "image": im["id"], "samples": samples})
+                if reply.get("type") != "drive":
+                    raise TactilizeError(code, f"stroke refused: {reply.get('error')}")
+            handler.handle({"type": "lift"})
+            # Drives, not law coefficients, are compared: a linear-g condition and the
+            # person's ideal log-g profile meet in what is felt.
+            d = mismatch(flow.profile(cond), ideal, feats)
+            ratings = {}
+            for q in trial["questions"]:
+                x = MU + bias + qbias[q["id"]] - SLOPE * d + trng.normal(0, NOISE_SD)
+                ratings[q["id"]] = int(min(q["scale_max"], max(q["scale_min"], round(x))))
+            state = flow.submit(token, idx, ratings, response_time_s=float(trng.uniform(3, 20)),
+                                submission_id=f"{code}:{idx}")
+            counts["trials_submitted"] += 1
+            if progress:
+                progress(f"{code} trial {idx + 1}/{state['progress']['total']}")
     return _summary(counts, seed, protocol)
 
 
 def _summary(counts, seed, protocol):
     return {"protocol": protocol.name, "protocol_sha256": protocol.sha256, "seed": seed, **counts,
             "rating_model": RATING_MODEL}
-
-
-def _raise_for(r) -> None:
-    from ..errors import TactilizeError
-
-    if r.status_code >= 400:
-        doc = r.json()
-        raise TactilizeError(doc.get("source", "server"), doc.get("error", f"HTTP {r.status_code}"))
-
-
-def _ok(r) -> dict:
-    _raise_for(r)
-    return r.json()

@@ -234,21 +234,30 @@ class Store:
     url : str, optional
         An SQLAlchemy URL; :func:`default_db_url` when None.  A bare file path is
         taken as an SQLite file.
+    must_exist : bool
+        Refuse an SQLite file that does not exist yet instead of creating it
+        (the reading commands: a typo must not make an empty study database).
     """
 
-    def __init__(self, url: str | None = None):
+    def __init__(self, url: str | None = None, must_exist: bool = False):
         from ..errors import TactilizeError
 
         url = url or default_db_url()
         if "://" not in url:
             url = f"sqlite:///{Path(url).expanduser().resolve()}"
         self.url = url
+        if must_exist and url.startswith("sqlite:///"):
+            path = url[len("sqlite:///"):].split("?", 1)[0]
+            if path and path != ":memory:" and not Path(path).is_file():
+                raise TactilizeError(path, "no such database (check the --db path)")
         try:
             self.engine = create_engine(url, future=True)
         except Exception as exc:  # a malformed URL or a missing driver
             raise TactilizeError(url, f"cannot open database ({exc.__class__.__name__}: {exc})") from None
         if self.engine.dialect.name == "sqlite":
             event.listen(self.engine, "connect", _sqlite_pragmas)
+        from . import demographics, labdata  # noqa: F401  (their tables, before create_all)
+
         try:
             Base.metadata.create_all(self.engine)
         except Exception as exc:
@@ -310,10 +319,15 @@ class Store:
                 )
                 if existing is not None:
                     raise KeyError(code)
-                number = (
-                    s.scalar(select(func.max(Participant.number)).where(Participant.protocol_name == protocol.name)) or 0
-                ) + 1
-                part = Participant(protocol_name=protocol.name, code=code, number=number, simulated=simulated)
+                # Simulated participants count apart (stored as -1, -2, ...): a pilot run
+                # into the study database must not take real participants' square rows.
+                # The lowest free row: an excluded participant's row (moved out of the way,
+                # see labdata.exclude) goes to the next person, so the square stays balanced.
+                sign = -1 if simulated else 1
+                taken = set(s.scalars(select(Participant.number).where(
+                    Participant.protocol_name == protocol.name, Participant.number * sign > 0)))
+                number = next(n for n in range(1, len(taken) + 2) if sign * n not in taken)
+                part = Participant(protocol_name=protocol.name, code=code, number=sign * number, simulated=simulated)
                 s.add(part)
                 plan = protocol.plan(number)
                 sess = ExperimentSession(
@@ -466,6 +480,9 @@ class Store:
             q = select(ExperimentSession, Participant, ProtocolVersion).join(Participant).join(ProtocolVersion)
             if protocol_name:
                 q = q.where(Participant.protocol_name == protocol_name)
+            from .labdata import Exclusion
+
+            excluded = {e.participant_id: e.square_number for e in s.scalars(select(Exclusion))}
             out = []
             for sess, part, pv in s.execute(q.order_by(ExperimentSession.id)):
                 n_trials = s.scalar(select(func.count(Trial.id)).where(Trial.session_id == sess.id))
@@ -478,8 +495,9 @@ class Store:
                 out.append({
                     "session": sess.id,
                     "participant": part.code,
-                    "participant_number": part.number,
+                    "participant_number": excluded.get(part.id, abs(part.number)),
                     "simulated": part.simulated,
+                    "excluded": part.id in excluded,
                     "protocol": pv.name,
                     "protocol_version": pv.version,
                     "protocol_sha256": pv.sha256,
@@ -511,10 +529,10 @@ class Store:
                 rows.append({
                     "protocol": pv.name,
                     "protocol_version": pv.version,
-                    "protocol_sha256": pv.sha256[:12],
+                    "protocol_sha256": pv.sha256,
                     "seed": sess.seed,
                     "participant": part.code,
-                    "participant_number": part.number,
+                    "participant_number": abs(part.number),
                     "simulated": part.simulated,
                     "session": sess.id,
                     "trial": t.index,
@@ -536,7 +554,7 @@ class Store:
                 q = q.where(Trial.session_id == session_id)
             return [
                 {
-                    "session": t.session_id, "trial": t.index, "image": ss.image_id, "t_s": ss.t_s, "x_m": ss.x_m,
+                    "session": t.session_id, "trial": t.index, "condition": t.condition_id, "image": ss.image_id, "t_s": ss.t_s, "x_m": ss.x_m,
                     "y_m": ss.y_m, "pressure": ss.pressure, "speed_m_s": ss.speed_m_s,
                     "pulse_frequency_hz": ss.pulse_frequency_hz, "pulse_width_s": ss.pulse_width_s,
                     "amplitude": ss.amplitude, "received_at": iso(ss.received_at),
@@ -544,9 +562,24 @@ class Store:
                 for ss, t in s.execute(q.order_by(StrokeSample.id))
             ]
 
+    def protocol_names(self) -> list[str]:
+        """Names of the protocols with a stored version."""
+        with self.Session() as s:
+            return sorted(set(s.scalars(select(ProtocolVersion.name))))
+
+    def require_protocol(self, name: str | None) -> None:
+        """Raise when ``name`` (a ``--protocol`` filter) has no data here: a typo
+        must not give an empty export that looks like a result."""
+        from ..errors import TactilizeError
+
+        if name is not None and name not in self.protocol_names():
+            known = ", ".join(self.protocol_names()) or "none"
+            raise TactilizeError(f"--protocol {name}", f"no such protocol in this database (stored: {known})")
+
     def protocol_texts(self) -> list[dict[str, Any]]:
         with self.Session() as s:
             return [
-                {"name": pv.name, "version": pv.version, "sha256": pv.sha256, "created_at": iso(pv.created_at)}
+                {"name": pv.name, "version": pv.version, "sha256": pv.sha256, "created_at": iso(pv.created_at),
+                 "text": pv.text}
                 for pv in s.scalars(select(ProtocolVersion).order_by(ProtocolVersion.id))
             ]

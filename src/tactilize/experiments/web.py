@@ -5,12 +5,13 @@
 :func:`create_experiment_app`).  Participant routes (``/experiment/api/...``)::
 
     GET  api/protocol                         title, description, questions (no conditions: blind)
-    POST api/sessions        {participant_id, consent}        -> state   (409: ID taken)
-    POST api/resume          {participant_id}                  -> state   (404: unknown ID)
+    POST api/sessions        {participant_id, consent, demographics} -> state   (409: ID taken)
+    POST api/resume          {participant_id}                  -> state   (404: unknown ID;
+                             beyond loopback only with the experimenter token)
     GET  api/sessions/{s}                                       -> state
     POST api/sessions/{s}/calibration {card_width_px|mm_per_px, felt}
     POST api/sessions/{s}/break       {trial}
-    POST api/sessions/{s}/answers     {trial, ratings, response_time_s, submission_id}
+    POST api/sessions/{s}/answers     {trial, ratings, response_time_s, submission_id, comment}
     GET  api/images/{id}.png
     WS   ws/{s}          pen samples in, drives out (see flow.StrokeHandler)
 
@@ -103,18 +104,26 @@ def experiment_router(flow: Flow) -> APIRouter:
     @router.get("/api/protocol")
     def protocol_info() -> dict:
         p = flow.protocol
-        return {"name": p.name, "title": p.title, "description": p.description,
+        return {"name": p.name, "title": p.title, "description": p.description, "consent": p.consent,
+                "demographics": [d.to_dict() for d in p.demographics],
                 "questions": [q.to_dict() for q in p.questions], "calibration_card_mm": p.calibration_card_mm,
                 "trials": len(p.plan(1))}
 
     @router.post("/api/sessions")
     async def start(request: Request) -> Response:
         body = await _json_object(request)
-        return JSONResponse(await run_in_threadpool(flow.start, body.get("participant_id"), body.get("consent")))
+        return JSONResponse(await run_in_threadpool(lambda: flow.start(body.get("participant_id"), body.get("consent"),
+                                                                      demographics=body.get("demographics"))))
 
     @router.post("/api/resume")
     async def resume(request: Request) -> Response:
         body = await _json_object(request)
+        client = request.client.host if request.client else ""
+        if not is_loopback(client) and flow.admin_token:
+            # An ID is short and guessable; beyond loopback it alone must not open
+            # someone's session.  The page resumes by its unguessable session token;
+            # resuming by ID needs the experimenter (their token).
+            require_admin(request)
         return JSONResponse(await run_in_threadpool(flow.resume, body.get("participant_id")))
 
     @router.get("/api/sessions/{token}")
@@ -138,12 +147,14 @@ def experiment_router(flow: Flow) -> APIRouter:
         doc = await run_in_threadpool(
             lambda: flow.submit(token, body.get("trial"), body.get("ratings"),
                                 response_time_s=body.get("response_time_s"),
-                                submission_id=body.get("submission_id")))
+                                submission_id=body.get("submission_id"), comment=body.get("comment")))
         return JSONResponse(doc)
 
     @router.get("/api/images/{image_id}.png")
-    def image(image_id: str) -> Response:
-        return Response(flow.image_png(image_id), media_type="image/png", headers={"Cache-Control": "max-age=3600"})
+    def image(image_id: str, protocol: str | None = None) -> Response:
+        # A visit (several protocols) names the protocol: image ids may repeat across them.
+        png = flow.image_png(image_id, protocol) if protocol else flow.image_png(image_id)
+        return Response(png, media_type="image/png", headers={"Cache-Control": "max-age=3600"})
 
     @router.websocket("/ws/{token}")
     async def pen(ws: WebSocket, token: str) -> None:
@@ -183,8 +194,9 @@ def experiment_router(flow: Flow) -> APIRouter:
     @router.get("/api/admin/sessions")
     def admin_sessions(request: Request) -> Response:
         require_admin(request)
-        return JSONResponse({"protocol": flow.protocol.to_dict(),
-                             "sessions": flow.store.sessions_overview(flow.protocol.name)})
+        names = getattr(flow, "protocol_names", [flow.protocol.name])
+        return JSONResponse({"protocol": flow.protocol.to_dict(), "protocols": names,
+                             "sessions": [r for n in names for r in flow.store.sessions_overview(n)]})
 
     @router.get("/api/admin/export.csv")
     def admin_csv(request: Request) -> Response:
@@ -245,6 +257,8 @@ def serve_flow(protocol, db_url: str | None, host: str = "127.0.0.1", port: int 
                echo=print, warn=None) -> None:
     """Run the flow inside ``tactilize serve``'s app (the CLI's ``experiment run``).
 
+    ``protocol`` may be a list: one visit runs them in sequence (:mod:`.visit`).
+
     The participant pages live at ``/experiment/``, beside the pen page, and the
     condition's drives go to the same actuator output (``--output``).  Beyond
     loopback an experimenter token is mandatory: one is generated and printed
@@ -256,12 +270,23 @@ def serve_flow(protocol, db_url: str | None, host: str = "127.0.0.1", port: int 
     from .protocols import Protocol, load_protocol
     from .store import Store
 
-    if not isinstance(protocol, Protocol):
-        protocol = load_protocol(protocol)
+    protocols = [p if isinstance(p, Protocol) else load_protocol(p)
+                 for p in (protocol if isinstance(protocol, (list, tuple)) else [protocol])]
+    protocol = protocols[0]
     if not is_loopback(host) and not admin_token:
         admin_token = secrets.token_urlsafe(16)
-    flow = Flow(protocol, Store(db_url), admin_token=admin_token)
-    echo(f"tactilize experiment: {protocol.name} v{protocol.version} ({protocol.sha256[:12]}), database {flow.store.url}")
+    store = Store(db_url)
+    flow = Flow(protocol, store, admin_token=admin_token)
+    if len(protocols) > 1:
+        from .visit import Visit
+
+        flow = Visit([flow] + [Flow(p, store, admin_token=admin_token) for p in protocols[1:]])
+        echo("one visit: " + " -> ".join(p.name for p in protocols))
+    from .analysis import _redact
+
+    # The URL may hold a database password: a terminal (and its scrollback) must not.
+    echo(f"tactilize experiment: {protocol.name} v{protocol.version} ({protocol.sha256[:12]}), "
+         f"database {_redact(flow.store.url)}")
 
     def relay(line: str) -> None:
         echo(line)

@@ -21,11 +21,18 @@ function message(text) {
 }
 
 async function call(method, path, body) {
-  const res = await fetch(new URL(path, api), {
-    method,
-    headers: body ? { "Content-Type": "application/json" } : {},
-    body: body ? JSON.stringify(body) : undefined,
-  });
+  let res;
+  try {
+    res = await fetch(new URL(path, api), {
+      method,
+      headers: body ? { "Content-Type": "application/json" } : {},
+      body: body ? JSON.stringify(body) : undefined,
+    });
+  } catch {
+    // The browser's own text ("Failed to fetch") tells a participant nothing.
+    throw new Error("The experiment server cannot be reached. Your answers on this page are kept; " +
+                    "please wait a moment and try again, or call the experimenter.");
+  }
   let doc = null;
   try { doc = await res.json(); } catch { doc = { error: `server answered ${res.status}` }; }
   if (!res.ok) {
@@ -66,11 +73,15 @@ async function guarded(fn) {
 function render(state, keepMessage = false) {
   current = state;
   if (!keepMessage) message("");
+  // A visit moves on to its next protocol under a new session: the pen socket follows.
+  if (session && state.session !== session) { closeSocket(); queue = []; trial = null; }
   session = state.session;
   localStorage.setItem("tactilize.session", session);
   $("title").textContent = state.protocol.title;
-  $("progress").textContent = `${state.participant} · ${state.progress.done} of ${state.progress.total} done`;
+  $("progress").textContent = `${state.participant} · ${state.progress.done} of ${state.progress.total} done`
+    + (state.visit && state.visit.parts > 1 ? ` · part ${state.visit.part} of ${state.visit.parts}` : "");
   show(state.state);
+  $("not-me").hidden = state.state === "done";
   document.body.dataset.state = state.state;
   if (state.state === "calibration") renderCalibration(state);
   if (state.state === "trial") renderTrial(state.trial);
@@ -83,6 +94,8 @@ async function welcome() {
   const info = await call("GET", "protocol");
   $("title").textContent = info.title;
   $("description").textContent = info.description;
+  if (info.consent) $("consent-text").textContent = info.consent;  // the protocol's own information sheet
+  buildDemographics(info.demographics || []);
   $("card-mm").textContent = info.calibration_card_mm;
   if (session) {
     try { render(await call("GET", `sessions/${session}`)); return; } catch { localStorage.removeItem("tactilize.session"); session = null; }
@@ -90,9 +103,56 @@ async function welcome() {
   show("welcome");
 }
 
+// Optional questions the protocol defines (age, handedness...): every one may be left empty.
+function buildDemographics(items) {
+  const box = $("demographics");
+  box.replaceChildren();
+  for (const d of items) {
+    const lab = document.createElement("label");
+    lab.className = "row";
+    lab.textContent = `${d.text} (optional) `;
+    let inp;
+    if (d.kind === "integer") {
+      inp = document.createElement("input");
+      inp.type = "number"; inp.min = d.min; inp.max = d.max; inp.step = 1;
+    } else {
+      inp = document.createElement("select");
+      for (const o of ["", ...d.options]) {
+        const opt = document.createElement("option");
+        opt.value = o; opt.textContent = o || "(prefer not to say)";
+        inp.append(opt);
+      }
+    }
+    inp.dataset.demographic = d.id;
+    lab.append(inp);
+    box.append(lab);
+  }
+}
+
+function demographics() {
+  const out = {};
+  document.querySelectorAll("[data-demographic]").forEach((el) => { if (el.value !== "") out[el.dataset.demographic] = el.value; });
+  return out;
+}
+
 $("start").addEventListener("click", () => guarded(async () => {
-  render(await call("POST", "sessions", { participant_id: $("participant-id").value.trim(), consent: $("consent").checked }));
+  render(await call("POST", "sessions", { participant_id: $("participant-id").value.trim(), consent: $("consent").checked,
+                                          demographics: demographics() }));
 }));
+// "Not me": a shared computer may show the previous person's session; leave it
+// without touching its data (the session stays resumable by its owner).
+$("not-me").addEventListener("click", () => {
+  closeSocket();
+  localStorage.removeItem("tactilize.session");
+  session = null; current = null; trial = null; queue = [];
+  document.body.dataset.state = "welcome";
+  $("progress").textContent = "";
+  $("participant-id").value = "";
+  $("consent").checked = false;
+  message("");
+  show("welcome");
+});
+
 $("resume").addEventListener("click", () => guarded(async () => {
   render(await call("POST", "resume", { participant_id: $("participant-id").value.trim() }));
 }));
@@ -117,15 +177,16 @@ $("calibrate").addEventListener("click", () => guarded(async () => {
 // ---------------------------------------------------------------- trial
 
 let trial = null, image = null, strokeMs = 0, lastT = null, shownAt = 0;
-let ws = null, queue = [], points = [];
+let ws = null, queue = [], points = [], stroked = new Set();
 
 function renderTrial(t) {
   const fresh = !trial || trial.index !== t.index;
   trial = t;
   mmPerPx = current.calibration ? current.calibration.mm_per_px : 0.2646;
-  $("trial-title").textContent = `Trial ${t.number} of ${current.progress.total}`;
+  $("trial-title").textContent = t.practice ? `Practice trial ${t.number} (not counted)`
+    : `Trial ${t.number} of ${current.progress.total}`;
   $("min-stroke").textContent = t.min_stroke_s;
-  if (fresh) { strokeMs = 0; shownAt = performance.now(); buildForm(t.questions); }
+  if (fresh) { strokeMs = 0; stroked = new Set(); shownAt = performance.now(); buildForm(t.questions); }
   const tabs = $("tabs");
   tabs.replaceChildren();
   t.images.forEach((im, i) => {
@@ -178,6 +239,13 @@ function buildForm(questions) {
     fs.append(scale);
     form.append(fs);
   }
+  const lab = document.createElement("label");
+  lab.className = "row";
+  lab.textContent = "Comments (optional)";
+  const ta = document.createElement("textarea");
+  ta.id = "comment"; ta.maxLength = 2000; ta.rows = 2;
+  lab.append(ta);
+  form.append(lab);
 }
 
 function ratings() {
@@ -191,10 +259,14 @@ function ratings() {
 
 function updateSubmit() {
   if (!trial) return;
-  const ready = strokeMs / 1000 >= trial.min_stroke_s;
+  const unstroked = trial.require_every_image ? trial.images.filter((im) => !stroked.has(im.id)) : [];
+  const ready = strokeMs / 1000 >= trial.min_stroke_s && unstroked.length === 0;
+  $("unstroked").textContent = unstroked.length ? `Still to stroke: ${unstroked.map((im) => im.label).join(", ")}.` : "";
   $("answers").hidden = !ready;
   $("stroke-time").textContent = (strokeMs / 1000).toFixed(1);
-  $("submit").disabled = busy || !ready || Object.keys(ratings()).length !== trial.questions.length;
+  // The rating waits until the pen is live and every sample of this trial is sent.
+  $("submit").disabled = busy || !ready || !penLive() || queue.length > 0
+    || Object.keys(ratings()).length !== trial.questions.length;
 }
 
 $("submit").addEventListener("click", () => guarded(async () => {
@@ -202,6 +274,7 @@ $("submit").addEventListener("click", () => guarded(async () => {
     trial: trial.index, ratings: ratings(),
     response_time_s: (performance.now() - shownAt) / 1000,
     submission_id: `${session}:${trial.index}`,
+    comment: $("comment") ? $("comment").value : "",
   });
   audio.stop();
   render(doc);
@@ -212,27 +285,81 @@ $("end-break").addEventListener("click", () => guarded(async () => {
 }));
 
 // ---------------------------------------------------------------- pen
+// The stroke stream survives a server restart: every sample is stamped with its
+// trial and image when it is taken (not when it is sent), queued while the
+// socket is down, and sent under its own trial once it is back.  The socket
+// reconnects with a growing delay; meanwhile the page says the pen is not live
+// and the rating waits, because the participant no longer feels the condition.
+
+let wsDelay = 250, wsDownSince = null, wsTimer = null, wsWanted = false;
+const WS_DELAY_MAX = 5000;
+
+function penLive() { return !!(ws && ws.readyState === 1); }
+
+function penStatus() {
+  const live = penLive();
+  document.body.dataset.pen = live ? "live" : "down";
+  $("pen-status").hidden = live || !wsWanted;
+  if (current && current.state === "trial") updateSubmit();
+}
 
 function openSocket() {
+  wsWanted = true;
   if (ws && ws.readyState <= 1) return;
+  clearTimeout(wsTimer);
   const u = new URL(`ws/${session}`, document.baseURI);
   u.protocol = u.protocol === "https:" ? "wss:" : "ws:";
-  ws = new WebSocket(u);
-  ws.onmessage = (ev) => {
+  const sock = new WebSocket(u);
+  ws = sock;
+  sock.onopen = () => {
+    wsDelay = 250;
+    if (wsDownSince !== null && trial) {
+      // Tell the server this trial's stream had a gap; it marks the trial interrupted.
+      sock.send(JSON.stringify({ type: "reconnected", trial: trial.index,
+                                 gap_s: (performance.now() - wsDownSince) / 1000, queued: queue.length }));
+    }
+    wsDownSince = null;
+    flush();
+    penStatus();
+  };
+  sock.onmessage = (ev) => {
     const msg = JSON.parse(ev.data);
     if (msg.type === "drive") { audio.set(msg.drive); document.body.dataset.lastDriveHz = msg.drive.pulse_frequency_hz; }
     else if (msg.type === "error") message(msg.error);
     document.body.dataset.wsMessages = String(Number(document.body.dataset.wsMessages || 0) + 1);
   };
-  ws.onclose = () => { ws = null; };
+  sock.onclose = () => {
+    if (ws !== sock) return;
+    ws = null;
+    audio.set(null);  // nothing drives the pen now: do not leave the last drive playing
+    if (wsDownSince === null) wsDownSince = performance.now();
+    penStatus();
+    if (wsWanted) {
+      wsTimer = setTimeout(openSocket, wsDelay);
+      wsDelay = Math.min(WS_DELAY_MAX, wsDelay * 2);
+      document.body.dataset.wsRetries = String(Number(document.body.dataset.wsRetries || 0) + 1);
+    }
+  };
 }
 
-function closeSocket() { if (ws) ws.close(); ws = null; }
+function closeSocket() {
+  wsWanted = false;
+  clearTimeout(wsTimer);
+  if (ws) { const s = ws; ws = null; s.close(); }
+  penStatus();
+}
 
 function flush() {
-  if (!queue.length || !ws || ws.readyState !== 1 || !trial) return;
-  ws.send(JSON.stringify({ trial: trial.index, image: image.id, samples: queue }));
-  queue = [];
+  if (!queue.length || !penLive()) return;
+  // Consecutive samples of one trial and image go together, at most 500 a message.
+  while (queue.length) {
+    const head = queue[0];
+    let n = 0;
+    while (n < queue.length && n < 500 && queue[n].trial === head.trial && queue[n].image === head.image) n++;
+    ws.send(JSON.stringify({ trial: head.trial, image: head.image, samples: queue.slice(0, n).map((q) => q.s) }));
+    queue = queue.slice(n);
+  }
+  if (current && current.state === "trial") updateSubmit();
 }
 setInterval(flush, 30);
 
@@ -243,7 +370,7 @@ const up = () => {
   lastT = null; audio.set(null);
   flush();
   // The actuator stops the moment the pen leaves the surface.
-  if (ws && ws.readyState === 1) ws.send(JSON.stringify({ type: "lift" }));
+  if (penLive()) ws.send(JSON.stringify({ type: "lift" }));
 };
 surface.addEventListener("pointerup", up);
 surface.addEventListener("pointercancel", up);
@@ -256,8 +383,10 @@ function onMove(ev) {
   const rect = surface.getBoundingClientRect();
   for (const e of list) {
     const xPx = e.clientX - rect.left, yPx = e.clientY - rect.top;
-    queue.push([e.timeStamp, xPx * mmPerPx, yPx * mmPerPx, e.pointerType === "mouse" ? null : e.pressure]);
+    queue.push({ trial: trial.index, image: image.id,
+                 s: [e.timeStamp, xPx * mmPerPx, yPx * mmPerPx, e.pointerType === "mouse" ? null : e.pressure] });
     points.push([xPx, yPx]);
+    stroked.add(image.id);
     if (lastT !== null && e.timeStamp - lastT < 200) strokeMs += e.timeStamp - lastT;
     lastT = e.timeStamp;
   }
