@@ -8,6 +8,12 @@ Page to server
     Any subset of the three settings below in one message.
 ``{"type": "texture", "id": ID}``
     Show another picture (the stroke restarts, the output stops).
+``{"type": "composite", "ids": [ID, ...], "cols": N}``
+    Several pictures side by side as one surface (the paper's Fig. 16): up to
+    :data:`MAX_COMPOSITE` ids, ``cols`` a row, each at its physical size in
+    the top-left corner of an equal cell (the largest picture's size); sample
+    positions are then from the surface's top-left corner.  The state message
+    says ``"composite": {"ids", "cols", "cell_mm"}`` and ``"texture": null``.
 ``{"type": "calibrate", "mm_per_px": F}``
     The calibrated size of a CSS pixel [mm], 0.01 .. 5.
 ``{"type": "profile", "name": NAME}``
@@ -72,7 +78,7 @@ from ..pen import PenRenderer
 from .encode import dumps
 from .rows import sample_error, samples_from_css
 
-__all__ = ["websocket_endpoint", "PenSession", "MAX_BATCH", "MAX_PENDING", "MAX_MESSAGE_CHARS", "IDLE_S"]
+__all__ = ["websocket_endpoint", "PenSession", "MAX_BATCH", "MAX_PENDING", "MAX_MESSAGE_CHARS", "IDLE_S", "MAX_COMPOSITE"]
 
 log = logging.getLogger("tactilize.web")
 
@@ -85,6 +91,8 @@ MAX_MESSAGE_CHARS = 64 * 1024
 #: Silence [s] after which a pen that is down counts as resting (speed 0):
 #: browsers send no pointer events while the pen does not move.
 IDLE_S = 0.08
+#: Pictures on one composite surface, at most.
+MAX_COMPOSITE = 12
 #: Period of the wire trace messages [s].
 WIRE_PERIOD_S = 0.05
 #: Bounds on calibration [mm per CSS px]: a CSS pixel is 0.26 mm by definition;
@@ -109,6 +117,8 @@ class PenSession:
         self.state = state
         self.m_per_px = state.m_per_px
         self.texture_id: str | None = None
+        #: (ids, cols, CompositeMap) while a composite surface is shown
+        self.composite: tuple[list[str], int, Any] | None = None
         self.renderer = PenRenderer(_NoPicture(), state.profile, state.output)
         self.pending: deque[tuple] = deque()
         self.pending_lift = False
@@ -158,7 +168,28 @@ class PenSession:
             return {"type": "pong", "id": msg.get("id"), "server_time_s": time.time()}
         if kind in ("hello", "texture", "calibrate", "profile"):
             return self._settings(kind, msg)
-        raise _Bad(f"unknown message type {kind!r} (known: samples, lift, hello, texture, calibrate, profile, ping)")
+        if kind == "composite":
+            return self._composite(msg)
+        raise _Bad(f"unknown message type {kind!r} (known: samples, lift, hello, texture, composite, calibrate, profile, ping)")
+
+    def _composite(self, msg: dict[str, Any]) -> dict[str, Any]:
+        from ..composite import CompositeMap
+
+        ids, cols = msg.get("ids"), msg.get("cols", 3)
+        if not isinstance(ids, list) or not 1 <= len(ids) <= MAX_COMPOSITE or not all(isinstance(i, str) for i in ids):
+            raise _Bad(f"'composite' needs 'ids': 1 to {MAX_COMPOSITE} texture ids")
+        if isinstance(cols, bool) or not isinstance(cols, int) or not 1 <= cols <= MAX_COMPOSITE:
+            raise _Bad(f"'cols' must be an integer in [1, {MAX_COMPOSITE}]")
+        try:
+            entries = [self.state.texture(i) for i in ids]
+        except KeyError as exc:
+            raise _Bad(f"no texture {exc.args[0]!r}") from None
+        cmap = CompositeMap.of([e.map for e in entries], cols)
+        self.pending.clear()
+        self.texture_id = None
+        self.composite = (list(ids), cols, cmap)
+        self.renderer.set_texture(cmap)
+        return self.describe("state")
 
     def _samples(self, msg: dict[str, Any]) -> None:
         rows = msg.get("samples")
@@ -170,7 +201,7 @@ class PenSession:
             err = sample_error(row)
             if err is not None:
                 raise _Bad(f"sample {i}: {err}")
-        if self.texture_id is None:
+        if self.texture_id is None and self.composite is None:
             raise _Bad("no texture selected: send {'type': 'texture', 'id': ...} first")
         if not rows:
             return
@@ -223,6 +254,7 @@ class PenSession:
         # old millimetres, or a drive for the old picture, must not carry over.
         self.pending.clear()
         if entry is not None:
+            self.composite = None
             self.texture_id = entry.id
             self.renderer.set_texture(entry.map)
         if mm is not None:
@@ -249,6 +281,9 @@ class PenSession:
             e = self.state.texture(self.texture_id)
             d["texture_width_mm"] = e.width_m * 1e3
             d["texture_height_mm"] = e.height_m * 1e3
+        if self.composite is not None:
+            ids, cols, cmap = self.composite
+            d["composite"] = {"ids": ids, "cols": cols, "cell_mm": [cmap.cell_m[0] * 1e3, cmap.cell_m[1] * 1e3]}
         return d
 
     def _wake(self) -> None:
