@@ -6,8 +6,11 @@ Page to server
 --------------
 ``{"type": "hello", "texture": ID, "mm_per_px": F, "profile": NAME}``
     Any subset of the three settings below in one message.
-``{"type": "texture", "id": ID}``
-    Show another picture (the stroke restarts, the output stops).
+``{"type": "texture", "id": ID, "repeat": [COLS, ROWS]}``
+    Show another picture (the stroke restarts, the output stops).  With
+    ``repeat`` (optional; at most :data:`MAX_REPEAT` copies) the picture is
+    tiled COLS x ROWS times from the first copy's top-left corner, to fill a
+    large screen; the state message echoes ``"repeat"``.
 ``{"type": "composite", "ids": [ID, ...], "cols": N}``
     Several pictures side by side as one surface (the paper's Fig. 16): up to
     :data:`MAX_COMPOSITE` ids, ``cols`` a row, each at its physical size in
@@ -93,6 +96,8 @@ MAX_MESSAGE_CHARS = 64 * 1024
 IDLE_S = 0.08
 #: Pictures on one composite surface, at most.
 MAX_COMPOSITE = 12
+#: Copies of a repeated picture, at most.
+MAX_REPEAT = 64
 #: Period of the wire trace messages [s].
 WIRE_PERIOD_S = 0.05
 #: Bounds on calibration [mm per CSS px]: a CSS pixel is 0.26 mm by definition;
@@ -119,6 +124,8 @@ class PenSession:
         self.texture_id: str | None = None
         #: (ids, cols, CompositeMap) while a composite surface is shown
         self.composite: tuple[list[str], int, Any] | None = None
+        #: (cols, rows) of a repeated picture, or None
+        self.repeat: tuple[int, int] | None = None
         self.renderer = PenRenderer(_NoPicture(), state.profile, state.output)
         self.pending: deque[tuple] = deque()
         self.pending_lift = False
@@ -187,6 +194,7 @@ class PenSession:
         cmap = CompositeMap.of([e.map for e in entries], cols)
         self.pending.clear()
         self.texture_id = None
+        self.repeat = None
         self.composite = (list(ids), cols, cmap)
         self.renderer.set_texture(cmap)
         return self.describe("state")
@@ -229,6 +237,14 @@ class PenSession:
             raise _Bad("'calibrate' needs 'mm_per_px'")
         if kind == "profile" and pname is None:
             raise _Bad("'profile' needs a 'name'")
+        repeat = msg.get("repeat") if kind == "texture" else None
+        if repeat is not None:
+            if (
+                not isinstance(repeat, list) or len(repeat) != 2
+                or not all(isinstance(n, int) and not isinstance(n, bool) and n >= 1 for n in repeat)
+                or repeat[0] * repeat[1] > MAX_REPEAT
+            ):
+                raise _Bad(f"'repeat' must be [cols, rows], positive integers, at most {MAX_REPEAT} copies")
         # Validate everything before changing anything.
         entry = None
         if tid is not None:
@@ -256,7 +272,14 @@ class PenSession:
         if entry is not None:
             self.composite = None
             self.texture_id = entry.id
-            self.renderer.set_texture(entry.map)
+            self.repeat = (repeat[0], repeat[1]) if repeat is not None and repeat != [1, 1] else None
+            if self.repeat is None:
+                self.renderer.set_texture(entry.map)
+            else:
+                from ..composite import CompositeMap
+
+                cols, rows = self.repeat
+                self.renderer.set_texture(CompositeMap.of([entry.map] * (cols * rows), cols))
         if mm is not None:
             self.m_per_px = float(mm) * 1e-3
             self.renderer.lift()
@@ -281,6 +304,8 @@ class PenSession:
             e = self.state.texture(self.texture_id)
             d["texture_width_mm"] = e.width_m * 1e3
             d["texture_height_mm"] = e.height_m * 1e3
+            if self.repeat is not None:
+                d["repeat"] = list(self.repeat)
         if self.composite is not None:
             ids, cols, cmap = self.composite
             d["composite"] = {"ids": ids, "cols": cols, "cell_mm": [cmap.cell_m[0] * 1e3, cmap.cell_m[1] * 1e3]}
