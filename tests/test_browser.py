@@ -245,7 +245,10 @@ def test_pen_stroke_two_speeds_then_lift(page):
 
 
 def test_leaving_the_picture_stops(page):
+    # One copy of the picture (not repeated to fill the screen): its right edge is the surface's.
+    page.get_by_test_id("fill").uncheck()
     pick(page, "corduroy")
+    page.wait_for_function("window.tactilize.settings && !window.tactilize.settings.repeat")
     pen = Pen(page)
     box = surface_box(page)
     y = box["y"] + 40
