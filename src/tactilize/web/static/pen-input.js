@@ -5,8 +5,8 @@
 // 0.7 ms p50 (docs/references.md, section 5 (pen input) and section 9 (latency)).
 // So: raw updates where the browser has them (Chromium, secure contexts, which
 // loopback is), `pointermove` with its coalesced samples elsewhere.  Never both
-// for one stroke, and a sample whose timestamp is not newer than the last one
-// sent is dropped, so no sample is ever sent twice.
+// for one stroke, and a sample older than the last one sent, or the same time
+// and place again, is dropped, so no sample is ever sent twice.
 
 /** The input this browser gives: "pointerrawupdate" or "pointermove". */
 export const INPUT = typeof window !== "undefined" && "onpointerrawupdate" in window ? "pointerrawupdate" : "pointermove";
@@ -22,7 +22,7 @@ export function attachPen(surface, picture, { onBatch, onLift, onDown, onHover }
   let active = null;  // pointerId of the stroke in progress
   let rect = null;
   let lastHover = -Infinity;
-  let lastT = -Infinity;  // timestamp of the newest sample sent in this stroke [ms]
+  let last = [-Infinity, NaN, NaN];  // newest sample sent in this stroke: t [ms], x, y [CSS px]
 
   const row = (ev) => {
     // A mouse has no pressure (browsers report 0.5 while a button is held).
@@ -31,7 +31,12 @@ export function attachPen(surface, picture, { onBatch, onLift, onDown, onHover }
   };
   const send = (events) => {
     const rows = [];
-    for (const e of events) if (e.timeStamp > lastT) { lastT = e.timeStamp; rows.push(row(e)); }
+    for (const e of events) {
+      const r = row(e);
+      if (r[0] < last[0] || (r[0] === last[0] && r[1] === last[1] && r[2] === last[2])) continue;
+      last = r;
+      rows.push(r);
+    }
     if (rows.length) onBatch(rows);
   };
   const samplesOf = (ev) => {
@@ -42,7 +47,7 @@ export function attachPen(surface, picture, { onBatch, onLift, onDown, onHover }
   surface.addEventListener("pointerdown", (ev) => {
     if (active !== null || (ev.pointerType === "mouse" && ev.button !== 0)) return;
     active = ev.pointerId;
-    lastT = -Infinity;
+    last = [-Infinity, NaN, NaN];
     // Capture: strokes that leave the picture keep reporting, so the server sees
     // the pen leave (and stops) instead of a stroke that just ends.
     try { surface.setPointerCapture(ev.pointerId); } catch (e) { /* synthetic pointers */ }

@@ -4,10 +4,12 @@
 // and the texture map's tiles (f_s per tile) when the picture changes across.
 
 const cache = new Map();
+let wanted = null;  // the texture asked for last: a slower earlier fetch must not overwrite it
 
 /** Fetch (once per texture) and draw Fig. 5 into the page's figure. */
 export async function showSpectrum(texture) {
   if (!texture) return null;
+  wanted = texture.id;
   let doc = cache.get(texture.id);
   if (!doc) {
     const r = await fetch(`/api/textures/${encodeURIComponent(texture.id)}/spectrum`);
@@ -15,6 +17,7 @@ export async function showSpectrum(texture) {
     doc = await r.json();
     cache.set(texture.id, doc);
   }
+  if (wanted !== texture.id) return null;
   const fig = document.querySelector("#spectrum-figure");
   fig.dataset.id = texture.id;
   document.querySelector("#spectrum-image").src = texture.url;
