@@ -80,6 +80,8 @@ def main(argv=None) -> None:
                     page.locator(f'[data-testid=texture][data-id="{texture}"]').click()
                     page.wait_for_function(f"window.tactilize.settings.texture === '{texture}'")
                 page.wait_for_function("document.querySelector('#spectrum-fs').textContent !== '–'", timeout=20_000)
+                # Picking a texture low in the gallery scrolls the page: back to the surface.
+                page.evaluate("window.scrollTo(0, 0)")
                 page.wait_for_timeout(300)
                 width = page.locator("#frame").bounding_box()["width"]
                 stroke(page, min(width - 40, 700), seconds=1.2 if view == "six" else 0.6)

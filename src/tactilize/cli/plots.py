@@ -12,7 +12,7 @@ from typing import Any
 
 from ..errors import TactilizeError
 
-__all__ = ["plot_simulation", "plot_envelope", "plot_spectrum"]
+__all__ = ["plot_simulation", "plot_envelope", "plot_profile_report", "plot_spectrum"]
 
 
 def _pyplot(option: str):

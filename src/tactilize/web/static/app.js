@@ -217,7 +217,7 @@ function showDrive(msg) {
   $("#drive-direction").textContent = msg && msg.direction_deg !== null && msg.direction_deg !== undefined ? msg.direction_deg.toFixed(0) : "–";
   $("#texture-fs").textContent = msg && msg.spatial_frequency_per_m !== null ? (msg.spatial_frequency_per_m / 1e3).toFixed(3) : "–";
   $("#texture-is").textContent = msg && msg.spectral_intensity !== null ? msg.spectral_intensity.toFixed(3) : "–";
-  const on = !!(msg && msg.on);
+  const on = (shownOn = !!(msg && msg.on));
   $("#surface").dataset.state = on ? "on" : "off";
   plot.setDrives(chans.length ? chans : [{}, {}]);
   audio.setDrives(chans.length ? chans : [{}, {}]);
@@ -228,12 +228,20 @@ function onDrive(msg) {
   T.lastDrive = msg;
   T.drives.push(msg);
   if (T.drives.length > HISTORY) T.drives.splice(0, T.drives.length - HISTORY);
-  showDrive(msg);
+  const chans = msg.channels && msg.channels.length ? msg.channels : [{}, {}];
+  audio.setDrives(chans);  // the sound follows at once
+  // The readouts of a moving pen change once a frame, not once a batch: the main
+  // thread stays free for the next raw update.  A stop shows at once.
+  if (!msg.on || !shownOn) { cancelAnimationFrame(showFrame); showFrame = 0; showDrive(msg); return; }
+  if (!showFrame) showFrame = requestAnimationFrame(() => { showFrame = 0; showDrive(T.lastDrive); });
 }
+let showFrame = 0;
+let shownOn = false;
 
 // ------------------------------------------------------------------ trail
 
 let last = null;
+let trailRows = [], trailFrame = 0;  // samples waiting for the next frame's drawing
 function drawTrail(rows, fresh) {
   const c = $("#trail"), ctx = c.getContext("2d"), dpr = window.devicePixelRatio || 1;
   if (fresh) { ctx.clearRect(0, 0, c.width, c.height); last = null; }
@@ -288,6 +296,7 @@ async function setup() {
 
   attachPen($("#surface"), $("#frame"), {
     onDown: (ev) => {
+      trailRows = [];
       drawTrail([], true);
       // Six side by side: Fig. 5 follows the picture the stroke starts on.
       if (T.view === "six" && T.cell) {
@@ -302,7 +311,8 @@ async function setup() {
       T.samplesSent += rows.length;
       send({ type: "samples", seq, samples: rows });
       meter.sent(seq, rows[rows.length - 1][0]);
-      drawTrail(rows, false);
+      trailRows.push(...rows);
+      if (!trailFrame) trailFrame = requestAnimationFrame(() => { trailFrame = 0; drawTrail(trailRows.splice(0), false); });
     },
     onLift: () => {
       audio.setDrives([{}, {}]);  // silence now, not after the round trip
