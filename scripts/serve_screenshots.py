@@ -84,8 +84,10 @@ def main(argv=None) -> None:
                 page.evaluate("window.scrollTo(0, 0)")
                 page.wait_for_timeout(300)
                 width = page.locator("#frame").bounding_box()["width"]
-                stroke(page, min(width - 40, 700), seconds=1.2 if view == "six" else 0.6)
-                page.wait_for_timeout(120)  # the pen stays down: the drive and the plot are live
+                dx = min(width - 40, 700)
+                stroke(page, dx, seconds=dx * 0.2646 / 100.0)  # about 100 mm/s
+                # At once, with the pen still down and moving: a pen at rest for 80 ms is
+                # rendered at speed 0 (and some profiles go quiet then).
                 page.screenshot(path=os.path.join(args.out, name))
                 print(os.path.join(args.out, name))
                 page.close()
