@@ -481,3 +481,38 @@ def test_six_textures_side_by_side_follow_the_texture_under_the_pen(page):
     assert np.median(right) == pytest.approx(f_right, rel=0.1)
     # What the page showed with the pen on the second picture [cycles/mm].
     assert shown_fs == pytest.approx(f_right * 1e-3, rel=0.1)
+
+
+def test_without_raw_updates_the_page_reads_pointermove_and_coalesced_samples_once(browser, server):
+    import httpx
+
+    ctx = browser.new_context(viewport={"width": 1400, "height": 900})
+    # A browser without pointerrawupdate (Firefox, Safari, an insecure origin).
+    ctx.add_init_script("delete Window.prototype.onpointerrawupdate; delete window.onpointerrawupdate;")
+    pg = ctx.new_page()
+    try:
+        pg.goto(server)
+        pg.wait_for_selector("body[data-ready=true]", timeout=30_000)
+        pg.wait_for_function("window.tactilize.settings !== null", timeout=30_000)
+        assert not pg.evaluate("'onpointerrawupdate' in window")
+        assert pg.evaluate("window.tactilize.inputMode") == "pointermove"
+        pick(pg, "corduroy")
+        pen = Pen(pg)
+        box = surface_box(pg)
+        x0, y = box["x"] + 10, box["y"] + 40
+        before = httpx.get(server + "api/stats").json()["counters"].get("samples_received", 0)
+        sent0 = pg.evaluate("window.tactilize.samplesSent")
+        pen._send("mousePressed", x0, y, 1)
+        n = 60
+        for i in range(1, n + 1):
+            pen._send("mouseMoved", x0 + 1.5 * i, y, 1)
+            time.sleep(0.004)
+        pen.lift(x0 + 1.5 * n, y)
+        pg.wait_for_function("() => window.tactilize.lastDrive && !window.tactilize.lastDrive.down", timeout=5_000)
+        sent = pg.evaluate("window.tactilize.samplesSent") - sent0
+        received = httpx.get(server + "api/stats").json()["counters"].get("samples_received", 0) - before
+        # Every pen event once, from the coalesced lists of frame-aligned pointermoves.
+        assert sent == n + 1
+        assert received == sent
+    finally:
+        ctx.close()
