@@ -17,7 +17,7 @@ and strokes the picture with trusted pen events (Chrome DevTools Protocol
 4. the bare-echo reference: the page's round trip to an echo WebSocket on the
    same stack (Starlette on uvicorn), paced like a pen [ms].
 
-Goal (docs/references.md, section 9 (latency)): p99 under 5 ms on loopback.
+Goal (docs/references.md, section 9 (simultaneity)): p99 under 5 ms on loopback.
 
 Usage::
 

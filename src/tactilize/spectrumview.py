@@ -3,7 +3,7 @@
 The paper shows, for each texture, the image, the log magnitude of its 2-D
 Fourier transform with DC in the centre, and the dominant peak whose distance
 from DC is the spatial frequency f_s and whose height gives the spectral
-intensity i_s (docs/references.md, section 1 (the paper's laws)).  The page
+intensity i_s (docs/references.md, section 1 (the two laws, reading of i_s)).  The page
 (``/api/textures/{id}/spectrum``) and ``tactilize analyze IMAGE --plot FILE``
 draw it from :func:`spectrum_view`, so both mark the same peak as
 :func:`~tactilize.features.extract_features`.

@@ -1,6 +1,6 @@
 // The page's own latency figure: from a pen batch's newest sample (its own
 // event timestamp) to the drive covering it arriving back here [ms], over the
-// last second (docs/references.md, section 9 (latency): felt as simultaneous
+// last second (docs/references.md, section 9 (simultaneity): felt as simultaneous
 // under about 5 ms).
 
 const WINDOW_MS = 1000;

@@ -2,7 +2,8 @@
 //
 // Chromium aligns `pointermove` to animation frames (a move waits up to a frame,
 // 11 ms p50 on a bare page); `pointerrawupdate` arrives as the device reports,
-// 0.7 ms p50 (docs/references.md, section 5 (pen input) and section 9 (latency)).
+// 0.7 ms p50: docs/references.md, section 9 (pointermove in Chromium, pointerrawupdate in Chromium);
+// coalesced samples: docs/references.md, section 5 (pointer events).
 // So: raw updates where the browser has them (Chromium, secure contexts, which
 // loopback is), `pointermove` with its coalesced samples elsewhere.  Never both
 // for one stroke, and a sample older than the last one sent, or the same time
