@@ -245,7 +245,10 @@ def test_pen_stroke_two_speeds_then_lift(page):
 
 
 def test_leaving_the_picture_stops(page):
+    # One copy of the picture (not repeated to fill the screen): its right edge is the surface's.
+    page.get_by_test_id("fill").uncheck()
     pick(page, "corduroy")
+    page.wait_for_function("window.tactilize.settings && !window.tactilize.settings.repeat")
     pen = Pen(page)
     box = surface_box(page)
     y = box["y"] + 40
@@ -318,9 +321,11 @@ def test_coalesced_samples_all_reach_the_server(page):
             const init = (x, t) => ({pointerId: 7, pointerType: 'pen', isPrimary: true, bubbles: true, buttons: 1,
                                      clientX: r.left + x, clientY: r.top + 30, pressure: 0.4});
             const before = window.tactilize.samplesSent;
+            // The page reads strokes from raw updates where the browser has them.
+            const type = window.tactilize.inputMode;
             s.dispatchEvent(new PointerEvent('pointerdown', init(10)));
-            const co = [11, 12, 13, 14].map((x) => new PointerEvent('pointermove', init(x)));
-            const ev = new PointerEvent('pointermove', {...init(14), coalescedEvents: co});
+            const co = [11, 12, 13, 14].map((x) => new PointerEvent(type, init(x)));
+            const ev = new PointerEvent(type, {...init(14), coalescedEvents: co});
             const n = ev.getCoalescedEvents().length;
             s.dispatchEvent(ev);
             s.dispatchEvent(new PointerEvent('pointerup', {...init(14), buttons: 0}));
@@ -368,6 +373,16 @@ def test_upload_through_the_page(page, tmp_path):
     page.wait_for_function("window.tactilize.texture && window.tactilize.texture.startsWith('upload-')", timeout=20_000)
     assert "60.0" in page.get_by_test_id("upload-status").text_content()
     assert page.get_by_test_id("texture-name").text_content() == "stripes.png"
+    # Fig. 5 for it: the marked peak is what extract_features finds (25 cycles over 60 mm).
+    from tactilize.features import extract_features
+    from tactilize.image import load_image
+
+    tid = page.evaluate("window.tactilize.texture")
+    page.wait_for_function(f"document.querySelector('#spectrum-figure').dataset.id === '{tid}'", timeout=20_000)
+    page.wait_for_function("document.querySelector('[data-testid=spectrum-fs]').textContent !== '–'", timeout=20_000)
+    f_mm = extract_features(load_image(good.read_bytes(), width_mm=60.0)).spatial_frequency_per_m * 1e-3
+    assert f_mm == pytest.approx(25 / 60, rel=0.02)
+    assert float(page.get_by_test_id("spectrum-fs").text_content()) == pytest.approx(f_mm, abs=5e-4)
     bad = tmp_path / "notes.png"
     bad.write_bytes(b"this is not a picture")
     page.get_by_test_id("upload").set_input_files(str(bad))
@@ -394,3 +409,110 @@ def test_the_page_shows_the_wire_state_and_hover_readies_it(page):
     page.wait_for_function("() => (window.tactilize.wireState || []).includes('vibrating')", timeout=10_000)
     pen.lift(pen.last_x, y + 20)
     page.wait_for_function("() => (window.tactilize.wireState || []).every(s => s === 'standby')", timeout=10_000)
+
+
+def test_raw_updates_are_used_and_each_sample_reaches_the_server_once(page, server):
+    import httpx
+
+    pick(page, "corduroy")
+    # Chromium on loopback (a secure context) has pointerrawupdate: the page must use it.
+    assert page.evaluate("'onpointerrawupdate' in window")
+    assert page.evaluate("window.tactilize.inputMode") == "pointerrawupdate"
+    assert page.get_by_test_id("input-mode").text_content() == "pointerrawupdate"
+    page.evaluate(
+        """() => { const c = (window.__count = {raw: 0, move: 0});
+                   addEventListener('pointerrawupdate', () => c.raw++, true);
+                   addEventListener('pointermove', () => c.move++, true); }"""
+    )
+    pen = Pen(page)
+    box = surface_box(page)
+    x0, y = box["x"] + 10, box["y"] + 40
+    before = httpx.get(server + "api/stats").json()["counters"].get("samples_received", 0)
+    sent0 = page.evaluate("window.tactilize.samplesSent")
+    pen._send("mousePressed", x0, y, 1)
+    n = 60
+    for i in range(1, n + 1):
+        pen._send("mouseMoved", x0 + 1.5 * i, y, 1)
+        time.sleep(0.004)
+    pen.lift(x0 + 1.5 * n, y)
+    page.wait_for_function("() => window.tactilize.lastDrive && !window.tactilize.lastDrive.down", timeout=5_000)
+    counts = page.evaluate("window.__count")
+    sent = page.evaluate("window.tactilize.samplesSent") - sent0
+    received = httpx.get(server + "api/stats").json()["counters"].get("samples_received", 0) - before
+    # One sample for the press and one per pen event: raw updates, each once, however
+    # many pointermove events the browser also fired for the same movement.
+    assert counts["raw"] == n
+    assert sent == n + 1
+    assert received == sent
+    # The live readout shows the last second's figures (numbers, whatever they are).
+    page.wait_for_function("() => document.querySelector('[data-testid=latency-p99]').textContent !== '–'", timeout=5_000)
+    assert float(page.get_by_test_id("latency-p50").text_content()) >= 0.0
+
+
+def test_six_textures_side_by_side_follow_the_texture_under_the_pen(page):
+    page.get_by_test_id("view-six").check()
+    page.wait_for_function("window.tactilize.settings && window.tactilize.settings.composite", timeout=10_000)
+    comp = page.evaluate("window.tactilize.settings.composite")
+    assert len(comp["ids"]) == 6 and comp["cols"] == 3
+    left_id, right_id = comp["ids"][0], comp["ids"][1]
+    # Each at its physical size: the second picture starts one cell to the right.
+    frame = page.locator("#frame").bounding_box()
+    cell_px = comp["cell_mm"][0] / DEFAULT_MM_PER_PX
+    assert frame["width"] == pytest.approx(3 * cell_px, abs=1.0)
+    pen = Pen(page)
+    y = frame["y"] + 40
+    seq0 = page.evaluate("window.tactilize.seq")
+    # 20 mm/s from 15 mm left of the boundary to 15 mm right of it.
+    v = 20 / DEFAULT_MM_PER_PX
+    x0 = frame["x"] + cell_px - 15 / DEFAULT_MM_PER_PX
+    pen.stroke(x0, y, v, duration_s=1.5)
+    shown_fs = float(page.get_by_test_id("texture-fs").text_content())
+    pen.lift(pen.last_x, y)
+    drives = page.evaluate(f"window.tactilize.drives.filter(d => d.seq > {seq0} && d.on)")
+    edge_m = comp["cell_mm"][0] * 1e-3
+    left = [d["spatial_frequency_per_m"] for d in drives if d["x_m"] < edge_m - 1e-3]
+    right = [d["spatial_frequency_per_m"] for d in drives if d["x_m"] > edge_m + 1e-3]
+    assert len(left) >= 3 and len(right) >= 3
+    from tactilize.data import builtin_map
+
+    f_left, f_right = builtin_map(left_id).whole.spatial_frequency_per_m, builtin_map(right_id).whole.spatial_frequency_per_m
+    assert abs(f_right - f_left) > 0.5 * f_left  # two different textures
+    assert np.median(left) == pytest.approx(f_left, rel=0.1)
+    assert np.median(right) == pytest.approx(f_right, rel=0.1)
+    # What the page showed with the pen on the second picture [cycles/mm].
+    assert shown_fs == pytest.approx(f_right * 1e-3, rel=0.1)
+
+
+def test_without_raw_updates_the_page_reads_pointermove_and_coalesced_samples_once(browser, server):
+    import httpx
+
+    ctx = browser.new_context(viewport={"width": 1400, "height": 900})
+    # A browser without pointerrawupdate (Firefox, Safari, an insecure origin).
+    ctx.add_init_script("delete Window.prototype.onpointerrawupdate; delete window.onpointerrawupdate;")
+    pg = ctx.new_page()
+    try:
+        pg.goto(server)
+        pg.wait_for_selector("body[data-ready=true]", timeout=30_000)
+        pg.wait_for_function("window.tactilize.settings !== null", timeout=30_000)
+        assert not pg.evaluate("'onpointerrawupdate' in window")
+        assert pg.evaluate("window.tactilize.inputMode") == "pointermove"
+        pick(pg, "corduroy")
+        pen = Pen(pg)
+        box = surface_box(pg)
+        x0, y = box["x"] + 10, box["y"] + 40
+        before = httpx.get(server + "api/stats").json()["counters"].get("samples_received", 0)
+        sent0 = pg.evaluate("window.tactilize.samplesSent")
+        pen._send("mousePressed", x0, y, 1)
+        n = 60
+        for i in range(1, n + 1):
+            pen._send("mouseMoved", x0 + 1.5 * i, y, 1)
+            time.sleep(0.004)
+        pen.lift(x0 + 1.5 * n, y)
+        pg.wait_for_function("() => window.tactilize.lastDrive && !window.tactilize.lastDrive.down", timeout=5_000)
+        sent = pg.evaluate("window.tactilize.samplesSent") - sent0
+        received = httpx.get(server + "api/stats").json()["counters"].get("samples_received", 0) - before
+        # Every pen event once, from the coalesced lists of frame-aligned pointermoves.
+        assert sent == n + 1
+        assert received == sent
+    finally:
+        ctx.close()

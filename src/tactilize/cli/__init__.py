@@ -78,18 +78,27 @@ def main() -> None:
 @click.option("--dpi", type=float, callback=_positive("dpi"), help="Pixels per inch of the displayed image.")
 @click.option("--width-mm", type=float, callback=_positive("width-mm"), help="Displayed width of the image [mm].")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
-def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, as_json: bool) -> None:
+@click.option("--plot", "plot_path", default=None,
+              help="Draw the paper's Fig. 5 (image, log spectrum with the peak, tile map) to this image file (one IMAGE).")
+def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, as_json: bool, plot_path: str | None) -> None:
     """Measure the texture features of IMAGE(s)."""
     from ..features import extract_features
     from ..image import load_image
 
     if dpi is not None and width_mm is not None:
         raise TactilizeError("--dpi/--width-mm", "give one of them, not both")
+    if plot_path is not None and len(images) != 1:
+        raise TactilizeError("--plot", f"draws one image, got {len(images)}")
     rows = []
     for path in images:
         img = load_image(path, dpi=dpi, width_mm=width_mm)
         feat = extract_features(img)
         rows.append({"image": path, **img.describe(), **feat.to_dict()})
+        if plot_path is not None:
+            from ..texturemap import texture_map
+            from .plots import plot_spectrum
+
+            plot_spectrum(img, feat, texture_map(img), plot_path)
     if as_json:
         emit_json(rows[0] if len(rows) == 1 else rows)
         return

@@ -1,4 +1,4 @@
-"""Figures of the wire model for the command line (``simulate --plot``, ``envelope --plot``).
+"""Figures for the command line (``simulate --plot``, ``envelope --plot``, ``analyze --plot``).
 
 matplotlib is an optional extra (``tactilize[plot]``); without it these raise a
 :class:`~tactilize.errors.TactilizeError` naming the option that asked for a plot.
@@ -12,7 +12,7 @@ from typing import Any
 
 from ..errors import TactilizeError
 
-__all__ = ["plot_simulation", "plot_envelope"]
+__all__ = ["plot_simulation", "plot_envelope", "plot_profile_report", "plot_spectrum"]
 
 
 def _pyplot(option: str):
@@ -114,3 +114,47 @@ def plot_profile_report(report: Any, path: str, *, jnd: float = 0.2, option: str
     ax.set_title(f"profile {report.profile}: {report.distinct_share * 100:.0f} % of texture pairs one JND apart")
     ax.legend(fontsize=7, ncol=2)
     _save(plt, fig, path)
+
+
+def plot_spectrum(img: Any, features: Any, texture_map: Any, path: str, option: str = "--plot") -> dict[str, Any]:
+    """The paper's Fig. 5 for one picture: the image, its 2-D spectrum (log
+    magnitude, DC centred) with the dominant peak marked with f_s [cycles/mm]
+    and i_s, and the texture map's f_s per tile [cycles/mm].
+
+    The same data as the pen page's figure (:func:`tactilize.spectrumview.spectrum_view`);
+    returns it without the pixels.
+    """
+    from ..spectrumview import spectrum_view
+
+    plt = _pyplot(option)
+    view = spectrum_view(img.pixels, features, texture_map)
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
+    w_mm, h_mm = img.width_m * 1e3, img.height_m * 1e3
+    axes[0].imshow(img.pixels, cmap="gray", vmin=0, vmax=1, extent=(0, w_mm, h_mm, 0))
+    axes[0].set_title(f"{img.source}: {w_mm:.1f} x {h_mm:.1f} mm")
+    axes[0].set_xlabel("x [mm]")
+    axes[0].set_ylabel("y [mm]")
+    ch, cw = view["crop"]
+    bx, by = view["bin_per_mm"]
+    # Axes in cycles/mm, DC at 0, ky up (the spectrum's top row is the highest ky).
+    ext = (-(cw // 2) * bx, (cw - cw // 2) * bx, -(ch - ch // 2) * by, (ch // 2) * by)
+    axes[1].imshow(view["spectrum_u8"], cmap="magma", extent=ext)
+    axes[1].set_xlabel("k_x [cycles/mm]")
+    axes[1].set_ylabel("k_y [cycles/mm]")
+    fs, i_s = view["spatial_frequency_per_mm"], view["spectral_intensity"]
+    if view["peak"]:
+        kx, ky = features.wave_vector_per_m
+        for sgn in (1, -1):
+            axes[1].plot(sgn * kx * 1e-3, sgn * ky * 1e-3, "o", mfc="none", mec="cyan", ms=12, mew=1.5)
+        axes[1].annotate(f"f_s = {fs:.3f} cycles/mm\ni_s = {i_s:.3f}", (kx * 1e-3, ky * 1e-3), xytext=(8, 8),
+                         textcoords="offset points", color="cyan", fontsize=9)
+    axes[1].set_title("2-D spectrum, log |F|, DC centred")
+    tiles = view["tiles"]
+    im = axes[2].imshow(tiles["spatial_frequency_per_mm"], cmap="viridis", extent=(0, w_mm, h_mm, 0))
+    fig.colorbar(im, ax=axes[2], label="f_s per tile [cycles/mm]")
+    axes[2].set_title(f"texture map: {tiles['rows']} x {tiles['cols']} tiles of {tiles['tile_mm'][0]:.1f} mm")
+    axes[2].set_xlabel("x [mm]")
+    fig.tight_layout()
+    _save(plt, fig, path)
+    view.pop("spectrum_u8")
+    return view

@@ -415,6 +415,13 @@ def _api_router() -> APIRouter:
             }
         )
 
+    @r.get("/textures/{texture_id}/spectrum")
+    async def texture_spectrum(texture_id: str, request: Request) -> Any:
+        """The paper's Fig. 5 for one picture: log spectrum (PNG data URL), the peak, the tiles."""
+        e = texture(request, texture_id)
+        doc = await asyncio.get_running_loop().run_in_executor(None, lambda: _spectrum_doc(e))
+        return jsonable(doc)
+
     @r.post("/textures")
     async def upload(request: Request) -> Any:
         """Multipart form: ``file`` (the picture), optional ``width_mm`` or ``dpi``."""
@@ -479,6 +486,22 @@ def _api_router() -> APIRouter:
         return st(request).stats(last)
 
     return r
+
+
+def _spectrum_doc(e: TextureEntry) -> dict[str, Any]:
+    import base64
+
+    from ..data import png_bytes
+    from ..image import load_image
+    from ..spectrumview import spectrum_view
+
+    img = load_image(e.png)
+    m = e.map
+    d = spectrum_view(img.pixels, m.whole, m)
+    u8 = d.pop("spectrum_u8")
+    d["spectrum_url"] = "data:image/png;base64," + base64.b64encode(png_bytes(u8, 96.0)).decode()
+    d["id"] = e.id
+    return d
 
 
 def _number(text: str | None, name: str) -> float | None:

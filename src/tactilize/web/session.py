@@ -6,8 +6,17 @@ Page to server
 --------------
 ``{"type": "hello", "texture": ID, "mm_per_px": F, "profile": NAME}``
     Any subset of the three settings below in one message.
-``{"type": "texture", "id": ID}``
-    Show another picture (the stroke restarts, the output stops).
+``{"type": "texture", "id": ID, "repeat": [COLS, ROWS]}``
+    Show another picture (the stroke restarts, the output stops).  With
+    ``repeat`` (optional; at most :data:`MAX_REPEAT` copies) the picture is
+    tiled COLS x ROWS times from the first copy's top-left corner, to fill a
+    large screen; the state message echoes ``"repeat"``.
+``{"type": "composite", "ids": [ID, ...], "cols": N}``
+    Several pictures side by side as one surface (the paper's Fig. 16): up to
+    :data:`MAX_COMPOSITE` ids, ``cols`` a row, each at its physical size in
+    the top-left corner of an equal cell (the largest picture's size); sample
+    positions are then from the surface's top-left corner.  The state message
+    says ``"composite": {"ids", "cols", "cell_mm"}`` and ``"texture": null``.
 ``{"type": "calibrate", "mm_per_px": F}``
     The calibrated size of a CSS pixel [mm], 0.01 .. 5.
 ``{"type": "profile", "name": NAME}``
@@ -72,7 +81,7 @@ from ..pen import PenRenderer
 from .encode import dumps
 from .rows import sample_error, samples_from_css
 
-__all__ = ["websocket_endpoint", "PenSession", "MAX_BATCH", "MAX_PENDING", "MAX_MESSAGE_CHARS", "IDLE_S"]
+__all__ = ["websocket_endpoint", "PenSession", "MAX_BATCH", "MAX_PENDING", "MAX_MESSAGE_CHARS", "IDLE_S", "MAX_COMPOSITE"]
 
 log = logging.getLogger("tactilize.web")
 
@@ -85,6 +94,10 @@ MAX_MESSAGE_CHARS = 64 * 1024
 #: Silence [s] after which a pen that is down counts as resting (speed 0):
 #: browsers send no pointer events while the pen does not move.
 IDLE_S = 0.08
+#: Pictures on one composite surface, at most.
+MAX_COMPOSITE = 12
+#: Copies of a repeated picture, at most.
+MAX_REPEAT = 64
 #: Period of the wire trace messages [s].
 WIRE_PERIOD_S = 0.05
 #: Bounds on calibration [mm per CSS px]: a CSS pixel is 0.26 mm by definition;
@@ -109,6 +122,10 @@ class PenSession:
         self.state = state
         self.m_per_px = state.m_per_px
         self.texture_id: str | None = None
+        #: (ids, cols, CompositeMap) while a composite surface is shown
+        self.composite: tuple[list[str], int, Any] | None = None
+        #: (cols, rows) of a repeated picture, or None
+        self.repeat: tuple[int, int] | None = None
         self.renderer = PenRenderer(_NoPicture(), state.profile, state.output)
         self.pending: deque[tuple] = deque()
         self.pending_lift = False
@@ -158,7 +175,29 @@ class PenSession:
             return {"type": "pong", "id": msg.get("id"), "server_time_s": time.time()}
         if kind in ("hello", "texture", "calibrate", "profile"):
             return self._settings(kind, msg)
-        raise _Bad(f"unknown message type {kind!r} (known: samples, lift, hello, texture, calibrate, profile, ping)")
+        if kind == "composite":
+            return self._composite(msg)
+        raise _Bad(f"unknown message type {kind!r} (known: samples, lift, hello, texture, composite, calibrate, profile, ping)")
+
+    def _composite(self, msg: dict[str, Any]) -> dict[str, Any]:
+        from ..composite import CompositeMap
+
+        ids, cols = msg.get("ids"), msg.get("cols", 3)
+        if not isinstance(ids, list) or not 1 <= len(ids) <= MAX_COMPOSITE or not all(isinstance(i, str) for i in ids):
+            raise _Bad(f"'composite' needs 'ids': 1 to {MAX_COMPOSITE} texture ids")
+        if isinstance(cols, bool) or not isinstance(cols, int) or not 1 <= cols <= MAX_COMPOSITE:
+            raise _Bad(f"'cols' must be an integer in [1, {MAX_COMPOSITE}]")
+        try:
+            entries = [self.state.texture(i) for i in ids]
+        except KeyError as exc:
+            raise _Bad(f"no texture {exc.args[0]!r}") from None
+        cmap = CompositeMap.of([e.map for e in entries], cols)
+        self.pending.clear()
+        self.texture_id = None
+        self.repeat = None
+        self.composite = (list(ids), cols, cmap)
+        self.renderer.set_texture(cmap)
+        return self.describe("state")
 
     def _samples(self, msg: dict[str, Any]) -> None:
         rows = msg.get("samples")
@@ -170,7 +209,7 @@ class PenSession:
             err = sample_error(row)
             if err is not None:
                 raise _Bad(f"sample {i}: {err}")
-        if self.texture_id is None:
+        if self.texture_id is None and self.composite is None:
             raise _Bad("no texture selected: send {'type': 'texture', 'id': ...} first")
         if not rows:
             return
@@ -198,6 +237,14 @@ class PenSession:
             raise _Bad("'calibrate' needs 'mm_per_px'")
         if kind == "profile" and pname is None:
             raise _Bad("'profile' needs a 'name'")
+        repeat = msg.get("repeat") if kind == "texture" else None
+        if repeat is not None:
+            if (
+                not isinstance(repeat, list) or len(repeat) != 2
+                or not all(isinstance(n, int) and not isinstance(n, bool) and n >= 1 for n in repeat)
+                or repeat[0] * repeat[1] > MAX_REPEAT
+            ):
+                raise _Bad(f"'repeat' must be [cols, rows], positive integers, at most {MAX_REPEAT} copies")
         # Validate everything before changing anything.
         entry = None
         if tid is not None:
@@ -223,8 +270,16 @@ class PenSession:
         # old millimetres, or a drive for the old picture, must not carry over.
         self.pending.clear()
         if entry is not None:
+            self.composite = None
             self.texture_id = entry.id
-            self.renderer.set_texture(entry.map)
+            self.repeat = (repeat[0], repeat[1]) if repeat is not None and repeat != [1, 1] else None
+            if self.repeat is None:
+                self.renderer.set_texture(entry.map)
+            else:
+                from ..composite import CompositeMap
+
+                cols, rows = self.repeat
+                self.renderer.set_texture(CompositeMap.of([entry.map] * (cols * rows), cols))
         if mm is not None:
             self.m_per_px = float(mm) * 1e-3
             self.renderer.lift()
@@ -249,6 +304,11 @@ class PenSession:
             e = self.state.texture(self.texture_id)
             d["texture_width_mm"] = e.width_m * 1e3
             d["texture_height_mm"] = e.height_m * 1e3
+            if self.repeat is not None:
+                d["repeat"] = list(self.repeat)
+        if self.composite is not None:
+            ids, cols, cmap = self.composite
+            d["composite"] = {"ids": ids, "cols": cols, "cell_mm": [cmap.cell_m[0] * 1e3, cmap.cell_m[1] * 1e3]}
         return d
 
     def _wake(self) -> None:

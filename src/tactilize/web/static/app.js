@@ -2,8 +2,10 @@
 // Plain ES modules, no build step.  The server does the tracking and the laws;
 // this page only reports samples and shows (and plays) what comes back.
 
-import { attachPen } from "./pen-input.js";
+import { attachPen, INPUT } from "./pen-input.js";
 import { Plot } from "./plot.js";
+import { LatencyMeter } from "./latency.js";
+import { showSpectrum } from "./spectrum.js";
 import { AudioPulses } from "./audio.js";
 import * as calibration from "./calibrate.js";
 
@@ -14,6 +16,7 @@ const HISTORY = 1000;
 const T = (window.tactilize = {
   ws: null, texture: null, settings: null, lastDrive: null, drives: [], sent: 0, samplesSent: 0, seq: 0, errors: [],
   mmPerPx: calibration.mmPerPx(),
+  inputMode: INPUT, latency: { last: null }, view: "single", six: [], composite: null, wireState: null,
 });
 
 const plot = new Plot($("#plot"), 2);
@@ -22,6 +25,10 @@ let textures = new Map();
 let seq = 0;
 let queue = [];     // messages to send once the socket is open
 let retry = 250;    // reconnect backoff [ms]
+let lastSurfaceMsg = null;  // the texture or composite message the server has
+const meter = new LatencyMeter();
+const SIX_COLS = 3;
+const MAX_REPEAT = 64;
 
 // ------------------------------------------------------------------ socket
 
@@ -39,12 +46,18 @@ function connect() {
     ws.send(JSON.stringify(hello));
     for (const m of queue) ws.send(m);
     queue = [];
+    lastSurfaceMsg = null;
+    applySurface();
   };
   ws.onmessage = (ev) => {
     let msg;
     try { msg = JSON.parse(ev.data); } catch (e) { return; }
     if (msg.type === "drive") onDrive(msg);
-    else if (msg.type === "wire") { plot.addWire(msg.t_s, msg.displacement_um, msg.state); T.wireState = msg.state || null; }
+    else if (msg.type === "wire") {
+      plot.addWire(msg.t_s, msg.displacement_um, msg.state);
+      T.wireState = msg.state || null;
+      $("#wire-state").textContent = T.wireState ? T.wireState.join(" / ") : "–";
+    }
     else if (msg.type === "ready" || msg.type === "state") onSettings(msg);
     else if (msg.type === "error") showError(msg.message);
   };
@@ -75,34 +88,109 @@ function showError(text) {
 
 function onSettings(msg) {
   T.settings = msg;
+  T.composite = msg.composite || null;
   if (msg.profile && $("#profile").value !== msg.profile) $("#profile").value = msg.profile;
   $("#output-name").textContent = msg.output || "";
-  if (msg.texture) showPicture(msg.texture);
 }
 
-function showPicture(id) {
-  const t = textures.get(id);
-  if (!t) return;
-  // The picture at its physical size: millimetres over calibrated mm per CSS px.
-  const w = t.width_mm / T.mmPerPx, h = t.height_mm / T.mmPerPx;
-  const img = $("#picture");
-  if (img.dataset.id !== id) { img.src = t.url; img.dataset.id = id; }
-  img.style.width = `${w}px`; img.style.height = `${h}px`;
-  const trail = $("#trail"), dpr = window.devicePixelRatio || 1;
-  trail.width = Math.round(w * dpr); trail.height = Math.round(h * dpr);
-  trail.style.width = `${w}px`; trail.style.height = `${h}px`;
+// The stroking surface: one picture at its physical size (repeated to fill the
+// stage when "fill the screen" is on), or six side by side (the paper's Fig. 16).
+// Sample positions are from #frame's top-left: the first picture's corner.
+
+function stageSize() {
   const s = $("#surface");
-  s.dataset.texture = id;
-  s.dataset.mmPerPx = String(T.mmPerPx);
-  $("#texture-name").textContent = t.name;
-  $("#texture-size").textContent = ` ${t.width_mm.toFixed(1)} × ${t.height_mm.toFixed(1)} mm`;
-  for (const b of document.querySelectorAll("#gallery button")) b.setAttribute("aria-pressed", String(b.dataset.id === id));
+  const w = s.clientWidth || 600;
+  const top = s.getBoundingClientRect().top + window.scrollY;
+  const figs = $("#figures").getBoundingClientRect().height || 0;
+  const h = Math.max(200, window.innerHeight - top - figs - 24);
+  return [w, h];
+}
+
+function place(img, t, x, y, w, h) {
+  if (img.dataset.id !== t.id) { img.src = t.url; img.dataset.id = t.id; }
+  img.alt = t.name;
+  Object.assign(img.style, { left: `${x}px`, top: `${y}px`, width: `${w}px`, height: `${h}px` });
+}
+
+/** Lay the surface out; returns the message the server needs for it (or null). */
+function layoutSurface() {
+  const mm = T.mmPerPx, tiles = $("#tiles");
+  let cells = [], cols = 1, cw = 0, ch = 0, msg = null;
+  if (T.view === "six") {
+    const list = T.six.map((id) => textures.get(id)).filter(Boolean);
+    if (!list.length) return null;
+    cw = Math.max(...list.map((t) => t.width_mm)) / mm; ch = Math.max(...list.map((t) => t.height_mm)) / mm;
+    cols = SIX_COLS;
+    cells = list.map((t, i) => [t, (i % cols) * cw, Math.floor(i / cols) * ch]);
+    msg = { type: "composite", ids: list.map((t) => t.id), cols };
+    $("#texture-name").textContent = "Six textures side by side";
+    $("#texture-size").textContent = ` ${SIX_COLS} × ${Math.ceil(list.length / SIX_COLS)} cells of ${(cw * mm).toFixed(1)} × ${(ch * mm).toFixed(1)} mm (Fig. 16)`;
+  } else {
+    const t = textures.get(T.texture);
+    if (!t) return null;
+    cw = t.width_mm / mm; ch = t.height_mm / mm;
+    let rows = 1;
+    if ($("#fill").checked) {
+      const [W, H] = stageSize();
+      cols = Math.max(1, Math.floor(W / cw)); rows = Math.max(1, Math.floor(H / ch));
+      while (cols * rows > MAX_REPEAT) rows > 1 ? rows-- : cols--;
+    }
+    for (let r = 0; r < rows; r++) for (let c = 0; c < cols; c++) cells.push([t, c * cw, r * ch]);
+    msg = { type: "texture", id: t.id };
+    if (cols * rows > 1) msg.repeat = [cols, rows];
+    $("#texture-name").textContent = t.name;
+    $("#texture-size").textContent = ` ${t.width_mm.toFixed(1)} × ${t.height_mm.toFixed(1)} mm` + (cols * rows > 1 ? `, repeated ${cols} × ${rows}` : "");
+  }
+  const rows = Math.ceil(cells.length / cols);
+  const W = cols * cw, H = rows * ch;
+  place($("#picture"), cells[0][0], 0, 0, cells[0][0].width_mm / mm, cells[0][0].height_mm / mm);
+  while (tiles.children.length < cells.length - 1) { const im = document.createElement("img"); im.draggable = false; tiles.append(im); }
+  while (tiles.children.length > cells.length - 1) tiles.lastChild.remove();
+  cells.slice(1).forEach(([t, x, y], i) => place(tiles.children[i], t, x, y, t.width_mm / mm, t.height_mm / mm));
+  const frame = $("#frame"), trail = $("#trail"), dpr = window.devicePixelRatio || 1;
+  frame.style.width = `${W}px`; frame.style.height = `${H}px`;
+  trail.width = Math.round(W * dpr); trail.height = Math.round(H * dpr);
+  trail.style.width = `${W}px`; trail.style.height = `${H}px`;
+  const s = $("#surface");
+  s.dataset.view = T.view;
+  s.dataset.texture = T.view === "six" ? "" : T.texture;
+  s.dataset.mmPerPx = String(mm);
+  T.cell = { w: cw, h: ch, cols, ids: cells.map((c) => c[0].id) };
+  for (const b of document.querySelectorAll("#gallery button")) {
+    b.setAttribute("aria-pressed", String(T.view === "six" ? T.six.includes(b.dataset.id) : b.dataset.id === T.texture));
+  }
+  return msg;
+}
+
+/** Lay out and tell the server, unless it already has this surface. */
+function applySurface() {
+  const msg = layoutSurface();
+  if (!msg) return;
+  const text = JSON.stringify(msg);
+  if (text !== lastSurfaceMsg && T.ws && T.ws.readyState === WebSocket.OPEN) { lastSurfaceMsg = text; send(msg); }
+  spectrumFor(T.view === "six" ? T.six[0] : T.texture);
+}
+
+function spectrumFor(id) {
+  const t = textures.get(id);
+  if (!t || $("#spectrum-figure").dataset.id === id) return;
+  showSpectrum(t).catch((e) => showError(e.message));
 }
 
 function selectTexture(id) {
-  T.texture = id;
-  showPicture(id);
-  send({ type: "texture", id });
+  if (T.view === "six") {
+    // Put it in the next slot (cycling), so built-ins and uploads can be mixed.
+    if (!T.six.includes(id)) { T.six[T.sixNext % T.six.length] = id; T.sixNext++; }
+  } else {
+    T.texture = id;
+  }
+  applySurface();
+}
+
+function setView(view) {
+  T.view = view;
+  $("#gallery-hint").textContent = view === "six" ? "Click a texture to put it in the next of the six places." : "Pick the picture to stroke.";
+  applySurface();
 }
 
 function calibrationNote() {
@@ -129,22 +217,31 @@ function showDrive(msg) {
   $("#drive-direction").textContent = msg && msg.direction_deg !== null && msg.direction_deg !== undefined ? msg.direction_deg.toFixed(0) : "–";
   $("#texture-fs").textContent = msg && msg.spatial_frequency_per_m !== null ? (msg.spatial_frequency_per_m / 1e3).toFixed(3) : "–";
   $("#texture-is").textContent = msg && msg.spectral_intensity !== null ? msg.spectral_intensity.toFixed(3) : "–";
-  const on = !!(msg && msg.on);
+  const on = (shownOn = !!(msg && msg.on));
   $("#surface").dataset.state = on ? "on" : "off";
   plot.setDrives(chans.length ? chans : [{}, {}]);
   audio.setDrives(chans.length ? chans : [{}, {}]);
 }
 
 function onDrive(msg) {
+  if (!msg.resting && typeof msg.seq === "number") meter.drive(msg.seq);
   T.lastDrive = msg;
   T.drives.push(msg);
   if (T.drives.length > HISTORY) T.drives.splice(0, T.drives.length - HISTORY);
-  showDrive(msg);
+  const chans = msg.channels && msg.channels.length ? msg.channels : [{}, {}];
+  audio.setDrives(chans);  // the sound follows at once
+  // The readouts of a moving pen change once a frame, not once a batch: the main
+  // thread stays free for the next raw update.  A stop shows at once.
+  if (!msg.on || !shownOn) { cancelAnimationFrame(showFrame); showFrame = 0; showDrive(msg); return; }
+  if (!showFrame) showFrame = requestAnimationFrame(() => { showFrame = 0; showDrive(T.lastDrive); });
 }
+let showFrame = 0;
+let shownOn = false;
 
 // ------------------------------------------------------------------ trail
 
 let last = null;
+let trailRows = [], trailFrame = 0;  // samples waiting for the next frame's drawing
 function drawTrail(rows, fresh) {
   const c = $("#trail"), ctx = c.getContext("2d"), dpr = window.devicePixelRatio || 1;
   if (fresh) { ctx.clearRect(0, 0, c.width, c.height); last = null; }
@@ -197,14 +294,25 @@ async function setup() {
   list.forEach(addToGallery);
   calibrationNote();
 
-  attachPen($("#surface"), $("#picture"), {
-    onDown: () => drawTrail([], true),
+  attachPen($("#surface"), $("#frame"), {
+    onDown: (ev) => {
+      trailRows = [];
+      drawTrail([], true);
+      // Six side by side: Fig. 5 follows the picture the stroke starts on.
+      if (T.view === "six" && T.cell) {
+        const r = $("#frame").getBoundingClientRect();
+        const i = Math.floor((ev.clientY - r.top) / T.cell.h) * T.cell.cols + Math.floor((ev.clientX - r.left) / T.cell.w);
+        if (i >= 0 && i < T.cell.ids.length) spectrumFor(T.cell.ids[i]);
+      }
+    },
     onBatch: (rows) => {
-      if (!T.texture) return;
+      if (!T.texture && T.view !== "six") return;
       T.seq = ++seq;
       T.samplesSent += rows.length;
       send({ type: "samples", seq, samples: rows });
-      drawTrail(rows, false);
+      meter.sent(seq, rows[rows.length - 1][0]);
+      trailRows.push(...rows);
+      if (!trailFrame) trailFrame = requestAnimationFrame(() => { trailFrame = 0; drawTrail(trailRows.splice(0), false); });
     },
     onLift: () => {
       audio.setDrives([{}, {}]);  // silence now, not after the round trip
@@ -217,8 +325,8 @@ async function setup() {
   calibration.setupDialog($("#calibration"), $("#calibrate"), (mm) => {
     T.mmPerPx = mm;
     calibrationNote();
-    if (T.texture) showPicture(T.texture);
     send({ type: "calibrate", mm_per_px: mm });
+    applySurface();
   });
 
   $("#audio-toggle").addEventListener("click", async () => {
@@ -251,8 +359,21 @@ async function setup() {
     } catch (e) { status.textContent = `upload failed: ${e.message}`; status.className = "bad"; }
   });
 
+  $("#input-mode").textContent = INPUT;
+  setInterval(() => {
+    const st = (T.latency.last = meter.stats());
+    $("#latency-p50").textContent = st ? st.p50.toFixed(1) : "–";
+    $("#latency-p99").textContent = st ? st.p99.toFixed(1) : "–";
+  }, 250);
+  for (const r of document.querySelectorAll('input[name="view"]')) r.addEventListener("change", () => r.checked && setView(r.value));
+  $("#fill").addEventListener("change", applySurface);
+  let resizeTimer = null;
+  window.addEventListener("resize", () => { clearTimeout(resizeTimer); resizeTimer = setTimeout(applySurface, 150); });
+  T.six = list.filter((t) => t.builtin).slice(0, 6).map((t) => t.id);
+  T.sixNext = 0;
+  if (list.length) T.texture = list[0].id;
   connect();
-  if (list.length) selectTexture(list[0].id);
+  applySurface();
   document.body.dataset.ready = "true";
 }
 

@@ -1,0 +1,201 @@
+"""Event-to-drive latency in the real page: headless Chromium, trusted pen events.
+
+Starts ``tactilize serve`` and a bare WebSocket echo server (the reference of
+``bench_web.py``) on free loopback ports, opens the page in headless Chromium,
+and strokes the picture with trusted pen events (Chrome DevTools Protocol
+``Input.dispatchMouseEvent`` with ``pointerType: "pen"``, one event every
+4 ms, i.e. a 250 Hz pen).  It prints, from one run:
+
+1. event-to-drive latency in the page: for each pen batch the page sends, the
+   time from its last sample's own ``timeStamp`` to the drive covering it
+   arriving back in the page (p50, p99, max) [ms].  Measured by a script
+   injected before the page's own (it wraps ``WebSocket``), so the same
+   measurement works on any version of the page;
+2. what the page's own live readout says (when the page has one);
+3. the server-side latency of the same batches (arrival -> drive sent, from
+   ``/api/stats``) [us];
+4. the bare-echo reference: the page's round trip to an echo WebSocket on the
+   same stack (Starlette on uvicorn), paced like a pen [ms].
+
+Goal (docs/references.md, section 9 (simultaneity)): p99 under 5 ms on loopback.
+
+Usage::
+
+    python bench/bench_page.py                 # a warm-up stroke, then 4 strokes of 1.5 s
+    python bench/bench_page.py --strokes 8 --json
+
+No assertion on wall-clock time: figures are printed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import httpx
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_web import pct, start, stop  # noqa: E402
+
+CHROMIUM = os.environ.get("TACTILIZE_CHROMIUM", "/usr/bin/chromium")
+CHROMIUM_ARGS = ["--headless=new", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync", "--no-first-run"]
+
+# Runs before the page's scripts: remembers the newest sample timestamp of each
+# batch sent, and when a drive comes back, the delay of every batch it covers.
+INSTRUMENT = r"""
+(() => {
+  const lat = (window.__benchLatency = { pending: [], values: [], batches: 0, rows: 0 });
+  const Native = window.WebSocket;
+  const send = Native.prototype.send;
+  Native.prototype.send = function (data) {
+    if (typeof data === "string" && data.includes('"samples"')) {
+      try {
+        const m = JSON.parse(data);
+        if (m.type === "samples" && m.samples.length) {
+          lat.pending.push([m.seq, m.samples[m.samples.length - 1][0]]);
+          lat.batches++; lat.rows += m.samples.length;
+        }
+      } catch (e) { /* not ours */ }
+    }
+    return send.call(this, data);
+  };
+  window.WebSocket = class extends Native {
+    constructor(...args) {
+      super(...args);
+      this.addEventListener("message", (ev) => {
+        const now = performance.now();
+        let m; try { m = JSON.parse(ev.data); } catch (e) { return; }
+        if (m.type !== "drive" || m.resting || typeof m.seq !== "number") return;
+        while (lat.pending.length && lat.pending[0][0] <= m.seq) lat.values.push(now - lat.pending.shift()[1]);
+      });
+    }
+  };
+})();
+"""
+
+ECHO_IN_PAGE = """async ([url, n]) => {
+  const ws = new WebSocket(url);
+  await new Promise((ok, bad) => { ws.onopen = ok; ws.onerror = bad; });
+  const rtt = [];
+  const body = JSON.stringify({type: "samples", seq: 0, samples: [[0, 10, 10, 0.5, 0, 0]]});
+  for (let i = 0; i < n; i++) {
+    const t = performance.now();
+    await new Promise((ok) => { ws.onmessage = ok; ws.send(body); });
+    rtt.push(performance.now() - t);
+    await new Promise((ok) => setTimeout(ok, 4));
+  }
+  ws.close();
+  return rtt;
+}"""
+
+
+def stroke(cdp, x0, y0, v_px_s, seconds, interval_s=0.004):
+    """One stroke to the right at v_px_s [CSS px/s]; returns the moves sent."""
+
+    def ev(kind, x, buttons):
+        cdp.send("Input.dispatchMouseEvent", {"type": kind, "x": x, "y": y0, "button": "left", "buttons": buttons,
+                                              "clickCount": 0 if kind == "mouseMoved" else 1, "pointerType": "pen",
+                                              "force": 0.5 if buttons else 0.0, "tiltX": 10, "tiltY": -5})
+
+    ev("mousePressed", x0, 1)
+    t0 = time.perf_counter()
+    n = 0
+    x = x0
+    while (t := time.perf_counter() - t0) < seconds:
+        x = x0 + v_px_s * t
+        ev("mouseMoved", x, 1)
+        n += 1
+        time.sleep(interval_s)
+    ev("mouseReleased", x, 0)
+    return n
+
+
+def run(strokes: int, seconds: float, echo_n: int) -> dict:
+    from playwright.sync_api import sync_playwright
+
+    server, port = start([sys.executable, "-m", "tactilize.cli", "serve", "--no-open", "--port", "0"])
+    echo, echo_port = start([sys.executable, os.path.join(os.path.dirname(os.path.abspath(__file__)), "bench_web.py"), "--serve-echo"])
+    base = f"http://127.0.0.1:{port}/"
+    try:
+        httpx.get(base + "api/textures", timeout=60)
+        with sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+            page = browser.new_page(viewport={"width": 1280, "height": 800})
+            page.add_init_script(INSTRUMENT)
+            page.goto(base)
+            page.wait_for_selector("body[data-ready=true]", timeout=30_000)
+            page.wait_for_function("window.tactilize.settings && window.tactilize.settings.texture", timeout=30_000)
+            page.evaluate("window.tactilize.texture !== 'corduroy' && document.querySelector('[data-testid=texture][data-id=corduroy]').click()")
+            page.wait_for_function("window.tactilize.settings.texture === 'corduroy'")
+            box = page.locator("#picture").bounding_box()
+            cdp = page.context.new_cdp_session(page)
+            # One stroke not counted: the page's first drives pay for compiling and first paints.
+            stroke(cdp, box["x"] + 10, box["y"] + 20, 20 / (25.4 / 96), 0.5)
+            time.sleep(0.3)
+            page.evaluate("window.__benchLatency.values = []; window.__benchLatency.batches = 0; window.__benchLatency.rows = 0")
+            stats0 = httpx.get(base + "api/stats").json()
+            moves = 0
+            mode = None
+            readouts = []
+            for k in range(strokes):
+                # 20 mm/s across the picture (at 1/96 inch per CSS px), then a pause.
+                moves += stroke(cdp, box["x"] + 10, box["y"] + 30 + 12 * k, 20 / (25.4 / 96), seconds)
+                readouts.append(page.evaluate("window.tactilize.latency ? window.tactilize.latency.last : null"))
+                time.sleep(0.3)
+            page.wait_for_timeout(300)
+            lat = page.evaluate("({values: window.__benchLatency.values, batches: window.__benchLatency.batches, rows: window.__benchLatency.rows})")
+            mode = page.evaluate("window.tactilize.inputMode || 'pointermove'")
+            stats = httpx.get(base + "api/stats", params={"last": lat["batches"]}).json()
+            echo_rtt = page.evaluate(ECHO_IN_PAGE, [f"ws://127.0.0.1:{echo_port}/ws", echo_n])
+            browser.close()
+    finally:
+        stop(server)
+        stop(echo)
+    v = lat["values"]
+    c0, c1 = stats0["counters"], stats["counters"]
+    return {
+        "load_average_1min": os.getloadavg()[0],
+        "cpu_count": os.cpu_count(),
+        "input": mode,
+        "pen_events": moves,
+        "batches_sent": lat["batches"],
+        "samples_sent": lat["rows"],
+        "samples_received_by_server": c1.get("samples_received", 0) - c0.get("samples_received", 0),
+        "event_to_drive_ms": {"n": len(v), "p50": pct(v, 50), "p99": pct(v, 99), "max": max(v) if v else None},
+        "page_readout_ms": readouts,
+        "server_latency_us": stats["server_latency_us"],
+        "echo_in_page_ms": {"p50": pct(echo_rtt, 50), "p99": pct(echo_rtt, 99), "max": max(echo_rtt)},
+    }
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--strokes", type=int, default=4, help="pen strokes")
+    ap.add_argument("--seconds", type=float, default=1.5, help="length of each stroke [s]")
+    ap.add_argument("--echo", type=int, default=500, help="round trips to the bare echo from the page")
+    ap.add_argument("--json", action="store_true", help="print one JSON document")
+    args = ap.parse_args(argv)
+    doc = run(args.strokes, args.seconds, args.echo)
+    if args.json:
+        print(json.dumps(doc, indent=2))
+        return
+    e, s, r = doc["event_to_drive_ms"], doc["server_latency_us"], doc["echo_in_page_ms"]
+    print(f"machine: {doc['cpu_count']} CPUs, load average {doc['load_average_1min']:.2f}")
+    print(f"page input: {doc['input']}; {doc['pen_events']} pen events -> {doc['samples_sent']} samples in "
+          f"{doc['batches_sent']} batches; the server received {doc['samples_received_by_server']} samples")
+    print(f"event -> drive in the page ({e['n']} batches): p50 {e['p50']:.2f} ms   p99 {e['p99']:.2f} ms   "
+          f"max {e['max']:.2f} ms   (goal p99 < 5 ms)")
+    shown = [x for x in doc["page_readout_ms"] if x]
+    if shown:
+        print("  the page's own readout after each stroke (last second): "
+              + ", ".join(f"p50 {x['p50']:.1f} / p99 {x['p99']:.1f} ms" for x in shown))
+    print(f"server side, same batches (arrival -> drive sent): p50 {s['p50']:.0f} us   p99 {s['p99']:.0f} us   max {s['max']:.0f} us")
+    print(f"bare echo from the page (reference, same stack): p50 {r['p50']:.2f} ms   p99 {r['p99']:.2f} ms   max {r['max']:.2f} ms")
+
+
+if __name__ == "__main__":
+    main()
