@@ -218,9 +218,13 @@ def _reflect(v: float, lo: float, hi: float) -> float:
     return lo + (u if u <= span else 2 * span - u)
 
 
+def _same_drive(drive: Any, n: int, state: Any) -> list[Any]:
+    return [drive] * n
+
+
 def run_stroke(stroke: Stroke, texture_map: Any, profile: Any, output: Any = "simulated", *,
                frame_s: float = FRAME_S, start_s: float | None = None, end_s: float | None = None,
-               **meta: Any) -> DriveTimeline:
+               meta: dict[str, Any] | None = None) -> DriveTimeline:
     """Render ``stroke`` on ``texture_map`` as the pen server does; the drive per frame.
 
     Parameters
@@ -240,6 +244,8 @@ def run_stroke(stroke: Stroke, texture_map: Any, profile: Any, output: Any = "si
     end_s : float, optional
         Length of the result [s] from ``start_s``; by default one frame after
         the last sample.
+    meta : dict, optional
+        Kept in the result (image, profile...) for the documents.
     """
     from ..pen import _Recorder
 
@@ -250,7 +256,9 @@ def run_stroke(stroke: Stroke, texture_map: Any, profile: Any, output: Any = "si
         output, owned = SimulatedOutput(start=False, trace_seconds=0.5, trace_rate_hz=1000.0), True
     elif output is None:
         output = _Recorder()
-    renderer = PenRenderer(texture_map, profile, output, resend_rel=0.0)
+    # Both channels get the profile's drive, as on the SMA wire (the phantom
+    # split of audio outputs would leave one channel of a phone file silent).
+    renderer = PenRenderer(texture_map, profile, output, resend_rel=0.0, splitter=_same_drive)
     samples = stroke.samples()
     t0 = samples[0].t_s
     origin = t0 if start_s is None else start_s
@@ -261,7 +269,7 @@ def run_stroke(stroke: Stroke, texture_map: Any, profile: Any, output: Any = "si
         clock = t0
         while i < n:
             frame_end = t0 + (math.floor((samples[i].t_s - t0) / frame_s) + 1) * frame_s
-            j = i
+            j = i + 1  # at least one sample, whatever the rounding of frame_end
             while j < n and samples[j].t_s < frame_end:
                 j += 1
             t = samples[j - 1].t_s
@@ -295,5 +303,5 @@ def run_stroke(stroke: Stroke, texture_map: Any, profile: Any, output: Any = "si
         tuple(r[0] for r in kept), end,
         tuple(r[1] for r in kept), tuple(r[2] for r in kept),
         tuple(r[3] for r in kept), tuple(r[4] for r in kept), tuple(r[5] for r in kept),
-        {"samples": len(stroke), "source": stroke.source, **meta},
+        {"samples": len(stroke), "source": stroke.source, **(meta or {})},
     )
