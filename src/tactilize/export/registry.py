@@ -62,7 +62,7 @@ def drive_log_csv(tl: DriveTimeline, kind: str = "profile") -> bytes:
     w = csv.writer(buf)
     w.writerow(list(rows[0]))
     for r in rows:
-        w.writerow([v if isinstance(v, str) else f"{v:.9g}" for v in r.values()])
+        w.writerow(["" if v is None else v if isinstance(v, str) else f"{v:.9g}" for v in r.values()])
     return buf.getvalue().encode("utf-8")
 
 

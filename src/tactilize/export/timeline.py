@@ -247,6 +247,7 @@ class DriveTimeline:
                 r[f"ch{c}_pulse_frequency_hz"] = d.pulse_frequency_hz
                 r[f"ch{c}_pulse_width_s"] = d.pulse_width_s
                 r[f"ch{c}_amplitude"] = d.amplitude
+                r[f"ch{c}_strength"] = d.strength
                 r[f"ch{c}_clamped"] = " ".join(d.clamped)
             out.append(r)
         return out
