@@ -6,6 +6,7 @@ import { attachPen } from "./pen-input.js";
 import { Plot } from "./plot.js";
 import { AudioPulses } from "./audio.js";
 import * as calibration from "./calibrate.js";
+import * as strokeExport from "./stroke-export.js";
 
 const $ = (sel) => document.querySelector(sel);
 const HISTORY = 1000;
@@ -198,9 +199,14 @@ async function setup() {
   calibrationNote();
 
   attachPen($("#surface"), $("#picture"), {
-    onDown: () => drawTrail([], true),
+    onDown: () => {
+      drawTrail([], true);
+      const t = textures.get(T.texture);
+      if (t) strokeExport.beginStroke(T.texture, T.mmPerPx, t.width_mm, t.height_mm);
+    },
     onBatch: (rows) => {
       if (!T.texture) return;
+      strokeExport.addSamples(rows);
       T.seq = ++seq;
       T.samplesSent += rows.length;
       send({ type: "samples", seq, samples: rows });
@@ -250,6 +256,9 @@ async function setup() {
       selectTexture(body.id);
     } catch (e) { status.textContent = `upload failed: ${e.message}`; status.className = "bad"; }
   });
+
+  strokeExport.setupStrokeExport($("#stroke-export"), () => $("#profile").value);
+  T.lastStroke = strokeExport.lastStroke;
 
   connect();
   if (list.length) selectTexture(list[0].id);
