@@ -368,3 +368,15 @@ def test_cli_exports_a_recorded_stroke(tmp_path, tmap):
 def test_steady_timeline_is_refused_when_malformed():
     with pytest.raises(Exception):
         DriveTimeline.steady(Drive(100.0, 1e-3), float("nan"))
+
+
+def test_a_synthetic_stroke_longer_than_the_picture_stays_steady(tmap):
+    from tactilize.export import synthetic_stroke
+
+    # 3 s at 60 mm/s is 180 mm on a 152 mm picture, diagonally: it crosses edges
+    s = synthetic_stroke(tmap.width_m, tmap.height_m, 0.060, 3.0, direction_deg=30.0)
+    tl = run_stroke(s, tmap, Profile.preset("paper"), start_s=0.0, end_s=3.0, mirror=True)
+    assert tl.end_s == 3.0 and tl.t_s[0] == 0.0
+    assert np.allclose(tl.speed_m_s, 0.060, rtol=0.01)
+    assert all(not d.is_off for d in tl.drives())
+    assert max(tl.x_m) > tmap.width_m or min(tl.y_m) < 0  # it did run past an edge

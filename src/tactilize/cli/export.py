@@ -40,7 +40,7 @@ def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
         speed = check_finite(opt["speed_mm_s"], "--speed", minimum=0.0, unit="mm/s")
         stroke = synthetic_stroke(tmap.width_m, tmap.height_m, speed * 1e-3, duration, direction)
         extra.update(speed_mm_s=speed, direction_deg=direction)
-        tl = run_stroke(stroke, tmap, profile, start_s=0.0, end_s=duration, meta=dict(extra))
+        tl = run_stroke(stroke, tmap, profile, start_s=0.0, end_s=duration, meta=dict(extra), mirror=True)
     limits = profile.limits.to_dict()
     tl.meta.setdefault("min_frequency_hz", limits.get("min_frequency_hz", 0.0))
     tl.meta.setdefault("max_frequency_hz", limits.get("max_frequency_hz", 300.0))

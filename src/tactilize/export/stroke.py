@@ -187,27 +187,23 @@ def stroke_json(stroke: Stroke) -> bytes:
 
 def synthetic_stroke(width_m: float, height_m: float, speed_m_s: float, duration_s: float,
                      direction_deg: float = 0.0, rate_hz: float = SYNTHETIC_RATE_HZ) -> Stroke:
-    """A straight stroke through the picture's centre at a steady speed.
+    """A straight stroke from the picture's centre at a steady speed.
 
     It starts :data:`PREROLL_S` early (negative times; :func:`run_stroke` drops
-    them) and, where it would leave the picture, turns back at the edge as a
-    hand stroking to and fro does (reflected, a 0.5 mm margin kept).  Direction
+    them).  The line is not folded: it may run past the picture's edges, and
+    :func:`run_stroke` with ``mirror=True`` shows it the picture mirrored
+    beyond them, so the speed stays steady however long the stroke (a stroke
+    turned back at the edge would slow to a stop at every turn).  Direction
     [deg] counter-clockwise from +x with y up, as everywhere in tactilize.
     """
     a = math.radians(direction_deg)
     ux, uy = math.cos(a), -math.sin(a)  # y down on the picture
-    margin = min(0.5e-3, 0.25 * width_m, 0.25 * height_m)
-    lo_x, hi_x, lo_y, hi_y = margin, width_m - margin, margin, height_m - margin
     cx, cy = width_m / 2, height_m / 2
     n = int(math.floor((duration_s + PREROLL_S) * rate_hz)) + 2
-    ts, xs, ys = [], [], []
-    for k in range(n):
-        t = -PREROLL_S + k / rate_hz
-        s = speed_m_s * (t + PREROLL_S)
-        xs.append(_reflect(cx + ux * s, lo_x, hi_x))
-        ys.append(_reflect(cy + uy * s, lo_y, hi_y))
-        ts.append(t)
-    return Stroke(tuple(ts), tuple(xs), tuple(ys), (None,) * n, "<synthetic stroke>")
+    ts = tuple(-PREROLL_S + k / rate_hz for k in range(n))
+    xs = tuple(cx + ux * speed_m_s * k / rate_hz for k in range(n))
+    ys = tuple(cy + uy * speed_m_s * k / rate_hz for k in range(n))
+    return Stroke(ts, xs, ys, (None,) * n, "<synthetic stroke>")
 
 
 def _reflect(v: float, lo: float, hi: float) -> float:
@@ -218,13 +214,25 @@ def _reflect(v: float, lo: float, hi: float) -> float:
     return lo + (u if u <= span else 2 * span - u)
 
 
+class _Mirrored:
+    """A texture map continued beyond its edges by mirror images of itself."""
+
+    def __init__(self, tmap: Any) -> None:
+        self.tmap = tmap
+        # just inside the edges: lookup() takes [0, width)
+        self.w, self.h = tmap.width_m * (1 - 1e-9), tmap.height_m * (1 - 1e-9)
+
+    def lookup(self, x_m: float, y_m: float) -> Any:
+        return self.tmap.lookup(_reflect(x_m, 0.0, self.w), _reflect(y_m, 0.0, self.h))
+
+
 def _same_drive(drive: Any, n: int, state: Any) -> list[Any]:
     return [drive] * n
 
 
 def run_stroke(stroke: Stroke, texture_map: Any, profile: Any, output: Any = "simulated", *,
                frame_s: float = FRAME_S, start_s: float | None = None, end_s: float | None = None,
-               meta: dict[str, Any] | None = None) -> DriveTimeline:
+               meta: dict[str, Any] | None = None, mirror: bool = False) -> DriveTimeline:
     """Render ``stroke`` on ``texture_map`` as the pen server does; the drive per frame.
 
     Parameters
@@ -246,6 +254,9 @@ def run_stroke(stroke: Stroke, texture_map: Any, profile: Any, output: Any = "si
         the last sample.
     meta : dict, optional
         Kept in the result (image, profile...) for the documents.
+    mirror : bool
+        Continue the picture beyond its edges with mirror images (for a
+        synthetic stroke longer than the picture).
     """
     from ..pen import _Recorder
 
@@ -258,7 +269,8 @@ def run_stroke(stroke: Stroke, texture_map: Any, profile: Any, output: Any = "si
         output = _Recorder()
     # Both channels get the profile's drive, as on the SMA wire (the phantom
     # split of audio outputs would leave one channel of a phone file silent).
-    renderer = PenRenderer(texture_map, profile, output, resend_rel=0.0, splitter=_same_drive)
+    renderer = PenRenderer(_Mirrored(texture_map) if mirror else texture_map, profile, output, resend_rel=0.0,
+                           splitter=_same_drive)
     samples = stroke.samples()
     t0 = samples[0].t_s
     origin = t0 if start_s is None else start_s
