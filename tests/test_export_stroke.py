@@ -366,8 +366,12 @@ def test_cli_exports_a_recorded_stroke(tmp_path, tmap):
 
 
 def test_steady_timeline_is_refused_when_malformed():
-    with pytest.raises(Exception):
+    from tactilize.errors import SignalError
+
+    with pytest.raises(SignalError, match="finite"):
         DriveTimeline.steady(Drive(100.0, 1e-3), float("nan"))
+    with pytest.raises(SignalError, match="increase"):
+        DriveTimeline((0.0, 0.0), 1.0, ((Drive.off(),),) * 2, ((Drive.off(),),) * 2, (0.0,) * 2, (0.0,) * 2, (0.0,) * 2)
 
 
 def test_a_synthetic_stroke_longer_than_the_picture_stays_steady(tmap):
@@ -380,3 +384,23 @@ def test_a_synthetic_stroke_longer_than_the_picture_stays_steady(tmap):
     assert np.allclose(tl.speed_m_s, 0.060, rtol=0.01)
     assert all(not d.is_off for d in tl.drives())
     assert max(tl.x_m) > tmap.width_m or min(tl.y_m) < 0  # it did run past an edge
+
+
+def test_ahap_of_a_long_sweep_splits_events_and_curves_and_reads_back():
+    # 70 s of drive rising 80 -> 280 Hz in half-second steps: three events, many curves
+    t = tuple(0.5 * k for k in range(140))
+    drives = tuple((Drive(80.0 + 200.0 * k / 139, 0.3e-3, 0.5 + 0.5 * k / 139),) for k in range(140))
+    nan = (float("nan"),) * 140
+    tl = DriveTimeline(t, 70.0, drives, drives, (0.0,) * 140, nan, nan)
+    doc = ahap_document(tl)
+    events, curves = _ahap_parts(doc)
+    assert [e["EventDuration"] for e in events] == [30.0, 30.0, 10.0]
+    assert all(len(c["ParameterCurveControlPoints"]) <= AHAP_MAX_CURVE_POINTS for c in curves)
+    for c in curves:  # every curve lies inside one event
+        start = c["Time"]
+        end = start + c["ParameterCurveControlPoints"][-1]["Time"]
+        assert any(e["Time"] - 1e-6 <= start and end <= e["Time"] + e["EventDuration"] + 1e-6 for e in events)
+    track = read_ahap(doc)
+    assert all(_close_to_drive(tl, p) for p in track.points)
+    f = [p.frequency_hz for p in track.points]
+    assert np.all(np.diff(f) >= -0.01 * np.asarray(f[1:])) and f[-1] > 3 * f[0]

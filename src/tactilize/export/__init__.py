@@ -27,7 +27,6 @@ References
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 from ..drive import Drive
 from .ahap import AHAP_MAX_CURVE_POINTS, AHAP_MAX_EVENT_S, ahap_document, ahap_pattern
