@@ -288,8 +288,13 @@ def test_wav_of_the_stroke_is_48k_two_channels(timeline, tmp_path):
         assert w.getframerate() == 48_000 and w.getnchannels() == 2
         assert w.getnframes() == round(timeline.end_s * 48_000)
         x = np.frombuffer(w.readframes(w.getnframes()), dtype="<i2").reshape(-1, 2)
-    rises = np.count_nonzero(np.diff((x[:, 0] > 0).astype(int)) == 1) + int(x[0, 0] > 0)
+    edges = np.flatnonzero(np.diff((x[:, 0] > 0).astype(int)) == 1) + 1
+    rises = edges.size + int(x[0, 0] > 0)
     assert rises == len(timeline.pulses())
+    # the WAV carries frequency in its pulse spacing: it rises with the speed
+    rate = 48_000 / np.diff(edges)
+    assert np.mean(rate[-5:]) > 2 * np.mean(rate[:5])
+    assert np.all(np.diff(rate) > -0.05 * rate[1:])  # within a sample of rounding
 
 
 def test_drive_log_has_one_row_per_drive_change(timeline):
