@@ -185,3 +185,19 @@ def test_exports_are_those_of_the_export_module(client, shop, tmp_path):
     assert android["timings_ms"] == reference["timings_ms"] and android["amplitudes"] == reference["amplitudes"]
     wav = client.get(f"{base}/wav", params={**q, "sample_rate_hz": 8000}).content
     assert wav == export_wav(drv, tmp_path / "d.wav", 0.3, 8000).read_bytes()
+
+
+def test_any_registry_format_is_served(client):
+    from tactilize.export import read_haptic, read_hjif
+
+    base = "/api/catalog/products/shirts/denim.png/export"
+    r = client.get(f"{base}/hjif", params={"speed_mm_s": 60, "duration_s": 0.5})
+    assert r.status_code == 200 and ".hjif" in r.headers["content-disposition"]
+    drive = client.get("/api/catalog/products/shirts/denim.png/drive", params={"speed_mm_s": 60}).json()
+    track = read_hjif(r.content)
+    f = [p.frequency_hz for p in track.points] + [p.frequency_hz for p in track.taps]
+    assert f and all(x == pytest.approx(drive["pulse_frequency_hz"], rel=0.01) for x in f)
+    r = client.get(f"{base}/haptic", params={"duration_s": 0.5})
+    assert r.status_code == 200 and (read_haptic(r.content).points or read_haptic(r.content).taps)
+    r = client.get(f"{base}/mp3")
+    assert r.status_code == 404 and "unknown export format" in r.json()["error"]

@@ -96,7 +96,7 @@ def test_envelope_json_and_plot(tmp_path):
     assert out.exists()
 
 
-@pytest.mark.parametrize("fmt", ["wav", "csv", "json", "ahap", "android"])
+@pytest.mark.parametrize("fmt", ["wav", "csv", "json", "log", "ahap", "android", "hjif", "haptic"])
 def test_export_each_format(grating_png, tmp_path, fmt):
     out = tmp_path / f"out.{fmt}"
     res = run("export", str(grating_png), "--speed", "60", "--format", fmt, "--duration", "0.5", "-o", str(out), "--json")
@@ -106,12 +106,22 @@ def test_export_each_format(grating_png, tmp_path, fmt):
     assert doc["spatial_frequency_per_m"] == pytest.approx(1000, rel=0.02)
     if fmt == "wav":
         with wave.open(str(out)) as w:
-            assert w.getframerate() == 48_000 and w.getnframes() == 24_000
+            assert w.getframerate() == 48_000 and w.getnframes() == 24_000 and w.getnchannels() == 2
     elif fmt == "csv":
-        assert out.read_text().splitlines()[0] == "time_s,channel_0"
+        assert out.read_text().splitlines()[0] == "time_s,channel_0,channel_1"
+    elif fmt == "log":
+        assert out.read_text().splitlines()[0].startswith("t_s,speed_m_s,x_m,y_m,ch0_pulse_frequency_hz")
     elif fmt == "json":
         saved = json.loads(out.read_text())
-        assert saved["channels"][0]["pulse_frequency_hz"] == pytest.approx(doc["pulse_frequency_hz"])
+        # a synthetic stroke is a stroke: the drive log, its first row the drive at t = 0
+        assert saved["rows"][0]["ch0_pulse_frequency_hz"] == pytest.approx(doc["pulse_frequency_hz"])
+        assert saved["rows"][0]["speed_m_s"] == pytest.approx(0.060, rel=0.05)
+    elif fmt == "hjif":
+        saved = json.loads(out.read_text())
+        assert saved["timescale"] == 1000 and len(saved["perceptions"][0]["channels"]) == 2
+    elif fmt == "haptic":
+        saved = json.loads(out.read_text())
+        assert saved["signals"]["continuous"]["envelopes"]["frequency"]
     elif fmt == "ahap":
         saved = json.loads(out.read_text())
         assert "Version" in saved and "Pattern" in saved

@@ -13,6 +13,7 @@ Routes (prefix ``/api/catalog``)
 ``GET  /api/catalog/products/{id}/export/ahap``          Apple Core Haptics pattern (JSON)
 ``GET  /api/catalog/products/{id}/export/android``       Android VibrationEffect waveform (JSON)
 ``GET  /api/catalog/products/{id}/export/wav``           the pulse train as 16-bit PCM WAV
+``GET  /api/catalog/products/{id}/export/{format}``      any other format of the export registry (hjif, haptic, ...)
 
 Ids may contain ``/`` (a folder catalog's ids are relative paths).  A product
 whose image could not be analysed has a profile with ``status == "error"`` and
@@ -243,6 +244,18 @@ def catalog_router(catalog: Catalog | str | os.PathLike, *, prefix: str = PREFIX
         sample_rate_hz: int = Query(48_000, ge=8_000, le=192_000, description="Samples per second [Hz]."),
     ) -> Any:
         return _export_response(cat.drive(ok_row(product_id), speed_mm_s * 1e-3), "wav", product_id, duration_s, sample_rate_hz)
+
+    @r.get(
+        "/products/{product_id:path}/export/{fmt}",
+        responses={200: {"description": "The file, in a format of tactilize.export.FORMATS."}, **missing, **failed},
+        summary="The product stroked at a speed, in any export format (hjif, haptic, log, ...)",
+    )
+    def export_any(product_id: str, fmt: str, speed_mm_s: float = speed_q, duration_s: float = duration_q) -> Any:
+        from ..export import FORMATS
+
+        if fmt not in FORMATS:
+            raise RequestError(fmt, f"unknown export format {fmt!r} (use one of: {', '.join(FORMATS)})", 404)
+        return _export_response(cat.drive(ok_row(product_id), speed_mm_s * 1e-3), fmt, product_id, duration_s, 48_000)
 
     @r.get(
         "/products/{product_id:path}",

@@ -363,57 +363,31 @@ def envelope_cmd(wire: str, circuit: str, length_mm: float | None, plot_path: st
 
 @main.command("export")
 @click.argument("image")
-@click.option("--speed", "speed_mm_s", type=float, required=True, help="Stroking speed [mm/s].")
-@click.option("--format", "fmt", type=str, required=True, help="wav | csv | json | ahap | android")
-@click.option("--duration", "duration_s", type=float, default=2.0, show_default=True, help="Length [s].")
+@click.option("--stroke", "stroke_path", default=None, help="A recorded stroke: CSV or JSON of t_s, x_mm, y_mm[, pressure].")
+@click.option("--speed", "speed_mm_s", type=float, default=None, help="Or a synthetic steady stroke at this speed [mm/s].")
+@click.option("--duration", "duration_s", type=float, default=2.0, show_default=True, help="Length of a synthetic stroke [s].")
+@click.option("--direction", "direction_deg", type=float, default=0.0, show_default=True, help="Direction of a synthetic stroke [deg, y up].")
+@click.option("--format", "fmt", type=str, required=True, help="wav | csv | json | log | ahap | android | hjif | haptic")
+@click.option("--drive", "drive_kind", type=click.Choice(["profile", "wire"]), default="profile", show_default=True,
+              help="The profile's drive (for phones, players, voice coils) or what the simulated SMA wire applied.")
 @click.option("--profile", "profile_name", default="paper", show_default=True, help="Preset name or TOML file.")
 @click.option("--dpi", type=float, callback=_positive("dpi"), help="Pixels per inch of the displayed image.")
 @click.option("--width-mm", type=float, callback=_positive("width-mm"), help="Displayed width of the image [mm].")
 @click.option("-o", "--output", "out_path", required=True, help="File to write.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document describing what was written.")
-def export_cmd(
-    image: str,
-    speed_mm_s: float,
-    fmt: str,
-    duration_s: float,
-    profile_name: str,
-    dpi: float | None,
-    width_mm: float | None,
-    out_path: str,
-    as_json: bool,
-) -> None:
-    """Write the drive for IMAGE stroked at a speed as a file (WAV, CSV, JSON, AHAP, Android)."""
-    from ..export import FORMATS, export
-    from ..features import extract_features
-    from ..image import load_image
-    from ..mapping import Profile
+def export_cmd(**opt: Any) -> None:
+    """Write the drive of a stroke on IMAGE as a file (WAV, CSV, JSON, drive log, AHAP, Android, HJIF, .haptic).
 
-    if fmt.lower() not in FORMATS:
-        raise TactilizeError("--format", f"unknown format {fmt!r} (use one of: {', '.join(FORMATS)})")
-    check_finite(speed_mm_s, "--speed", minimum=0.0, unit="mm/s")
-    check_finite(duration_s, "--duration", above=0.0, maximum=600.0, unit="s")
-    if dpi is not None and width_mm is not None:
-        raise TactilizeError("--dpi/--width-mm", "give one of them, not both")
-    profile = Profile.resolve(profile_name)
-    img = load_image(image, dpi=dpi, width_mm=width_mm)
-    feat = extract_features(img)
-    drv = profile.drive(feat, speed_m_s=speed_mm_s / 1e3)
-    extra = {
-        "image": image,
-        "profile": profile.name,
-        "speed_mm_s": speed_mm_s,
-        "spatial_frequency_per_m": feat.spatial_frequency_per_m,
-        "spectral_intensity": feat.spectral_intensity,
-    }
-    path = export(drv, out_path, fmt.lower(), duration_s, **extra)
-    doc = {"path": str(path), "format": fmt.lower(), "duration_s": duration_s, **extra, **drv.to_dict()}
-    if as_json:
+    The stroke (--stroke FILE, or --speed for a synthetic one) runs through the
+    pen server's tracker, texture map, profile and simulated wire.
+    """
+    from .export import export_stroke
+
+    doc, text = export_stroke(opt)
+    if opt["as_json"]:
         emit_json(doc)
         return
-    click.echo(
-        f"wrote {path} ({fmt.lower()}, {duration_s:g} s): {drv.pulse_frequency_hz:.1f} Hz, "
-        f"{drv.pulse_width_s * 1e3:.3f} ms, amplitude {drv.amplitude:.2f}"
-    )
+    click.echo(text)
 
 
 # ----------------------------------------------------------------- experiment (experiments/)

@@ -13,6 +13,8 @@ Routes
                                        by :func:`tactilize.image.load_image`
 ``GET /api/profiles``                  the profiles the page may pick
 ``GET /api/stats``                     server-side latency percentiles and counters
+``GET /api/export/formats``            export formats; ``POST /api/export/stroke``: a stroke as a file
+                                       (see :mod:`.stroke_export`)
 ``WS  /ws``                            pen samples in, drives out (see :mod:`.session`)
 
 Extending
@@ -349,6 +351,9 @@ def create_app(
 
     app.mount("/static", StaticFiles(directory=_STATIC), name="static")
     app.include_router(_api_router())
+    from .stroke_export import stroke_export_router
+
+    app.include_router(stroke_export_router())
     from .session import websocket_endpoint
 
     @app.websocket("/ws")

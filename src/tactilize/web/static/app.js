@@ -8,6 +8,7 @@ import { LatencyMeter } from "./latency.js";
 import { showSpectrum } from "./spectrum.js";
 import { AudioPulses } from "./audio.js";
 import * as calibration from "./calibrate.js";
+import * as strokeExport from "./stroke-export.js";
 
 const $ = (sel) => document.querySelector(sel);
 const HISTORY = 1000;
@@ -304,9 +305,13 @@ async function setup() {
         const i = Math.floor((ev.clientY - r.top) / T.cell.h) * T.cell.cols + Math.floor((ev.clientX - r.left) / T.cell.w);
         if (i >= 0 && i < T.cell.ids.length) spectrumFor(T.cell.ids[i]);
       }
+      // The stroke export records strokes on one picture.
+      const t = T.view !== "six" ? textures.get(T.texture) : null;
+      if (t) strokeExport.beginStroke(T.texture, T.mmPerPx, t.width_mm, t.height_mm);
     },
     onBatch: (rows) => {
       if (!T.texture && T.view !== "six") return;
+      if (T.view !== "six") strokeExport.addSamples(rows);
       T.seq = ++seq;
       T.samplesSent += rows.length;
       send({ type: "samples", seq, samples: rows });
@@ -372,6 +377,9 @@ async function setup() {
   T.six = list.filter((t) => t.builtin).slice(0, 6).map((t) => t.id);
   T.sixNext = 0;
   if (list.length) T.texture = list[0].id;
+  strokeExport.setupStrokeExport($("#stroke-export"), () => $("#profile").value);
+  T.lastStroke = strokeExport.lastStroke;
+
   connect();
   applySurface();
   document.body.dataset.ready = "true";

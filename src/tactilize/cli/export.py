@@ -1,0 +1,69 @@
+"""``tactilize export``: a stroke (recorded or synthetic) on a picture, as files.
+
+The stroke runs through the pen server's path (:func:`tactilize.export.run_stroke`):
+tracker, texture map, profile, and the simulated SMA wire's controller and
+envelope; the chosen format is rendered from the drive over time.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ..errors import TactilizeError, check_finite
+
+
+def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
+    """Run the export the options ask for; the JSON summary and the line to print."""
+    from ..export import FORMATS, export, read_stroke, run_stroke, synthetic_stroke
+    from ..image import load_image
+    from ..mapping import Profile
+    from ..texturemap import texture_map
+
+    fmt = opt["fmt"].lower()
+    if fmt not in FORMATS:
+        raise TactilizeError("--format", f"unknown format {opt['fmt']!r} (use one of: {', '.join(FORMATS)})")
+    if (opt["stroke_path"] is None) == (opt["speed_mm_s"] is None):
+        raise TactilizeError("--stroke/--speed", "give a stroke file or a steady --speed, one of them")
+    if opt["dpi"] is not None and opt["width_mm"] is not None:
+        raise TactilizeError("--dpi/--width-mm", "give one of them, not both")
+    duration = check_finite(opt["duration_s"], "--duration", above=0.0, maximum=600.0, unit="s")
+    direction = check_finite(opt["direction_deg"], "--direction", unit="deg")
+    profile = Profile.resolve(opt["profile_name"])
+    img = load_image(opt["image"], dpi=opt["dpi"], width_mm=opt["width_mm"])
+    tmap = texture_map(img)
+    extra: dict[str, Any] = {"image": opt["image"], "profile": profile.name}
+    if opt["stroke_path"] is not None:
+        stroke = read_stroke(opt["stroke_path"], tmap.width_m, tmap.height_m)
+        extra["stroke"] = opt["stroke_path"]
+        tl = run_stroke(stroke, tmap, profile, meta=extra)
+    else:
+        speed = check_finite(opt["speed_mm_s"], "--speed", minimum=0.0, unit="mm/s")
+        stroke = synthetic_stroke(tmap.width_m, tmap.height_m, speed * 1e-3, duration, direction)
+        extra.update(speed_mm_s=speed, direction_deg=direction)
+        tl = run_stroke(stroke, tmap, profile, start_s=0.0, end_s=duration, meta=dict(extra), mirror=True)
+    limits = profile.limits.to_dict()
+    tl.meta.setdefault("min_frequency_hz", limits.get("min_frequency_hz", 0.0))
+    tl.meta.setdefault("max_frequency_hz", limits.get("max_frequency_hz", 300.0))
+    path = export(tl, opt["out_path"], fmt, drive=opt["drive_kind"], **extra)
+    feat = tmap.whole
+    first = tl.drives(opt["drive_kind"])[0]
+    freqs = [d.pulse_frequency_hz for d in tl.drives(opt["drive_kind"]) if not d.is_off]
+    doc = {
+        "path": str(path),
+        "format": fmt,
+        "drive": opt["drive_kind"],
+        "duration_s": tl.end_s,
+        "frames": len(tl.t_s),
+        "drive_changes": len(tl.changes(opt["drive_kind"])),
+        "spatial_frequency_per_m": feat.spatial_frequency_per_m,
+        "spectral_intensity": feat.spectral_intensity,
+        "min_frequency_hz": min(freqs) if freqs else 0.0,
+        "max_frequency_hz": max(freqs) if freqs else 0.0,
+        **extra,
+        **first.to_dict(),
+    }
+    text = (
+        f"wrote {path} ({fmt}, {tl.end_s:g} s, {len(tl.t_s)} frames, {doc['drive_changes']} drive changes, "
+        f"{opt['drive_kind']} drive): {doc['min_frequency_hz']:.1f} .. {doc['max_frequency_hz']:.1f} Hz"
+    )
+    return doc, text

@@ -1,0 +1,82 @@
+"""The pen page's stroke export: a stroke in, a file out (issue 13).
+
+Routes (mounted by :func:`tactilize.web.app.create_app`)
+--------------------------------------------------------
+``GET  /api/export/formats``   the export formats (the one registry, :data:`tactilize.export.FORMATS`)
+``POST /api/export/stroke``    JSON ``{"texture": ID, "format": NAME, "samples": [[t_s, x_mm, y_mm, pressure?], ...],
+                               "profile": NAME?, "drive": "profile"|"wire"?}``; answers the file
+                               (``Content-Disposition: attachment``), or 422 with one line naming the fault.
+
+The stroke runs through the same path as ``tactilize export --stroke``
+(:func:`tactilize.export.run_stroke`): the server's tracker, the texture's
+map at its displayed size, the profile, a fresh simulated SMA wire (the
+server's own output is not disturbed).
+"""
+
+from __future__ import annotations
+
+import asyncio
+from typing import Any
+
+from fastapi import APIRouter, Request
+from fastapi.responses import Response
+
+from ..errors import RequestError
+from .http import ErrorAnsweringRoute
+
+__all__ = ["stroke_export_router", "MAX_STROKE_SAMPLES"]
+
+#: Samples in one exported stroke, at most (a minute of a 1 kHz pen).
+MAX_STROKE_SAMPLES = 60_000
+
+
+def _export(state: Any, body: dict[str, Any]) -> tuple[bytes, Any, str]:
+    from ..export import export_format, parse_stroke, render, run_stroke
+
+    tid = body.get("texture")
+    if not isinstance(tid, str):
+        raise RequestError("texture", "give the texture id as 'texture'", 422)
+    try:
+        entry = state.texture(tid)
+    except KeyError:
+        raise RequestError(tid, f"no texture {tid!r}", 404) from None
+    spec = export_format(str(body.get("format", "")))
+    kind = body.get("drive", "profile")
+    profile = state.profile_named(body["profile"]) if isinstance(body.get("profile"), str) else state.profile
+    rows = body.get("samples")
+    if not isinstance(rows, list):
+        raise RequestError("samples", "give the stroke as 'samples': [[t_s, x_mm, y_mm, pressure?], ...]", 422)
+    if len(rows) > MAX_STROKE_SAMPLES:
+        raise RequestError("samples", f"too many samples ({len(rows)}, limit {MAX_STROKE_SAMPLES})", 422)
+    tmap = entry.map
+    stroke = parse_stroke(rows, "stroke", tmap.width_m, tmap.height_m)
+    meta = {"image": entry.name, "profile": profile.name}
+    tl = run_stroke(stroke, tmap, profile, meta=meta)
+    data = render(tl, spec.name, drive=kind, **meta)
+    return data, spec, f"stroke-{entry.id}{spec.suffix}"
+
+
+def stroke_export_router() -> APIRouter:
+    """The routes of the module docstring, as a router."""
+    r = APIRouter(prefix="/api/export", tags=["export"], route_class=ErrorAnsweringRoute)
+
+    @r.get("/formats")
+    async def formats() -> list[dict[str, Any]]:
+        from ..export import FORMATS
+
+        return [{"name": f.name, "suffix": f.suffix, "media_type": f.media_type, "description": f.description}
+                for f in FORMATS.values()]
+
+    @r.post("/stroke")
+    async def export_stroke(request: Request) -> Response:
+        try:
+            body = await request.json()
+        except Exception:
+            raise RequestError("body", "send the stroke as a JSON object", 400) from None
+        if not isinstance(body, dict):
+            raise RequestError("body", "send the stroke as a JSON object", 400)
+        state = request.app.state.tactilize
+        data, spec, name = await asyncio.get_running_loop().run_in_executor(None, _export, state, body)
+        return Response(data, media_type=spec.media_type, headers={"Content-Disposition": f'attachment; filename="{name}"'})
+
+    return r
