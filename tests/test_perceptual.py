@@ -160,3 +160,20 @@ def test_old_profiles_load_and_the_paper_stays_even_and_exact(tmp_path):
     alpha = 2.9 / (1.0 + math.exp(-0.05 * (10.0 - 60.0))) + 0.1
     assert d.pulse_frequency_hz == pytest.approx(alpha * g, rel=1e-12)
     assert Profile.preset("paper").drive(Grating(799.0, 0.874, periodicity=0.0), 0.01) == d
+
+
+def test_exports_play_the_irregularity_of_a_noisy_texture():
+    from tactilize.data import builtin_map
+    from tactilize.export.stroke import run_stroke, synthetic_stroke
+
+    prof = Profile.preset("perceptual")
+    cv = {}
+    for tid in ("corduroy", "sandpaper"):
+        tmap = builtin_map(tid)
+        stroke = synthetic_stroke(tmap.width_m, tmap.height_m, 0.02, 3.0)
+        tl = run_stroke(stroke, tmap, prof, output=None, start_s=0.0, mirror=True)
+        starts = np.array([p.t_s for p in tl.pulses()])
+        iv = np.diff(starts)
+        cv[tid] = iv.std() / iv.mean()
+    # the transients of AHAP, .haptic taps and the WAV all come from these pulses
+    assert cv["sandpaper"] > 0.2 and cv["corduroy"] < 0.05

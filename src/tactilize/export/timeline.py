@@ -39,7 +39,7 @@ import numpy as np
 
 from ..drive import Drive
 from ..errors import SignalError
-from ..synthesis import PulseStream
+from ..synthesis import PulseScheduler, PulseStream
 
 __all__ = [
     "DriveTimeline",
@@ -201,24 +201,30 @@ class DriveTimeline:
         return [i for i in range(len(rows)) if i == 0 or rows[i] != rows[i - 1]]
 
     def pulses(self, kind: str = "profile", channel: int = 0) -> list[Pulse]:
-        """Every pulse's start, phase-continuous across drive changes.
+        """Every pulse's start, as the streaming synthesiser schedules it.
 
-        As the streaming synthesiser does (docs/signals-and-wire.md, Pulse
-        trains): after a change the next pulse starts at the later of the
-        previous start plus the new period and the change itself.
+        The synthesiser's own scheduler at 1 us (docs/signals-and-wire.md, Pulse
+        trains): phase-continuous across drive changes, and an irregular
+        texture's pulses jitter exactly as they do on the wire and in the WAV.
         """
+        rate = 1_000_000
+        sched = PulseScheduler(rate)
         out: list[Pulse] = []
-        last = -math.inf
         drives = self.drives(kind, channel)
         bounds = list(self.t_s[1:]) + [self.end_s]
-        for t0, t1, d in zip(self.t_s, bounds, drives):
-            if d.is_off:
+        edges = [int(round(t * rate)) for t in self.t_s] + [int(round(self.end_s * rate))]
+        for i, d in enumerate(drives):
+            n = edges[i + 1] - edges[i]
+            if n <= 0:
                 continue
-            nxt = max(last + d.period_s, t0)
-            while nxt < t1 - 1e-12:
-                out.append(Pulse(nxt, d.pulse_width_s, d.amplitude, d))
-                last = nxt
-                nxt = last + d.period_s
+            if sched.position < edges[i]:
+                sched.next_block(edges[i] - sched.position)  # nothing was on: catch up
+            sched.set_drive(d)
+            starts, _, _ = sched.next_block(n)
+            for st in (starts if isinstance(starts, list) else starts.tolist()):
+                t = (edges[i] + st) / rate
+                if t < bounds[i] - 1e-12:
+                    out.append(Pulse(t, d.pulse_width_s, d.amplitude, d))
         return out
 
     def samples(self, sample_rate_hz: int, kind: str = "profile") -> np.ndarray:
