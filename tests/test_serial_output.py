@@ -323,7 +323,12 @@ def test_limits_class_is_an_envelope():
 def test_the_host_closes_the_loop_on_the_boards_measurements(emu):
     from tactilize.firmware import tactile_wire as W
 
-    r_wire, amps = 0.60, 0.48
+    from tactilize.actuators.sma import WireSpec
+    from tactilize.actuators.sma.controller import SETPOINT_MARTENSITE
+
+    # A wire sitting at the controller's setpoint: the loop then keeps a bias (a
+    # hotter wire would rightly have its bias cut to 0, and when is a race).
+    r_wire, amps = WireSpec().resistance_at(SETPOINT_MARTENSITE), 0.48
     host_machine.ADC.sources[fw.SENSE_ADC_PINS[0]] = amps / W.DEFAULT_AMPS_PER_COUNT
     host_machine.ADC.sources[fw.RAIL_ADC_PIN] = amps * (r_wire + W.DEFAULT_PATH_OHM[0]) / W.RAIL_VOLTS_PER_COUNT
     with SerialOutput(emu.device) as out:
