@@ -11,6 +11,7 @@ import threading
 import time
 from importlib import resources
 
+import numpy as np
 import pytest
 import serial
 from hypothesis import given, settings
@@ -302,3 +303,43 @@ def test_controller_source_uses_only_micropython_features(name):
 def _in_compat_block(node: ast.AST) -> bool:
     # time.monotonic appears only in the CPython fallback, guarded by getattr.
     return getattr(node, "attr", "") == "monotonic"
+
+
+def test_an_irregular_train_jitters_around_its_mean_frequency_on_the_board(emu, link):
+    """The SET frame's regularity reaches the board, which places each pulse by a
+    one-shot timer at (k + j u_k) periods: an irregular texture stays irregular on
+    the real controller (issue "Textures you can tell apart")."""
+    starts: list[float] = []
+
+    def on_pin(t_s, kind, pin_id, detail):
+        if pin_id == PIN0 and detail.get("mode") == "gpio" and detail.get("value") == 1:
+            starts.append(t_s)
+
+    f_hz = 20.0
+    host_machine.add_listener(on_pin)
+    try:
+        assert link.request(P.Command.SET, P.encode_set_channel(0, f_hz, 1e-3, 1.0, regularity=0.0)).command == P.Command.ACK
+        deadline = time.monotonic() + 20.0
+        while len(starts) < 41 and time.monotonic() < deadline:
+            assert link.request(P.Command.HEARTBEAT).command == P.Command.ACK
+            time.sleep(0.05)
+        link.request(P.Command.STOP)
+    finally:
+        host_machine.remove_listener(on_pin)
+    iv = np.diff(np.array(starts[:41]))
+    assert iv.size == 40
+    # same mean frequency (positions locked to the grid), intervals CV near 0.6/sqrt(6)
+    assert 1 / iv.mean() == pytest.approx(f_hz, rel=0.05)
+    assert iv.std() / iv.mean() > 0.15
+    assert iv.min() > 0.35 / f_hz  # never closer than 0.4 period (less host scheduling noise)
+
+
+def test_the_set_frame_carries_regularity_only_when_irregular():
+    even = P.encode_set_channel(0, 80.0, 3e-4, 1.0)
+    assert even == P.encode_set_channel(0, 80.0, 3e-4, 1.0, 1.0) and len(even) == 11
+    irregular = P.encode_set_channel(0, 80.0, 3e-4, 1.0, 0.25)
+    assert len(irregular) == 13
+    assert P.decode_set_channel(irregular).regularity_q16 == round(0.25 * 65535)
+    assert P.decode_set_channel(even).regularity_q16 == P.REGULARITY_EVEN
+    with pytest.raises(ValueError):
+        P.encode_set_channel(0, 80.0, 3e-4, 1.0, -0.5)

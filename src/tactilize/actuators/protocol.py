@@ -22,7 +22,10 @@ Commands, host to controller:
 
 ========  ====  ==========================================================
 SET       0x01  channel u8, frequency u32 [mHz], width u32 [ns], amplitude u16
-                (65535 = 1.0).  Frequency, width or amplitude 0 turns it off.
+                (65535 = 1.0), then optionally regularity u16 (65535 = an even
+                train, the default; lower: the pulses jitter around the same
+                mean frequency, as tactilize.synthesis does).  Frequency, width
+                or amplitude 0 turns it off.
 STOP      0x02  no payload: every channel off.
 HEARTBEAT 0x03  no payload: keeps the controller's 200 ms watchdog from firing.
 STATUS    0x04  no payload: the controller answers with a STATUS_REPLY.
@@ -281,6 +284,9 @@ class FrameDecoder:
 # ----------------------------------------------------------------- payloads
 
 _SET_FORMAT = ">BIIH"
+_SET_IRREGULAR_FORMAT = ">BIIHH"
+#: regularity u16 of an even train (also what a SET without the field means)
+REGULARITY_EVEN = 0xFFFF
 
 
 class SetChannel(NamedTuple):
@@ -290,6 +296,7 @@ class SetChannel(NamedTuple):
     frequency_mhz: int
     pulse_width_ns: int
     amplitude_q16: int
+    regularity_q16: int = REGULARITY_EVEN
 
     @property
     def frequency_hz(self) -> float:
@@ -311,7 +318,9 @@ def _u32(value: float, name: str) -> int:
     return n
 
 
-def encode_set_channel(channel: int, frequency_hz: float, pulse_width_s: float, amplitude: float) -> bytes:
+def encode_set_channel(
+    channel: int, frequency_hz: float, pulse_width_s: float, amplitude: float, regularity: float | None = None
+) -> bytes:
     """SET payload from SI values.
 
     Parameters
@@ -324,22 +333,32 @@ def encode_set_channel(channel: int, frequency_hz: float, pulse_width_s: float, 
         Pulse width [s], sent in nanoseconds.
     amplitude : float
         Fraction of full pulse height in [0, 1], sent as u16.
+    regularity : float, optional
+        The drive's regularity in [0, 1]; None or 1 sends the short frame (an
+        even train), which every controller understands.
     """
     if not 0 <= channel <= 0xFF:
         raise ValueError(f"channel {channel} is not a byte")
     if not 0.0 <= amplitude <= 1.0:
         raise ValueError(f"amplitude {amplitude} outside [0, 1]")
-    return struct.pack(
+    head = struct.pack(
         _SET_FORMAT,
         channel,
         _u32(frequency_hz * 1e3, "frequency_hz"),
         _u32(pulse_width_s * 1e9, "pulse_width_s"),
         int(round(amplitude * AMPLITUDE_FULL_SCALE)),
     )
+    if regularity is None or regularity >= 1.0:
+        return head
+    if not 0.0 <= regularity < 1.0:
+        raise ValueError(f"regularity {regularity} outside [0, 1]")
+    return head + struct.pack(">H", min(REGULARITY_EVEN - 1, int(round(regularity * REGULARITY_EVEN))))
 
 
 def decode_set_channel(payload: bytes) -> SetChannel:
     """Inverse of :func:`encode_set_channel` (wire units)."""
+    if len(payload) == struct.calcsize(_SET_IRREGULAR_FORMAT):
+        return SetChannel(*struct.unpack(_SET_IRREGULAR_FORMAT, payload))
     return SetChannel(*struct.unpack(_SET_FORMAT, payload))
 
 

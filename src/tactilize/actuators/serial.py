@@ -284,7 +284,7 @@ class SerialOutput(OutputBase):
             if d.is_off:
                 payload = P.encode_set_channel(index, 0.0, 0.0, 0.0)
             else:
-                payload = P.encode_set_channel(index, d.pulse_frequency_hz, d.pulse_width_s, d.amplitude)
+                payload = P.encode_set_channel(index, d.pulse_frequency_hz, d.pulse_width_s, d.amplitude, d.regularity)
             requests.append((int(P.Command.SET), payload))
         try:
             self._transact(requests)

@@ -19,8 +19,6 @@
 # the hold between host messages) is in tactile_wire.py, copied next to it.
 
 import struct
-import sys
-import time
 
 import machine
 
@@ -133,6 +131,8 @@ class Channel:
         self.bias_q16 = 0
         self.sense = sense
         self.hold = hold
+        self.jitter_j = 0.0
+        self.rng = W.Jitter(0x2545F491 + index)
 
     @property
     def on(self):
@@ -143,15 +143,10 @@ class Channel:
         return self.frequency_mhz > 0 or self.bias_q16 > 0
 
     def off(self):
-        if self.timer is not None:
-            self.timer.deinit()
-            self.timer = None
-        if self.pwm is not None:
-            self.pwm.duty_ns(0)
-            self.pwm.deinit()
-            self.pwm = None
-        # Take the pin back from the PWM slice and hold the gate low.
+        self._stop_train()
+        # Take the pin back and hold the gate low (after a PWM slice or a timer alike).
         self.pin = machine.Pin(self.pin_id, machine.Pin.OUT, value=0)
+        self.jitter_j = 0.0
         self.frequency_mhz = 0
         self.width_ns = 0
         self.amplitude_q16 = 0
@@ -179,10 +174,20 @@ class Channel:
         self.bias_pwm.duty_u16(q16)
         self.bias_q16 = q16
 
-    def set(self, frequency_mhz, width_ns, amplitude_q16):
+    def set(self, frequency_mhz, width_ns, amplitude_q16, regularity_q16=W.REGULARITY_EVEN):
         """Start (or retune) the pulse train; the caller has checked the limits.
         Returns the frequency actually produced [mHz]."""
-        if frequency_mhz >= PWM_MIN_FREQUENCY_MHZ:
+        period_us = 1000000000 // frequency_mhz
+        self.jitter_j = W.jitter_depth(regularity_q16, period_us, width_ns // 1000)
+        if self.jitter_j > 0:
+            # An irregular texture: every pulse placed by a one-shot timer on the
+            # even grid plus its jitter (a PWM slice can only repeat one period).
+            self._stop_train()
+            self.width_ns, self.period_us, self.k, self.anchor_us = width_ns, period_us, 0, _ticks_us()
+            self.frequency_mhz = frequency_mhz  # before the first pulse, due at once, checks it
+            self._arm()
+            applied_mhz = frequency_mhz
+        elif frequency_mhz >= PWM_MIN_FREQUENCY_MHZ:
             if self.timer is not None:
                 self.timer.deinit()
                 self.timer = None
@@ -223,6 +228,30 @@ class Channel:
         self.width_ns = width_ns
         self.amplitude_q16 = amplitude_q16
         return applied_mhz
+
+    def _stop_train(self):
+        if self.timer is not None:
+            self.timer.deinit()
+            self.timer = None
+        if self.pwm is not None:
+            self.pwm.duty_ns(0)
+            self.pwm.deinit()
+            self.pwm = None
+            self.pin = machine.Pin(self.pin_id, machine.Pin.OUT, value=0)
+
+    def _arm(self):
+        # Pulse k: (k + j u_k) periods after the anchor; the first now (a touch is felt at once).
+        u = self.rng.next() if self.k else 0.0
+        due = self.anchor_us + int((self.k + self.jitter_j * u) * self.period_us)
+        delay = max(1, _ticks_diff(due, _ticks_us()))
+        self.timer = machine.Timer(mode=machine.Timer.ONE_SHOT, freq=1000000.0 / delay, callback=self._jittered)
+
+    def _jittered(self, timer):
+        if self.jitter_j <= 0 or self.frequency_mhz == 0:
+            return
+        self._pulse(timer)
+        self.k += 1
+        self._arm()
 
     def _pulse(self, timer):
         # Soft-IRQ context on the board: the pulse is busy-waited so its width is
@@ -368,6 +397,10 @@ class Controller:
         return self._nak(seq, NAK_UNKNOWN_COMMAND)
 
     def _set(self, seq, payload):
+        reg = W.REGULARITY_EVEN
+        if len(payload) == struct.calcsize(SET_FORMAT) + 2:  # with a regularity
+            reg = struct.unpack(">H", payload[-2:])[0]
+            payload = payload[:-2]
         if len(payload) != struct.calcsize(SET_FORMAT):
             return self._nak(seq, NAK_BAD_PAYLOAD)
         index, f_mhz, w_ns, amp = struct.unpack(SET_FORMAT, payload)
@@ -380,7 +413,7 @@ class Controller:
         if refused:
             # Refused: the channel keeps its previous (valid) drive.
             return self._nak(seq, NAK_REFUSED_LIMIT, refused)
-        self._apply(ch, f_mhz, w_ns, amp)
+        self._apply(ch, f_mhz, w_ns, amp, reg)
         return self._ack(seq, CMD_SET)
 
     def _refused(self, ch, f_mhz, w_ns, amp):
@@ -395,7 +428,7 @@ class Controller:
             return REFUSED_ENERGY
         return REFUSED_NONE
 
-    def _apply(self, ch, f_mhz, w_ns, amp):
+    def _apply(self, ch, f_mhz, w_ns, amp, reg=W.REGULARITY_EVEN):
         self.watchdog_tripped = False
         if f_mhz == 0 or w_ns == 0 or amp == 0:
             if ch.on:
@@ -412,7 +445,7 @@ class Controller:
         room = self.limits.max_bias(f_mhz / 1000.0, w_ns / 1e9, p)
         if ch.bias_q16 > int(room * 65536):
             ch.set_bias(int(room * 65536))
-        ch.set(f_mhz, w_ns, amp)
+        ch.set(f_mhz, w_ns, amp, reg)
         if (ch.frequency_mhz, ch.width_ns) != before:
             self._changed(ch, "command")
 
@@ -540,31 +573,6 @@ def run(read, controller, wdt=None):
         controller.tick()
 
 
-class UsbSerial:
-    """The board's USB CDC serial port as raw bytes (the REPL's stdin/stdout)."""
-
-    def __init__(self):
-        import select
-
-        self.rx = getattr(sys.stdin, "buffer", sys.stdin)
-        self.tx = getattr(sys.stdout, "buffer", sys.stdout)
-        self.poller = select.poll()
-        self.poller.register(sys.stdin, select.POLLIN)
-
-    def read(self, timeout_ms):
-        data = bytearray()
-        if self.poller.poll(timeout_ms):
-            # One byte per ready poll: stdin has no non-blocking bulk read.
-            while len(data) < 128:
-                data.extend(self.rx.read(1))
-                if not self.poller.poll(0):
-                    break
-        return data
-
-    def write(self, data):
-        self.tx.write(data)
-
-
 def main():
     if machine.Pin(MAINTENANCE_PIN, machine.Pin.IN, machine.Pin.PULL_UP).value() == 0:
         return
@@ -575,7 +583,7 @@ def main():
         micropython.kbd_intr(-1)
     except ImportError:
         micropython = None
-    port = UsbSerial()
+    port = F.UsbSerial()
     controller = Controller(port.write)
     # The hardware watchdog: cannot be stopped once started, so never in
     # maintenance mode (the jumper above returned already).

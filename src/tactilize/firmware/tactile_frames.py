@@ -1,4 +1,4 @@
-# The frame codec of the tactile controller (MicroPython module, copied to the
+# The frame codec and the USB serial port of the tactile controller (MicroPython module, copied to the
 # board next to main.py; see controller.py).  The tests run the host's
 # tactilize/actuators/protocol.py against it, so the two cannot drift.
 
@@ -110,3 +110,29 @@ class Decoder:
             self.on_frame(buf[2], buf[3], bytes(buf[4 : 4 + length]))
         if self.buf and self.pending_since_ms is None:
             self.pending_since_ms = _ticks_ms()
+
+
+class UsbSerial:
+    """The board's USB CDC serial port as raw bytes (the REPL's stdin/stdout)."""
+
+    def __init__(self):
+        import select
+        import sys
+
+        self.rx = getattr(sys.stdin, "buffer", sys.stdin)
+        self.tx = getattr(sys.stdout, "buffer", sys.stdout)
+        self.poller = select.poll()
+        self.poller.register(sys.stdin, select.POLLIN)
+
+    def read(self, timeout_ms):
+        data = bytearray()
+        if self.poller.poll(timeout_ms):
+            # One byte per ready poll: stdin has no non-blocking bulk read.
+            while len(data) < 128:
+                data.extend(self.rx.read(1))
+                if not self.poller.poll(0):
+                    break
+        return data
+
+    def write(self, data):
+        self.tx.write(data)

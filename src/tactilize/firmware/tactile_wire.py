@@ -295,3 +295,36 @@ class Hold:
         if bias < 0:
             bias = 0.0
         return width, bias
+
+
+# ------------------------------------------------------------ irregular textures
+# As tactilize.synthesis on the host: pulse k of an irregular train starts at
+# (k + j u_k) periods, u_k uniform in [-1/2, 1/2), j = JITTER_MAX_PERIODS (1 -
+# regularity), capped so neighbours never touch.  The board draws u_k from its own
+# seeded generator (xorshift32): the same statistics, not the host's table.
+JITTER_MAX_PERIODS = 0.6
+REGULARITY_EVEN = 65535
+
+
+def jitter_depth(regularity_q16, period_us, width_us):
+    """Depth j of the pulse-position jitter [periods]; 0 for an even train."""
+    if regularity_q16 >= REGULARITY_EVEN or period_us <= 0:
+        return 0.0
+    j = JITTER_MAX_PERIODS * (REGULARITY_EVEN - regularity_q16) / REGULARITY_EVEN
+    room = 1.0 - (width_us + 1) / period_us
+    return max(0.0, min(j, room))
+
+
+class Jitter:
+    """A seeded uniform generator in [-1/2, 1/2) (xorshift32)."""
+
+    def __init__(self, seed=0x2545F491):
+        self.state = (seed & 0xFFFFFFFF) or 1
+
+    def next(self):
+        x = self.state
+        x ^= (x << 13) & 0xFFFFFFFF
+        x ^= x >> 17
+        x ^= (x << 5) & 0xFFFFFFFF
+        self.state = x
+        return x / 4294967296.0 - 0.5
