@@ -516,3 +516,42 @@ def test_without_raw_updates_the_page_reads_pointermove_and_coalesced_samples_on
         assert received == sent
     finally:
         ctx.close()
+
+
+def _pixels(page, selector):
+    """The element as the user sees it: RGB array of a screenshot."""
+    import io
+
+    from PIL import Image
+
+    return np.asarray(Image.open(io.BytesIO(page.locator(selector).screenshot())).convert("RGB")).astype(int)
+
+
+def test_the_plot_and_the_trail_are_drawn_off_the_main_thread(page):
+    # Chromium has OffscreenCanvas and module workers: the page's drawing runs there.
+    assert page.evaluate("window.tactilize.drawing") == "worker"
+    pick(page, "corduroy")
+    is_red = lambda im: (im[..., 0] > 180) & (im[..., 1] < 90) & (im[..., 2] < 90)  # noqa: E731
+    red = lambda im: int(is_red(im).sum())  # noqa: E731
+    blue = lambda im: int(((im[..., 2] > 200) & (im[..., 0] < 80)).sum())  # noqa: E731
+    assert red(_pixels(page, "#trail")) == 0
+    pen = Pen(page)
+    box = surface_box(page)
+    x0, y = box["x"] + 10, box["y"] + 40
+    pen.stroke(x0, y, 40.0 / DEFAULT_MM_PER_PX, duration_s=0.8)
+    # Still down: the plot shows the pulse train of the drives that came back.
+    page.wait_for_timeout(150)
+    trail, plot = _pixels(page, "#trail"), _pixels(page, "#plot")
+    pen.lift(pen.last_x, y)
+    # The trail runs along the stroke, at its height, and nowhere else.
+    rows = np.nonzero(is_red(trail).any(axis=1))[0]
+    assert red(trail) > 100
+    scale = trail.shape[1] / page.locator("#trail").bounding_box()["width"]
+    assert abs(rows.mean() / scale - (y - page.locator("#trail").bounding_box()["y"])) < 4
+    assert blue(plot) > 20
+    # A new stroke clears the old trail.
+    pen._send("mousePressed", x0, y + 60, 1)
+    page.wait_for_timeout(150)
+    rows = np.nonzero(is_red(_pixels(page, "#trail")).any(axis=1))[0]
+    pen.lift(x0, y + 60)
+    assert not (np.abs(rows / scale - (y - page.locator("#trail").bounding_box()["y"])) < 4).any()

@@ -91,7 +91,8 @@ def test_page_has_test_ids_and_modules(client):
     for tid in ("surface", "drive-frequency", "drive-pulse-width", "drive-duty", "drive-amplitude", "drive-speed", "audio-toggle"):
         assert f'data-testid="{tid}"' in r.text
     assert 'type="module"' in r.text
-    for mod in ("app.js", "pen-input.js", "plot.js", "audio.js", "pulse-worklet.js", "calibrate.js", "style.css"):
+    for mod in ("app.js", "pen-input.js", "plot.js", "trail.js", "drawing.js", "draw-worker.js", "audio.js", "pulse-worklet.js",
+                "calibrate.js", "style.css"):
         s = client.get(f"/static/{mod}")
         assert s.status_code == 200, mod
     assert "javascript" in client.get("/static/app.js").headers["content-type"]

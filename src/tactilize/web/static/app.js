@@ -3,7 +3,7 @@
 // this page only reports samples and shows (and plays) what comes back.
 
 import { attachPen, INPUT } from "./pen-input.js";
-import { Plot } from "./plot.js";
+import { startDrawing } from "./drawing.js";
 import { LatencyMeter } from "./latency.js";
 import { showSpectrum } from "./spectrum.js";
 import { AudioPulses } from "./audio.js";
@@ -20,7 +20,8 @@ const T = (window.tactilize = {
   inputMode: INPUT, latency: { last: null }, view: "single", six: [], composite: null, wireState: null,
 });
 
-const plot = new Plot($("#plot"), 2);
+const draw = startDrawing($("#plot"), $("#trail"), 2);
+T.drawing = draw.mode;
 const audio = (T.audio = new AudioPulses());
 let textures = new Map();
 let seq = 0;
@@ -55,7 +56,7 @@ function connect() {
     try { msg = JSON.parse(ev.data); } catch (e) { return; }
     if (msg.type === "drive") onDrive(msg);
     else if (msg.type === "wire") {
-      plot.addWire(msg.t_s, msg.displacement_um, msg.state);
+      draw.addWire(msg);
       T.wireState = msg.state || null;
       $("#wire-state").textContent = T.wireState ? T.wireState.join(" / ") : "–";
     }
@@ -65,6 +66,7 @@ function connect() {
   ws.onclose = () => {
     setStatus("closed", "disconnected, retrying…");
     showDrive(null);
+    draw.setDrives([{}, {}]);
     setTimeout(connect, retry);
     retry = Math.min(5000, retry * 2);
   };
@@ -150,7 +152,7 @@ function layoutSurface() {
   cells.slice(1).forEach(([t, x, y], i) => place(tiles.children[i], t, x, y, t.width_mm / mm, t.height_mm / mm));
   const frame = $("#frame"), trail = $("#trail"), dpr = window.devicePixelRatio || 1;
   frame.style.width = `${W}px`; frame.style.height = `${H}px`;
-  trail.width = Math.round(W * dpr); trail.height = Math.round(H * dpr);
+  draw.trailResize(W, H, dpr);
   trail.style.width = `${W}px`; trail.style.height = `${H}px`;
   const s = $("#surface");
   s.dataset.view = T.view;
@@ -220,7 +222,6 @@ function showDrive(msg) {
   $("#texture-is").textContent = msg && msg.spectral_intensity !== null ? msg.spectral_intensity.toFixed(3) : "–";
   const on = (shownOn = !!(msg && msg.on));
   $("#surface").dataset.state = on ? "on" : "off";
-  plot.setDrives(chans.length ? chans : [{}, {}]);
   audio.setDrives(chans.length ? chans : [{}, {}]);
 }
 
@@ -230,31 +231,18 @@ function onDrive(msg) {
   T.drives.push(msg);
   if (T.drives.length > HISTORY) T.drives.splice(0, T.drives.length - HISTORY);
   const chans = msg.channels && msg.channels.length ? msg.channels : [{}, {}];
-  audio.setDrives(chans);  // the sound follows at once
-  // The readouts of a moving pen change once a frame, not once a batch: the main
-  // thread stays free for the next raw update.  A stop shows at once.
-  if (!msg.on || !shownOn) { cancelAnimationFrame(showFrame); showFrame = 0; showDrive(msg); return; }
-  if (!showFrame) showFrame = requestAnimationFrame(() => { showFrame = 0; showDrive(T.lastDrive); });
+  audio.setDrives(chans);  // the sound and the plot follow at once
+  draw.setDrives(chans);
+  // The readouts of a moving pen change READOUT_MS apart, not once a batch: numbers
+  // changing faster cannot be read, and each change costs the main thread a layout
+  // and a paint that a drive arriving meanwhile waits for.  A start or stop shows at once.
+  if (!msg.on || !shownOn) { clearTimeout(showTimer); showTimer = 0; showNow(msg); return; }
+  if (!showTimer) showTimer = setTimeout(() => { showTimer = 0; showNow(T.lastDrive); }, Math.max(0, shownAt + READOUT_MS - performance.now()));
 }
-let showFrame = 0;
+const READOUT_MS = 100;
+let showTimer = 0, shownAt = -Infinity;
 let shownOn = false;
-
-// ------------------------------------------------------------------ trail
-
-let last = null;
-let trailRows = [], trailFrame = 0;  // samples waiting for the next frame's drawing
-function drawTrail(rows, fresh) {
-  const c = $("#trail"), ctx = c.getContext("2d"), dpr = window.devicePixelRatio || 1;
-  if (fresh) { ctx.clearRect(0, 0, c.width, c.height); last = null; }
-  ctx.strokeStyle = "rgba(220, 40, 40, 0.85)"; ctx.lineCap = "round";
-  for (const [, x, y, p] of rows) {
-    if (last) {
-      ctx.lineWidth = (1 + 3 * (p === null ? 0.5 : p)) * dpr;
-      ctx.beginPath(); ctx.moveTo(last[0] * dpr, last[1] * dpr); ctx.lineTo(x * dpr, y * dpr); ctx.stroke();
-    }
-    last = [x, y];
-  }
-}
+function showNow(msg) { shownAt = performance.now(); showDrive(msg); }
 
 // ------------------------------------------------------------------ setup
 
@@ -297,8 +285,7 @@ async function setup() {
 
   attachPen($("#surface"), $("#frame"), {
     onDown: (ev) => {
-      trailRows = [];
-      drawTrail([], true);
+      draw.trailClear();
       // Six side by side: Fig. 5 follows the picture the stroke starts on.
       if (T.view === "six" && T.cell) {
         const r = $("#frame").getBoundingClientRect();
@@ -316,8 +303,7 @@ async function setup() {
       T.samplesSent += rows.length;
       send({ type: "samples", seq, samples: rows });
       meter.sent(seq, rows[rows.length - 1][0]);
-      trailRows.push(...rows);
-      if (!trailFrame) trailFrame = requestAnimationFrame(() => { trailFrame = 0; drawTrail(trailRows.splice(0), false); });
+      draw.trailAdd(rows);
     },
     onLift: () => {
       audio.setDrives([{}, {}]);  // silence now, not after the round trip

@@ -4,11 +4,12 @@
 // in micrometres, with each wire's state (off, standby, warming, vibrating).
 
 const WINDOW_S = 0.5;
-// Drawing is done on the main thread, where the pen's raw updates are handled too:
-// 30 redraws a second keep the plot fluid and leave every other frame free for input
-// (a headless, software-rendered page measured p99 event-to-drive 14 ms drawing every
-// frame, 6.5 ms drawing none).
+// 30 redraws a second keep the plot fluid at half the cost of 60: it usually runs in
+// the drawing worker (drawing.js), but on a two-core machine that worker shares the
+// processors with the browser's network and the server.
 const DRAW_INTERVAL_S = 1 / 30;
+// In the page and in dedicated workers alike.
+const nextFrame = typeof requestAnimationFrame === "function" ? (f) => requestAnimationFrame(f) : (f) => setTimeout(f, 16);
 
 export class Plot {
   constructor(canvas, channels = 2) {
@@ -21,7 +22,7 @@ export class Plot {
     this.wireOffset = null;
     this.wireState = [];  // per channel: off | standby | warming | vibrating
     this.running = true;
-    requestAnimationFrame(() => this.frame());
+    nextFrame(() => this.frame());
   }
 
   /** New drives: [{pulse_frequency_hz, pulse_width_s, amplitude}, ...]. */
@@ -62,7 +63,7 @@ export class Plot {
       this.drawnAt = now;
       this.draw(now);
     }
-    requestAnimationFrame(() => this.frame());
+    nextFrame(() => this.frame());
   }
 
   draw(now) {
