@@ -41,6 +41,8 @@ _US = 1_000_000  # schedule resolution: pulse edges at 1 us
 #: wire after every piece, so warming bursts stop within a quarter millisecond.
 _PIECE_US = {"off": 20_000, "standby": 2_000, "warming": 250, "vibrating": 10_000}
 _STATE_CODE = {name: i for i, name in enumerate(STATES)}
+#: Longest simulated time [us] the real-time thread advances under one hold of the lock.
+_SLICE_US = 5_000
 
 
 class _Channel:
@@ -250,8 +252,15 @@ class SimulatedOutput(OutputBase):
             self._quiet.wait(0.5 * self.tick_s)
             now = self._clock()
             # After a stall (suspended laptop) do not try to catch up minutes.
-            self.advance(min(now - last, 1.0))
+            todo_us = int(round(min(now - last, 1.0) * _US))
             last = now
+            # In slices, each holding the lock on its own: a pen batch's apply()
+            # waits for one slice (a fraction of a millisecond), not for a whole
+            # tick (up to 14 ms measured on a loaded two-core machine).
+            while todo_us > 0 and self._running:
+                step = min(todo_us, _SLICE_US)
+                self.advance(step / _US)
+                todo_us -= step
 
     def advance(self, duration_s: float) -> None:
         """Advance every channel by ``duration_s`` [s] of simulated time."""
