@@ -4,8 +4,9 @@ Starts ``tactilize serve`` and a bare WebSocket echo server (the reference of
 ``bench_web.py``) on free loopback ports, opens the page in headless Chromium,
 and strokes the picture with trusted pen events (Chrome DevTools Protocol
 ``Input.dispatchMouseEvent`` with ``pointerType: "pen"``, sent at the pen's
-own rate, 250 Hz by default, without waiting for each event's acknowledgement:
-see :class:`Pen`).  It prints, from one run:
+own rate, 250 Hz by default, without waiting for each event's acknowledgement,
+from a bare DevTools client with no automation driver: see :class:`DevTools`).
+It prints, from one run:
 
 1. event-to-drive latency in the page: for each pen batch the page sends, the
    time from its last sample's own ``timeStamp`` to the drive covering it
@@ -34,7 +35,9 @@ import argparse
 import json
 import os
 import socket
+import subprocess
 import sys
+import tempfile
 import threading
 import time
 
@@ -96,15 +99,15 @@ ECHO_IN_PAGE = """async ([url, n]) => {
 }"""
 
 
-class Pen:
-    """Trusted pen events at the device's own rate, straight to the page.
+class DevTools:
+    """A bare DevTools protocol client on one page target: no automation driver.
 
-    A second DevTools client on the page's target (besides Playwright's), written
-    to from this process without waiting for each event's acknowledgement: the
-    browser acknowledges a mouse move only after the page's next frame, so a
-    client that waits sends at the frame rate (60 Hz), not the pen's.  A real
-    pen reaches the browser from the OS at its own rate and costs no driver
-    process; this keeps the measurement close to that.
+    The benchmark talks to Chromium itself, over one WebSocket: a driver such as
+    Playwright's listens to every frame the page's socket sends and receives (on
+    this page, 500 a second) in two more processes, load a user's browser never
+    carries.  ``fire`` sends without waiting for the reply: the browser
+    acknowledges a mouse move only after the page's next frame, so a client that
+    waits sends pen events at the frame rate (60 Hz), not the pen's.
     """
 
     def __init__(self, ws_url: str) -> None:
@@ -112,42 +115,69 @@ class Pen:
 
         self.ws = ws_connect(ws_url, max_size=None, compression=None)
         self.id = 0
+        self.replies: dict[int, dict] = {}
+        self.arrived = threading.Condition()
         self.errors: list = []
-        self.replies = 0
-        self._reader = threading.Thread(target=self._read, daemon=True)
-        self._reader.start()
+        threading.Thread(target=self._read, daemon=True).start()
 
     def _read(self) -> None:
         try:
             for text in self.ws:
                 m = json.loads(text)
                 if "id" in m:
-                    self.replies += 1
-                    if "error" in m:
-                        self.errors.append(m["error"])
+                    with self.arrived:
+                        self.replies[m["id"]] = m
+                        self.arrived.notify_all()
         except Exception:  # closed
             pass
 
-    def send(self, kind: str, x: float, y: float, buttons: int) -> None:
+    def fire(self, method: str, params: dict | None = None) -> int:
         self.id += 1
-        self.ws.send(json.dumps({"id": self.id, "method": "Input.dispatchMouseEvent", "params": {
+        self.ws.send(json.dumps({"id": self.id, "method": method, "params": params or {}}))
+        return self.id
+
+    def call(self, method: str, params: dict | None = None, timeout: float = 60.0) -> dict:
+        i = self.fire(method, params)
+        with self.arrived:
+            if not self.arrived.wait_for(lambda: i in self.replies, timeout):
+                raise SystemExit(f"DevTools: no reply to {method} in {timeout} s")
+            m = self.replies.pop(i)
+        if "error" in m:
+            raise SystemExit(f"DevTools: {method}: {m['error']}")
+        return m["result"]
+
+    def evaluate(self, expression: str, timeout: float = 60.0):
+        r = self.call("Runtime.evaluate", {"expression": expression, "returnByValue": True, "awaitPromise": True}, timeout)
+        if "exceptionDetails" in r:
+            raise SystemExit(f"in the page: {r['exceptionDetails'].get('exception', {}).get('description', r['exceptionDetails'])}")
+        return r["result"].get("value")
+
+    def wait_for(self, expression: str, timeout: float = 30.0) -> None:
+        t0 = time.perf_counter()
+        while not self.evaluate(expression):
+            if time.perf_counter() - t0 > timeout:
+                raise SystemExit(f"the page never satisfied: {expression}")
+            time.sleep(0.05)
+
+    def pen(self, kind: str, x: float, y: float, buttons: int) -> None:
+        self.fire("Input.dispatchMouseEvent", {
             "type": kind, "x": x, "y": y, "button": "left", "buttons": buttons,
             "clickCount": 0 if kind == "mouseMoved" else 1, "pointerType": "pen",
-            "force": 0.5 if buttons else 0.0, "tiltX": 10, "tiltY": -5}}))
+            "force": 0.5 if buttons else 0.0, "tiltX": 10, "tiltY": -5})
 
     def stroke(self, x0: float, y0: float, v_px_s: float, seconds: float, interval_s: float) -> int:
         """One stroke to the right at v_px_s [CSS px/s], one move every interval_s [s]; returns the moves sent."""
-        self.send("mousePressed", x0, y0, 1)
+        self.pen("mousePressed", x0, y0, 1)
         t0 = time.perf_counter()
         n = 0
         x = x0
         while (t := time.perf_counter() - t0) < seconds:
             n += 1
             x = x0 + v_px_s * t
-            self.send("mouseMoved", x, y0, 1)
+            self.pen("mouseMoved", x, y0, 1)
             # Sleep to the next event's due time (not a fixed sleep): the rate stays the pen's.
             time.sleep(max(0.0, t0 + n * interval_s - time.perf_counter()))
-        self.send("mouseReleased", x, y0, 0)
+        self.pen("mouseReleased", x, y0, 0)
         return n
 
     def close(self) -> None:
@@ -160,49 +190,94 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def run(strokes: int, seconds: float, echo_n: int, rate_hz: float) -> dict:
-    from playwright.sync_api import sync_playwright
+def open_chromium(profile_dir: str):
+    """Headless Chromium with a DevTools port; returns (process, client on its page)."""
+    port = free_port()
+    proc = subprocess.Popen([CHROMIUM, *CHROMIUM_ARGS, f"--remote-debugging-port={port}", f"--user-data-dir={profile_dir}",
+                             "--window-size=1280,800", "about:blank"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    t0 = time.perf_counter()
+    while True:
+        try:
+            pages = [t for t in httpx.get(f"http://127.0.0.1:{port}/json/list", timeout=2).json() if t["type"] == "page"]
+            if pages:
+                return proc, DevTools(pages[0]["webSocketDebuggerUrl"])
+        except (httpx.HTTPError, ValueError):
+            pass
+        if proc.poll() is not None or time.perf_counter() - t0 > 30:
+            proc.kill()
+            raise SystemExit(f"Chromium did not start ({CHROMIUM})")
+        time.sleep(0.1)
 
+
+def cpu_times(browser_pid: int, server_pid: int) -> dict[str, float]:
+    """CPU time used so far [s] by each part: Chromium's processes by type, the server, this benchmark."""
+    import psutil
+
+    out: dict[str, float] = {}
+
+    def add(kind: str, proc) -> None:
+        try:
+            t = proc.cpu_times()
+            out[kind] = out.get(kind, 0.0) + t.user + t.system
+        except psutil.Error:
+            pass
+
+    root = psutil.Process(browser_pid)
+    add("browser", root)
+    for child in root.children(recursive=True):
+        cmd = " ".join(child.cmdline()) if child.is_running() else ""
+        kind = ("renderer" if "--type=renderer" in cmd else "gpu" if "--type=gpu" in cmd
+                else "network" if "NetworkService" in cmd else "chromium (other)")
+        add(kind, child)
+    add("server", psutil.Process(server_pid))
+    add("this benchmark", psutil.Process())
+    return out
+
+
+def run(strokes: int, seconds: float, echo_n: int, rate_hz: float) -> dict:
     server, port = start([sys.executable, "-m", "tactilize.cli", "serve", "--no-open", "--port", "0"])
     echo, echo_port = start([sys.executable, os.path.join(os.path.dirname(os.path.abspath(__file__)), "bench_web.py"), "--serve-echo"])
     base = f"http://127.0.0.1:{port}/"
+    browser = None
     try:
         httpx.get(base + "api/textures", timeout=60)
-        with sync_playwright() as p:
-            devtools = free_port()
-            browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS + [f"--remote-debugging-port={devtools}"])
-            page = browser.new_page(viewport={"width": 1280, "height": 800})
-            page.add_init_script(INSTRUMENT)
-            page.goto(base)
-            page.wait_for_selector("body[data-ready=true]", timeout=30_000)
-            page.wait_for_function("window.tactilize.settings && window.tactilize.settings.texture", timeout=30_000)
-            page.evaluate("window.tactilize.texture !== 'corduroy' && document.querySelector('[data-testid=texture][data-id=corduroy]').click()")
-            page.wait_for_function("window.tactilize.settings.texture === 'corduroy'")
-            box = page.locator("#picture").bounding_box()
-            target = next(t for t in httpx.get(f"http://127.0.0.1:{devtools}/json/list").json()
-                          if t["type"] == "page" and t["url"].startswith(base))
-            pen = Pen(target["webSocketDebuggerUrl"])
-            interval = 1.0 / rate_hz
-            # One stroke not counted: the page's first drives pay for compiling and first paints.
-            pen.stroke(box["x"] + 10, box["y"] + 20, 20 / (25.4 / 96), 0.5, interval)
-            time.sleep(0.3)
-            page.evaluate("window.__benchLatency.values = []; window.__benchLatency.batches = 0; window.__benchLatency.rows = 0")
-            stats0 = httpx.get(base + "api/stats").json()
-            moves = 0
-            mode = None
-            readouts = []
-            for k in range(strokes):
-                # 20 mm/s across the picture (at 1/96 inch per CSS px), then a pause.
-                moves += pen.stroke(box["x"] + 10, box["y"] + 30 + 12 * k, 20 / (25.4 / 96), seconds, interval)
-                readouts.append(page.evaluate("window.tactilize.latency ? window.tactilize.latency.last : null"))
+        with tempfile.TemporaryDirectory(prefix="bench-page-") as profile_dir:
+            browser, page = open_chromium(profile_dir)
+            try:
+                page.call("Page.enable")
+                page.call("Page.addScriptToEvaluateOnNewDocument", {"source": INSTRUMENT})
+                page.call("Emulation.setDeviceMetricsOverride", {"width": 1280, "height": 800, "deviceScaleFactor": 1, "mobile": False})
+                page.call("Page.navigate", {"url": base})
+                page.wait_for("document.body && document.body.dataset.ready === 'true' && !!window.tactilize.settings && !!window.tactilize.settings.texture")
+                page.evaluate("window.tactilize.texture !== 'corduroy' && document.querySelector('[data-testid=texture][data-id=corduroy]').click()")
+                page.wait_for("window.tactilize.settings.texture === 'corduroy' && document.querySelector('#picture').complete")
+                box = page.evaluate("(() => { const r = document.querySelector('#picture').getBoundingClientRect(); return {x: r.x, y: r.y}; })()")
+                interval = 1.0 / rate_hz
+                # One stroke not counted: the page's first drives pay for compiling and first paints.
+                page.stroke(box["x"] + 10, box["y"] + 20, 20 / (25.4 / 96), 0.5, interval)
                 time.sleep(0.3)
-            page.wait_for_timeout(300)
-            lat = page.evaluate("({values: window.__benchLatency.values, batches: window.__benchLatency.batches, rows: window.__benchLatency.rows})")
-            mode = page.evaluate("window.tactilize.inputMode || 'pointermove'")
-            stats = httpx.get(base + "api/stats", params={"last": lat["batches"]}).json()
-            pen.close()
-            echo_rtt = page.evaluate(ECHO_IN_PAGE, [f"ws://127.0.0.1:{echo_port}/ws", echo_n])
-            browser.close()
+                page.evaluate("window.__benchLatency.values = []; window.__benchLatency.batches = 0; window.__benchLatency.rows = 0")
+                stats0 = httpx.get(base + "api/stats").json()
+                moves = 0
+                readouts = []
+                cpu0, wall0 = cpu_times(browser.pid, server.pid), time.perf_counter()
+                for k in range(strokes):
+                    # 20 mm/s across the picture (at 1/96 inch per CSS px), then a pause.
+                    moves += page.stroke(box["x"] + 10, box["y"] + 30 + 12 * k, 20 / (25.4 / 96), seconds, interval)
+                    time.sleep(0.05)
+                    readouts.append(page.evaluate("window.tactilize.latency ? window.tactilize.latency.last : null"))
+                    time.sleep(0.25)
+                cpu1, wall1 = cpu_times(browser.pid, server.pid), time.perf_counter()
+                time.sleep(0.3)
+                lat = page.evaluate("({values: window.__benchLatency.values, batches: window.__benchLatency.batches, rows: window.__benchLatency.rows})")
+                mode = page.evaluate("window.tactilize.inputMode || 'pointermove'")
+                drawing = page.evaluate("window.tactilize.drawing || 'page'")
+                stats = httpx.get(base + "api/stats", params={"last": lat["batches"]}).json()
+                echo_rtt = page.evaluate(f"({ECHO_IN_PAGE})({json.dumps([f'ws://127.0.0.1:{echo_port}/ws', echo_n])})", timeout=120)
+            finally:
+                page.close()
+                browser.terminate()
+                browser.wait(10)
     finally:
         stop(server)
         stop(echo)
@@ -212,6 +287,7 @@ def run(strokes: int, seconds: float, echo_n: int, rate_hz: float) -> dict:
         "load_average_1min": os.getloadavg()[0],
         "cpu_count": os.cpu_count(),
         "input": mode,
+        "drawing": drawing,
         "pen_events": moves,
         "pen_rate_hz": moves / (strokes * seconds),
         "batches_sent": lat["batches"],
@@ -220,6 +296,7 @@ def run(strokes: int, seconds: float, echo_n: int, rate_hz: float) -> dict:
         "event_to_drive_ms": {"n": len(v), "p50": pct(v, 50), "p99": pct(v, 99), "max": max(v) if v else None},
         "page_readout_ms": readouts,
         "server_latency_us": stats["server_latency_us"],
+        "cpu_percent_during_strokes": {k: round(100 * (cpu1[k] - cpu0.get(k, 0.0)) / (wall1 - wall0), 1) for k in cpu1},
         "echo_in_page_ms": {"p50": pct(echo_rtt, 50), "p99": pct(echo_rtt, 99), "max": max(echo_rtt)},
     }
 
@@ -238,7 +315,7 @@ def main(argv=None):
         return
     e, s, r = doc["event_to_drive_ms"], doc["server_latency_us"], doc["echo_in_page_ms"]
     print(f"machine: {doc['cpu_count']} CPUs, load average {doc['load_average_1min']:.2f}")
-    print(f"page input: {doc['input']}; {doc['pen_events']} pen events ({doc['pen_rate_hz']:.0f} Hz) -> {doc['samples_sent']} samples in "
+    print(f"page input: {doc['input']}, drawing in the {doc['drawing']}; {doc['pen_events']} pen events ({doc['pen_rate_hz']:.0f} Hz) -> {doc['samples_sent']} samples in "
           f"{doc['batches_sent']} batches; the server received {doc['samples_received_by_server']} samples")
     print(f"event -> drive in the page ({e['n']} batches): p50 {e['p50']:.2f} ms   p99 {e['p99']:.2f} ms   "
           f"max {e['max']:.2f} ms   (goal p99 < 5 ms)")
@@ -247,6 +324,9 @@ def main(argv=None):
         print("  the page's own readout after each stroke (last second): "
               + ", ".join(f"p50 {x['p50']:.1f} / p99 {x['p99']:.1f} ms" for x in shown))
     print(f"server side, same batches (arrival -> drive sent): p50 {s['p50']:.0f} us   p99 {s['p99']:.0f} us   max {s['max']:.0f} us")
+    cpu = doc["cpu_percent_during_strokes"]
+    print("CPU during the strokes [% of one core]: " + ", ".join(f"{k} {v:.0f}" for k, v in sorted(cpu.items(), key=lambda kv: -kv[1]))
+          + f"; {sum(cpu.values()):.0f} of {100 * doc['cpu_count']}")
     print(f"bare echo from the page (reference, same stack): p50 {r['p50']:.2f} ms   p99 {r['p99']:.2f} ms   max {r['max']:.2f} ms")
 
 
