@@ -298,6 +298,7 @@ def run(strokes: int, seconds: float, echo_n: int, rate_hz: float) -> dict:
         "server_latency_us": stats["server_latency_us"],
         "cpu_percent_during_strokes": {k: round(100 * (cpu1[k] - cpu0.get(k, 0.0)) / (wall1 - wall0), 1) for k in cpu1},
         "echo_in_page_ms": {"p50": pct(echo_rtt, 50), "p99": pct(echo_rtt, 99), "max": max(echo_rtt)},
+        "ratio_to_echo": {"p50": pct(v, 50) / pct(echo_rtt, 50), "p99": pct(v, 99) / pct(echo_rtt, 99)},
     }
 
 
@@ -328,6 +329,7 @@ def main(argv=None):
     print("CPU during the strokes [% of one core]: " + ", ".join(f"{k} {v:.0f}" for k, v in sorted(cpu.items(), key=lambda kv: -kv[1]))
           + f"; {sum(cpu.values()):.0f} of {100 * doc['cpu_count']}")
     print(f"bare echo from the page (reference, same stack): p50 {r['p50']:.2f} ms   p99 {r['p99']:.2f} ms   max {r['max']:.2f} ms")
+    print(f"ratio event -> drive / bare echo: p50 {e['p50'] / r['p50']:.2f}   p99 {e['p99'] / r['p99']:.2f}")
 
 
 if __name__ == "__main__":
