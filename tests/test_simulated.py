@@ -118,3 +118,26 @@ def test_real_time_thread_runs_and_close_joins(envelope):
     out.close()
     assert thread is not None and not thread.is_alive()
     assert out.state()[0]["drive"]["pulse_frequency_hz"] == 0
+
+
+def test_the_real_time_thread_advances_in_slices_so_a_pen_batch_never_waits_a_tick(envelope):
+    # A clock that jumps 23 ms between readings: every tick has 23 ms to simulate.
+    now = [100.0]
+
+    def clock():
+        now[0] += 0.023
+        return now[0]
+
+    out = SimulatedOutput(SPEC, envelope=envelope, tick_s=0.005, start=False, clock=clock)
+    steps: list[float] = []
+    advance = out.advance
+    out.advance = lambda d: (steps.append(d), advance(d))[1]
+    out.start()
+    time.sleep(0.3)
+    out.close()
+    assert len(steps) >= 8
+    # Each hold of the lock covers at most 5 ms of simulated time; the slices of a
+    # tick add up to the tick (23 ms: 5 + 5 + 5 + 5 + 3).
+    assert max(steps) <= 0.005 + 1e-12
+    assert steps[:5] == pytest.approx([0.005, 0.005, 0.005, 0.005, 0.003])
+    assert out.time_s == pytest.approx(sum(steps), abs=1e-6)

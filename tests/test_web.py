@@ -614,3 +614,26 @@ def test_ws_hover_and_lift_hold_the_simulated_wire_in_standby():
         # lifted: texture off, wire still ready (not cold and off)
         assert states() == ["standby", "standby"]
         assert all(ctrl.bias_level > 0 for ctrl in out.controllers)
+
+
+def test_the_warm_heap_is_frozen_out_of_the_collectors_sight(output):
+    # After the warm-up, what exists lives as long as the server: a full collection
+    # must not walk it again (it stopped the event loop for 80 .. 130 ms).
+    import gc
+
+    gc.unfreeze()
+    assert gc.get_freeze_count() == 0
+    try:
+        with TestClient(create_app(output, "paper", output_name="fake")):
+            t0 = time.monotonic()
+            while gc.get_freeze_count() == 0 and time.monotonic() - t0 < 60:
+                time.sleep(0.05)
+            frozen = gc.get_freeze_count()
+        assert frozen > 10_000  # the libraries and the built-in maps, at least
+        # Without the warm-up nothing is frozen (an embedding application decides).
+        gc.unfreeze()
+        with TestClient(create_app(output, "paper", output_name="fake", warm=False)):
+            time.sleep(0.2)
+            assert gc.get_freeze_count() == 0
+    finally:
+        gc.unfreeze()
