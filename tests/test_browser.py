@@ -530,6 +530,7 @@ def _pixels(page, selector):
 def test_the_plot_and_the_trail_are_drawn_off_the_main_thread(page):
     # Chromium has OffscreenCanvas and module workers: the page's drawing runs there.
     assert page.evaluate("window.tactilize.drawing") == "worker"
+    assert page.get_by_test_id("drawing-mode").text_content() == "worker"
     pick(page, "corduroy")
     is_red = lambda im: (im[..., 0] > 180) & (im[..., 1] < 90) & (im[..., 2] < 90)  # noqa: E731
     red = lambda im: int(is_red(im).sum())  # noqa: E731

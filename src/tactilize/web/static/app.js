@@ -351,6 +351,7 @@ async function setup() {
   });
 
   $("#input-mode").textContent = INPUT;
+  $("#drawing-mode").textContent = draw.mode;
   setInterval(() => {
     const st = (T.latency.last = meter.stats());
     $("#latency-p50").textContent = st ? st.p50.toFixed(1) : "–";
