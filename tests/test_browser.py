@@ -556,3 +556,30 @@ def test_the_plot_and_the_trail_are_drawn_off_the_main_thread(page):
     rows = np.nonzero(is_red(_pixels(page, "#trail")).any(axis=1))[0]
     pen.lift(x0, y + 60)
     assert not (np.abs(rows / scale - (y - page.locator("#trail").bounding_box()["y"])) < 4).any()
+
+
+def test_without_offscreen_canvases_the_page_draws_on_its_own_thread(browser, server):
+    # A browser without OffscreenCanvas (older Safari): the same drawing, in the page.
+    ctx = browser.new_context(viewport={"width": 1400, "height": 900})
+    ctx.add_init_script("delete HTMLCanvasElement.prototype.transferControlToOffscreen")
+    page = ctx.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    try:
+        page.goto(server)
+        page.wait_for_selector("body[data-ready=true]", timeout=30_000)
+        page.wait_for_function("window.tactilize.settings !== null", timeout=30_000)
+        assert page.evaluate("window.tactilize.drawing") == "page"
+        assert page.get_by_test_id("drawing-mode").text_content() == "page"
+        pick(page, "corduroy")
+        pen = Pen(page)
+        box = surface_box(page)
+        pen.stroke(box["x"] + 10, box["y"] + 40, 40.0 / DEFAULT_MM_PER_PX, duration_s=0.8)
+        page.wait_for_timeout(150)
+        trail, plot = _pixels(page, "#trail"), _pixels(page, "#plot")
+        pen.lift(pen.last_x, box["y"] + 40)
+        assert int(((trail[..., 0] > 180) & (trail[..., 1] < 90) & (trail[..., 2] < 90)).sum()) > 100
+        assert int(((plot[..., 2] > 200) & (plot[..., 0] < 80)).sum()) > 20
+    finally:
+        ctx.close()
+    assert not errors, errors

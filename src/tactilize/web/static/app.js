@@ -20,7 +20,7 @@ const T = (window.tactilize = {
   inputMode: INPUT, latency: { last: null }, view: "single", six: [], composite: null, wireState: null,
 });
 
-const draw = startDrawing($("#plot"), $("#trail"), 2);
+const draw = startDrawing($("#plot"), $("#trail"), 2, (text) => showError(text));
 T.drawing = draw.mode;
 const audio = (T.audio = new AudioPulses());
 let textures = new Map();

@@ -3,17 +3,19 @@
 // cost, and a drive arriving while the main thread draws waits for it (a headless,
 // software-rendered Chromium measured a median 5.4 ms of main-thread work per frame
 // with the drawing on it).  Elsewhere, the same classes draw in the page.
-// Both give the same four calls; `mode` says which one runs ("worker" or "page").
+// Both give the same calls; `mode` says which one runs ("worker" or "page").
 
 import { Plot } from "./plot.js";
 import { Trail } from "./trail.js";
 
-export function startDrawing(plotCanvas, trailCanvas, channels = 2) {
+export function startDrawing(plotCanvas, trailCanvas, channels = 2, onError = () => {}) {
   if (moduleWorkers() && typeof plotCanvas.transferControlToOffscreen === "function") {
     try {
       const worker = new Worker(new URL("./draw-worker.js", import.meta.url), { type: "module" });
       const plot = plotCanvas.transferControlToOffscreen();
       const trail = trailCanvas.transferControlToOffscreen();
+      // The canvases are the worker's now: a failure there can only be reported.
+      worker.onerror = (ev) => onError(`drawing worker: ${ev.message || "failed to start"}`);
       worker.postMessage({ type: "init", plot, trail, channels }, [plot, trail]);
       return {
         mode: "worker",
