@@ -29,6 +29,8 @@ let queue = [];     // messages to send once the socket is open
 let retry = 250;    // reconnect backoff [ms]
 let lastSurfaceMsg = null;  // the texture or composite message the server has
 const meter = new LatencyMeter();
+// The plot's width over its height (style.css gives it the same aspect-ratio).
+const PLOT_ASPECT = 3;
 const SIX_COLS = 3;
 const MAX_REPEAT = 64;
 
@@ -153,6 +155,8 @@ function layoutSurface() {
   const frame = $("#frame"), trail = $("#trail"), dpr = window.devicePixelRatio || 1;
   frame.style.width = `${W}px`; frame.style.height = `${H}px`;
   draw.trailResize(W, H, dpr);
+  const pw = $("#plot").clientWidth;
+  if (pw) draw.plotResize(pw, pw / PLOT_ASPECT, dpr);
   trail.style.width = `${W}px`; trail.style.height = `${H}px`;
   const s = $("#surface");
   s.dataset.view = T.view;

@@ -20,4 +20,5 @@ self.onmessage = (ev) => {
   else if (m.type === "trail-add") trail.add(m.rows);
   else if (m.type === "trail-clear") trail.clear();
   else if (m.type === "trail-resize") trail.resize(m.w, m.h, m.dpr);
+  else if (m.type === "plot-resize") plot.resize(m.w, m.h, m.dpr);
 };

@@ -24,6 +24,7 @@ export function startDrawing(plotCanvas, trailCanvas, channels = 2, onError = ()
         trailAdd: (rows) => worker.postMessage({ type: "trail-add", rows }),
         trailClear: () => worker.postMessage({ type: "trail-clear" }),
         trailResize: (w, h, dpr) => worker.postMessage({ type: "trail-resize", w, h, dpr }),
+        plotResize: (w, h, dpr) => worker.postMessage({ type: "plot-resize", w, h, dpr }),
       };
     } catch (e) { /* no module workers or offscreen 2-D contexts here: draw in the page */ }
   }
@@ -35,6 +36,7 @@ export function startDrawing(plotCanvas, trailCanvas, channels = 2, onError = ()
     trailAdd: (rows) => trail.add(rows),
     trailClear: () => trail.clear(),
     trailResize: (w, h, dpr) => trail.resize(w, h, dpr),
+    plotResize: (w, h, dpr) => plot.resize(w, h, dpr),
   };
 }
 

@@ -22,7 +22,17 @@ export class Plot {
     this.wireOffset = null;
     this.wireState = [];  // per channel: off | standby | warming | vibrating
     this.running = true;
+    this.dpr = 1;
     nextFrame(() => this.frame());
+  }
+
+  /** The plot's size on the page [CSS px] and the device pixel ratio: drawn at
+   *  that resolution, its labels stay 11 CSS px high whatever the layout. */
+  resize(wPx, hPx, dpr) {
+    this.dpr = dpr;
+    this.canvas.width = Math.max(1, Math.round(wPx * dpr));
+    this.canvas.height = Math.max(1, Math.round(hPx * dpr));
+    this.drawnAt = 0;
   }
 
   /** New drives: [{pulse_frequency_hz, pulse_width_s, amplitude}, ...]. */
@@ -67,36 +77,38 @@ export class Plot {
   }
 
   draw(now) {
-    const { ctx, canvas } = this;
+    const { ctx, canvas, dpr } = this;
     const W = canvas.width, H = canvas.height;
     const lanes = this.drives.length + 1;
     const lh = H / lanes;
     const x = (t) => (t - (now - WINDOW_S)) / WINDOW_S * W;
     ctx.clearRect(0, 0, W, H);
-    ctx.font = "11px system-ui, sans-serif";
+    ctx.font = `${11 * dpr}px system-ui, sans-serif`;
+    ctx.lineWidth = dpr;
+    const label = 12 * dpr, pad = 4 * dpr, room = lh - 18 * dpr;
     this.pulses.forEach((list, i) => {
-      const top = i * lh, base = top + lh - 4;
-      ctx.fillStyle = "#888"; ctx.fillText(`channel ${i + 1} pulses`, 4, top + 12);
+      const top = i * lh, base = top + lh - pad;
+      ctx.fillStyle = "#888"; ctx.fillText(`channel ${i + 1} pulses`, pad, top + label);
       ctx.fillStyle = i ? "#c46a00" : "#1f6feb";
       for (const [t, w, a] of list) {
-        const h = a * (lh - 18);
+        const h = a * room;
         ctx.fillRect(x(t), base - h, Math.max(1, w / WINDOW_S * W), h);
       }
     });
-    const top = (lanes - 1) * lh, base = top + lh - 4;
+    const top = (lanes - 1) * lh, base = top + lh - pad;
     // Autoscale to the window's range, but never finer than 1 um full scale: a
     // felt pulse moves the pin at least 0.5 um, so a still wire reads as flat.
     let lo = Infinity, hi = -Infinity;
     for (const [, ds] of this.wire) for (const d of ds) { lo = Math.min(lo, d); hi = Math.max(hi, d); }
     if (!(hi - lo > 1)) { const m = Number.isFinite(lo) ? (lo + hi) / 2 : 0; lo = m - 0.5; hi = m + 0.5; }
     ctx.fillStyle = "#888";
-    const states = this.wireState.length ? ` — wire ${this.wireState.join(" / ")}` : "";
-    ctx.fillText(this.wire.length ? `simulated wire displacement ${lo.toFixed(1)} .. ${hi.toFixed(1)} µm${states}` : "wire displacement (no simulated wire on this output)", 4, top + 12);
+    const states = this.wireState.length ? ` (${this.wireState.join(" / ")})` : "";
+    ctx.fillText(this.wire.length ? `wire ${lo.toFixed(1)} .. ${hi.toFixed(1)} µm${states}` : "wire displacement (no simulated wire on this output)", pad, top + label);
     const nch = this.wire.length ? this.wire[0][1].length : 0;
     for (let c = 0; c < nch; c++) {
       ctx.strokeStyle = c ? "#c46a00" : "#1f6feb"; ctx.beginPath();
       this.wire.forEach(([t, ds], k) => {
-        const px = x(t), py = base - (ds[c] - lo) / (hi - lo) * (lh - 18);
+        const px = x(t), py = base - (ds[c] - lo) / (hi - lo) * room;
         k ? ctx.lineTo(px, py) : ctx.moveTo(px, py);
       });
       ctx.stroke();
