@@ -15,9 +15,10 @@ self.onmessage = (ev) => {
     return;
   }
   if (!plot) return;
-  if (m.type === "drives") plot.setDrives(m.channels);
-  else if (m.type === "wire") plot.addWire(m.t_s, m.displacement_um, m.state);
-  else if (m.type === "trail-add") trail.add(m.rows);
+  if (m.type === "frame") {
+    if (m.drives) plot.setDrives(m.drives);
+    if (m.rows.length) trail.add(m.rows);
+  } else if (m.type === "wire") plot.addWire(m.t_s, m.displacement_um, m.state);
   else if (m.type === "trail-clear") trail.clear();
   else if (m.type === "trail-resize") trail.resize(m.w, m.h, m.dpr);
   else if (m.type === "plot-resize") plot.resize(m.w, m.h, m.dpr);

@@ -17,12 +17,24 @@ export function startDrawing(plotCanvas, trailCanvas, channels = 2, onError = ()
       // The canvases are the worker's now: a failure there can only be reported.
       worker.onerror = (ev) => onError(`drawing worker: ${ev.message || "failed to start"}`);
       worker.postMessage({ type: "init", plot, trail, channels }, [plot, trail]);
+      // Samples and drives come once per pen event (250 a second from a fast pen),
+      // and each message to the worker cost the page's main thread about 0.1 ms
+      // (headless Chromium, two cores): they go together, once a frame, which is
+      // as often as the worker draws anyway.
+      let rows = [], drives = null, due = 0;
+      const flush = () => {
+        due = 0;
+        worker.postMessage({ type: "frame", rows, drives });
+        rows = []; drives = null;
+      };
+      const soon = () => { if (!due) due = requestAnimationFrame(flush); };
       return {
         mode: "worker",
-        setDrives: (chans) => worker.postMessage({ type: "drives", channels: chans.map(plain) }),
+        setDrives: (chans) => { drives = chans.map(plain); soon(); },
         addWire: (msg) => worker.postMessage({ type: "wire", t_s: msg.t_s, displacement_um: msg.displacement_um, state: msg.state }),
-        trailAdd: (rows) => worker.postMessage({ type: "trail-add", rows }),
-        trailClear: () => worker.postMessage({ type: "trail-clear" }),
+        trailAdd: (r) => { for (const x of r) rows.push(x); soon(); },
+        // The old stroke's samples still waiting are dropped with its trail.
+        trailClear: () => { rows = []; worker.postMessage({ type: "trail-clear" }); },
         trailResize: (w, h, dpr) => worker.postMessage({ type: "trail-resize", w, h, dpr }),
         plotResize: (w, h, dpr) => worker.postMessage({ type: "plot-resize", w, h, dpr }),
       };
