@@ -13,6 +13,7 @@ These tests need Debian's ``chromium`` (``apt-get install chromium``) and the
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import shutil
@@ -77,18 +78,30 @@ def browser():
         b.close()
 
 
-@pytest.fixture()
-def page(browser, server):
-    ctx = browser.new_context(viewport={"width": 1400, "height": 900})
+@contextlib.contextmanager
+def opened_page(browser, server, init_script=None, **context_args):
+    """The pen page, loaded and connected, in a fresh browser context; on leaving,
+    the page must have thrown no error.  ``init_script`` runs before the page's own."""
+    ctx = browser.new_context(viewport={"width": 1400, "height": 900}, **context_args)
+    if init_script:
+        ctx.add_init_script(init_script)
     pg = ctx.new_page()
     errors: list[str] = []
     pg.on("pageerror", lambda e: errors.append(str(e)))
-    pg.goto(server)
-    pg.wait_for_selector("body[data-ready=true]", timeout=30_000)
-    pg.wait_for_function("window.tactilize.settings !== null", timeout=30_000)
-    yield pg
-    ctx.close()
+    try:
+        pg.goto(server)
+        pg.wait_for_selector("body[data-ready=true]", timeout=30_000)
+        pg.wait_for_function("window.tactilize.settings !== null", timeout=30_000)
+        yield pg
+    finally:
+        ctx.close()
     assert not errors, errors
+
+
+@pytest.fixture()
+def page(browser, server):
+    with opened_page(browser, server) as pg:
+        yield pg
 
 
 def pick(page, texture_id):
@@ -560,15 +573,7 @@ def test_the_plot_and_the_trail_are_drawn_off_the_main_thread(page):
 
 def test_without_offscreen_canvases_the_page_draws_on_its_own_thread(browser, server):
     # A browser without OffscreenCanvas (older Safari): the same drawing, in the page.
-    ctx = browser.new_context(viewport={"width": 1400, "height": 900})
-    ctx.add_init_script("delete HTMLCanvasElement.prototype.transferControlToOffscreen")
-    page = ctx.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    try:
-        page.goto(server)
-        page.wait_for_selector("body[data-ready=true]", timeout=30_000)
-        page.wait_for_function("window.tactilize.settings !== null", timeout=30_000)
+    with opened_page(browser, server, "delete HTMLCanvasElement.prototype.transferControlToOffscreen") as page:
         assert page.evaluate("window.tactilize.drawing") == "page"
         assert page.get_by_test_id("drawing-mode").text_content() == "page"
         pick(page, "corduroy")
@@ -578,8 +583,5 @@ def test_without_offscreen_canvases_the_page_draws_on_its_own_thread(browser, se
         page.wait_for_timeout(150)
         trail, plot = _pixels(page, "#trail"), _pixels(page, "#plot")
         pen.lift(pen.last_x, box["y"] + 40)
-        assert int(((trail[..., 0] > 180) & (trail[..., 1] < 90) & (trail[..., 2] < 90)).sum()) > 100
-        assert int(((plot[..., 2] > 200) & (plot[..., 0] < 80)).sum()) > 20
-    finally:
-        ctx.close()
-    assert not errors, errors
+    assert int(((trail[..., 0] > 180) & (trail[..., 1] < 90) & (trail[..., 2] < 90)).sum()) > 100
+    assert int(((plot[..., 2] > 200) & (plot[..., 0] < 80)).sum()) > 20

@@ -66,16 +66,9 @@ def test_bad_strokes_are_refused_in_one_line(client, body, status, fault):
 
 @pytest.mark.browser
 def test_download_and_export_the_last_stroke(browser, server, tmp_path):
-    from test_browser import Pen, pick, surface_box
+    from test_browser import Pen, opened_page, pick, surface_box
 
-    ctx = browser.new_context(viewport={"width": 1400, "height": 900}, accept_downloads=True)
-    page = ctx.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    try:
-        page.goto(server)
-        page.wait_for_selector("body[data-ready=true]", timeout=30_000)
-        page.wait_for_function("window.tactilize.settings !== null", timeout=30_000)
+    with opened_page(browser, server, accept_downloads=True) as page:
         pick(page, "corduroy")
         pen = Pen(page)
         box = surface_box(page)
@@ -96,9 +89,6 @@ def test_download_and_export_the_last_stroke(browser, server, tmp_path):
         doc = json.loads(open(dl.value.path()).read())
         assert doc["timescale"] == 1000 and len(doc["perceptions"][0]["channels"]) == 2
         assert "exported" in page.get_by_test_id("stroke-export-status").text_content()
-    finally:
-        ctx.close()
-    assert not errors, errors
 
 
 from test_browser import browser, server  # noqa: E402,F401  (the fixtures: one server, one Chromium)
