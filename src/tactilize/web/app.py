@@ -275,7 +275,7 @@ def _default_output() -> tuple[Any, str]:
         return _Recorder(), "recorder"
 
 
-def settle_heap() -> None:
+def _settle_heap() -> None:
     """Keep the garbage collector's full passes off the pen's path.
 
     What exists once the server has warmed up (imported libraries, compiled
@@ -339,7 +339,7 @@ def create_app(
         warm_task = None
         if warm:
             warm_task = asyncio.get_running_loop().run_in_executor(None, state.warm)
-            warm_task.add_done_callback(lambda _: settle_heap())
+            warm_task.add_done_callback(lambda _: _settle_heap())
         try:
             yield
         finally:
