@@ -424,9 +424,28 @@ def test_the_page_shows_the_wire_state_and_hover_readies_it(page):
     page.wait_for_function("() => (window.tactilize.wireState || []).every(s => s === 'standby')", timeout=10_000)
 
 
-def test_raw_updates_are_used_and_each_sample_reaches_the_server_once(page, server):
+def short_stroke_counted(page, server, n=60):
+    """Press, ``n`` pen moves 4 ms apart, lift; returns (samples the page sent,
+    samples the server received) over the stroke."""
     import httpx
 
+    def received():
+        return httpx.get(server + "api/stats").json()["counters"].get("samples_received", 0)
+
+    pen = Pen(page)
+    box = surface_box(page)
+    x0, y = box["x"] + 10, box["y"] + 40
+    before, sent0 = received(), page.evaluate("window.tactilize.samplesSent")
+    pen._send("mousePressed", x0, y, 1)
+    for i in range(1, n + 1):
+        pen._send("mouseMoved", x0 + 1.5 * i, y, 1)
+        time.sleep(0.004)
+    pen.lift(x0 + 1.5 * n, y)
+    page.wait_for_function("() => window.tactilize.lastDrive && !window.tactilize.lastDrive.down", timeout=5_000)
+    return page.evaluate("window.tactilize.samplesSent") - sent0, received() - before
+
+
+def test_raw_updates_are_used_and_each_sample_reaches_the_server_once(page, server):
     pick(page, "corduroy")
     # Chromium on loopback (a secure context) has pointerrawupdate: the page must use it.
     assert page.evaluate("'onpointerrawupdate' in window")
@@ -437,21 +456,9 @@ def test_raw_updates_are_used_and_each_sample_reaches_the_server_once(page, serv
                    addEventListener('pointerrawupdate', () => c.raw++, true);
                    addEventListener('pointermove', () => c.move++, true); }"""
     )
-    pen = Pen(page)
-    box = surface_box(page)
-    x0, y = box["x"] + 10, box["y"] + 40
-    before = httpx.get(server + "api/stats").json()["counters"].get("samples_received", 0)
-    sent0 = page.evaluate("window.tactilize.samplesSent")
-    pen._send("mousePressed", x0, y, 1)
     n = 60
-    for i in range(1, n + 1):
-        pen._send("mouseMoved", x0 + 1.5 * i, y, 1)
-        time.sleep(0.004)
-    pen.lift(x0 + 1.5 * n, y)
-    page.wait_for_function("() => window.tactilize.lastDrive && !window.tactilize.lastDrive.down", timeout=5_000)
+    sent, received = short_stroke_counted(page, server, n)
     counts = page.evaluate("window.__count")
-    sent = page.evaluate("window.tactilize.samplesSent") - sent0
-    received = httpx.get(server + "api/stats").json()["counters"].get("samples_received", 0) - before
     # One sample for the press and one per pen event: raw updates, each once, however
     # many pointermove events the browser also fired for the same movement.
     assert counts["raw"] == n
@@ -497,38 +504,17 @@ def test_six_textures_side_by_side_follow_the_texture_under_the_pen(page):
 
 
 def test_without_raw_updates_the_page_reads_pointermove_and_coalesced_samples_once(browser, server):
-    import httpx
-
-    ctx = browser.new_context(viewport={"width": 1400, "height": 900})
     # A browser without pointerrawupdate (Firefox, Safari, an insecure origin).
-    ctx.add_init_script("delete Window.prototype.onpointerrawupdate; delete window.onpointerrawupdate;")
-    pg = ctx.new_page()
-    try:
-        pg.goto(server)
-        pg.wait_for_selector("body[data-ready=true]", timeout=30_000)
-        pg.wait_for_function("window.tactilize.settings !== null", timeout=30_000)
+    no_raw = "delete Window.prototype.onpointerrawupdate; delete window.onpointerrawupdate;"
+    with opened_page(browser, server, no_raw) as pg:
         assert not pg.evaluate("'onpointerrawupdate' in window")
         assert pg.evaluate("window.tactilize.inputMode") == "pointermove"
         pick(pg, "corduroy")
-        pen = Pen(pg)
-        box = surface_box(pg)
-        x0, y = box["x"] + 10, box["y"] + 40
-        before = httpx.get(server + "api/stats").json()["counters"].get("samples_received", 0)
-        sent0 = pg.evaluate("window.tactilize.samplesSent")
-        pen._send("mousePressed", x0, y, 1)
         n = 60
-        for i in range(1, n + 1):
-            pen._send("mouseMoved", x0 + 1.5 * i, y, 1)
-            time.sleep(0.004)
-        pen.lift(x0 + 1.5 * n, y)
-        pg.wait_for_function("() => window.tactilize.lastDrive && !window.tactilize.lastDrive.down", timeout=5_000)
-        sent = pg.evaluate("window.tactilize.samplesSent") - sent0
-        received = httpx.get(server + "api/stats").json()["counters"].get("samples_received", 0) - before
-        # Every pen event once, from the coalesced lists of frame-aligned pointermoves.
-        assert sent == n + 1
-        assert received == sent
-    finally:
-        ctx.close()
+        sent, received = short_stroke_counted(pg, server, n)
+    # Every pen event once, from the coalesced lists of frame-aligned pointermoves.
+    assert sent == n + 1
+    assert received == sent
 
 
 def _pixels(page, selector):
