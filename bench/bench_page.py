@@ -17,7 +17,12 @@ It prints, from one run:
 3. the server-side latency of the same batches (arrival -> drive sent, from
    ``/api/stats``) [us];
 4. the bare-echo reference: the page's round trip to an echo WebSocket on the
-   same stack (Starlette on uvicorn), paced like a pen [ms].
+   same stack (Starlette on uvicorn), paced like a pen [ms];
+5. the bare-pen-echo reference, the floor of this browser and machine: the same
+   strokes on a page that does nothing but send each raw update's own
+   ``timeStamp`` to that echo and note its return (``bench_web.BARE_PEN_PAGE``)
+   [ms].  Whatever the pen page does, it cannot beat this; the ratio to it is
+   what the page and the server add.
 
 Goal (docs/references.md, section 9 (simultaneity)): p99 under 5 ms on loopback.
 
@@ -273,6 +278,16 @@ def run(strokes: int, seconds: float, echo_n: int, rate_hz: float) -> dict:
                 mode = page.evaluate("window.tactilize.inputMode || 'pointermove'")
                 drawing = page.evaluate("window.tactilize.drawing || 'page'")
                 stats = httpx.get(base + "api/stats", params={"last": lat["batches"]}).json()
+                # The floor: the same strokes on a page that only echoes each raw update's timestamp.
+                page.call("Page.navigate", {"url": f"http://127.0.0.1:{echo_port}/pen"})
+                page.wait_for("window.__bare && window.__bare.ready")
+                page.stroke(100, 100, 20 / (25.4 / 96), 0.5, interval)
+                time.sleep(0.3)
+                page.evaluate("window.__bare.values = []")
+                for k in range(strokes):
+                    page.stroke(100, 130 + 12 * k, 20 / (25.4 / 96), seconds, interval)
+                    time.sleep(0.3)
+                bare = page.evaluate("({values: window.__bare.values, input: window.__bare.input})")
                 echo_rtt = page.evaluate(f"({ECHO_IN_PAGE})({json.dumps([f'ws://127.0.0.1:{echo_port}/ws', echo_n])})", timeout=120)
             finally:
                 page.close()
@@ -282,6 +297,7 @@ def run(strokes: int, seconds: float, echo_n: int, rate_hz: float) -> dict:
         stop(server)
         stop(echo)
     v = lat["values"]
+    b = bare["values"]
     c0, c1 = stats0["counters"], stats["counters"]
     return {
         "load_average_1min": os.getloadavg()[0],
@@ -299,6 +315,8 @@ def run(strokes: int, seconds: float, echo_n: int, rate_hz: float) -> dict:
         "cpu_percent_during_strokes": {k: round(100 * (cpu1[k] - cpu0.get(k, 0.0)) / (wall1 - wall0), 1) for k in cpu1},
         "echo_in_page_ms": {"p50": pct(echo_rtt, 50), "p99": pct(echo_rtt, 99), "max": max(echo_rtt)},
         "ratio_to_echo": {"p50": pct(v, 50) / pct(echo_rtt, 50), "p99": pct(v, 99) / pct(echo_rtt, 99)},
+        "bare_pen_echo_ms": {"input": bare["input"], "n": len(b), "p50": pct(b, 50), "p99": pct(b, 99), "max": max(b) if b else None},
+        "ratio_to_bare_pen_echo": {"p50": pct(v, 50) / pct(b, 50), "p99": pct(v, 99) / pct(b, 99)},
     }
 
 
@@ -330,6 +348,11 @@ def main(argv=None):
           + f"; {sum(cpu.values()):.0f} of {100 * doc['cpu_count']}")
     print(f"bare echo from the page (reference, same stack): p50 {r['p50']:.2f} ms   p99 {r['p99']:.2f} ms   max {r['max']:.2f} ms")
     print(f"ratio event -> drive / bare echo: p50 {e['p50'] / r['p50']:.2f}   p99 {e['p99'] / r['p99']:.2f}")
+    b = doc["bare_pen_echo_ms"]
+    print(f"bare pen echo (reference, floor: the same strokes on a page that only echoes each {b['input']}'s timestamp, "
+          f"{b['n']} events): p50 {b['p50']:.2f} ms   p99 {b['p99']:.2f} ms   max {b['max']:.2f} ms")
+    q = doc["ratio_to_bare_pen_echo"]
+    print(f"ratio event -> drive / bare pen echo: p50 {q['p50']:.2f}   p99 {q['p99']:.2f}")
 
 
 if __name__ == "__main__":

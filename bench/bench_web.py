@@ -71,13 +71,36 @@ def stop(proc):
 # ----------------------------------------------------------------- reference echo server
 
 
+# The floor of bench_page.py: a page that does nothing but send each raw pen
+# update's own timeStamp to the echo and note when it comes back [ms].
+BARE_PEN_PAGE = """<!doctype html><html><head><meta charset="utf-8"><title>bare pen echo</title>
+<style>html, body { margin: 0; height: 100%; } #pad { position: fixed; inset: 0; touch-action: none; }</style></head>
+<body><div id="pad"></div><script>
+const bare = (window.__bare = { values: [], sent: 0, ready: false });
+const ws = new WebSocket(`ws://${location.host}/ws`);
+ws.onopen = () => { bare.ready = true; };
+ws.onmessage = (ev) => { const now = performance.now(); bare.values.push(now - JSON.parse(ev.data).t); };
+const pad = document.getElementById("pad");
+const kind = "onpointerrawupdate" in window ? "pointerrawupdate" : "pointermove";
+bare.input = kind;
+pad.addEventListener(kind, (ev) => {
+  if (ev.buttons && ws.readyState === 1) { ws.send(JSON.stringify({ seq: bare.sent++, t: ev.timeStamp })); }
+});
+pad.addEventListener("pointerdown", (ev) => pad.setPointerCapture(ev.pointerId));
+</script></body></html>"""
+
+
 def serve_echo() -> None:
-    """A bare WebSocket echo on the same stack (Starlette + uvicorn), for the reference."""
+    """A bare WebSocket echo on the same stack (Starlette + uvicorn), for the reference.
+
+    ``/ws`` echoes every text message; ``/pen`` is :data:`BARE_PEN_PAGE`.
+    """
     import socket
 
     import uvicorn
     from starlette.applications import Starlette
-    from starlette.routing import WebSocketRoute
+    from starlette.responses import HTMLResponse
+    from starlette.routing import Route, WebSocketRoute
 
     async def echo(ws):
         await ws.accept()
@@ -87,7 +110,10 @@ def serve_echo() -> None:
         except Exception:
             pass
 
-    app = Starlette(routes=[WebSocketRoute("/ws", echo)])
+    async def pen(request):
+        return HTMLResponse(BARE_PEN_PAGE)
+
+    app = Starlette(routes=[WebSocketRoute("/ws", echo), Route("/pen", pen)])
     sock = socket.socket()
     sock.bind(("127.0.0.1", 0))
     sock.listen(128)
