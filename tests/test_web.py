@@ -1,13 +1,9 @@
-"""The web app in-process: routes, uploads, the WebSocket protocol and its bad cases, the CLI."""
+"""The web app in-process: routes, uploads, the WebSocket protocol and its bad cases (the CLI: test_web_serve.py)."""
 
 from __future__ import annotations
 
 import io
 import json
-import re
-import socket
-import subprocess
-import sys
 import time
 
 import numpy as np
@@ -21,7 +17,6 @@ from tactilize.actuators.base import OutputBase
 from tactilize.web import create_app
 from tactilize.web import session as session_mod
 from tactilize.web.rows import DEFAULT_M_PER_CSS_PX, sample_error, samples_from_css
-from tactilize.web.serve import bind_socket, is_loopback
 
 
 class FakeOutput(OutputBase):
@@ -450,91 +445,7 @@ def test_disconnect_stops_output(output):
     assert not out.closed  # the app did not open it, so it does not close it
 
 
-# ------------------------------------------------------------------- CLI and binding
-
-
-def test_is_loopback():
-    assert is_loopback("127.0.0.1") and is_loopback("localhost") and is_loopback("::1") and is_loopback("127.5.0.1")
-    assert not is_loopback("0.0.0.0") and not is_loopback("192.168.1.5") and not is_loopback("example.org")
-
-
-def test_one_loopback_rule_for_the_pen_and_the_experiments():
-    from tactilize.experiments import web as experiments_web
-
-    assert experiments_web.is_loopback is is_loopback
-    # The cases the two copies disagreed on.  The empty host binds every
-    # interface (experiments/web.py called it loopback, so a server bound there
-    # got no experimenter token); other names than localhost may resolve anywhere.
-    assert not is_loopback("")
-    assert not is_loopback("localhost.localdomain") and not is_loopback("ip6-localhost")
-    assert is_loopback("[::1]") and not is_loopback("::") and not is_loopback("[::]")
-
-
-def _serve(*args):
-    return subprocess.Popen(
-        [sys.executable, "-m", "tactilize.cli", "serve", "--no-open", *args],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-
-
-def test_cli_serve_prints_address_on_loopback():
-    import httpx
-
-    proc = _serve("--port", "0")
-    try:
-        line = proc.stdout.readline()
-        m = re.search(r"http://127\.0\.0\.1:(\d+)/", line)
-        assert m, line
-        r = httpx.get(m.group(0) + "api/config", timeout=10)
-        # the pen's default is the perceptual profile; the paper's is one click away
-        assert r.status_code == 200 and r.json()["profile"] == "perceptual"
-        profiles = httpx.get(m.group(0) + "api/profiles", timeout=10).json()
-        assert profiles["default"] == "perceptual"
-        assert {"paper", "physical", "perceptual"} <= {p["name"] for p in profiles["profiles"]}
-    finally:
-        proc.terminate()
-        _, err = proc.communicate(timeout=10)
-    assert "reachable from other machines" not in err
-
-
-def test_cli_serve_warns_when_asked_for_all_interfaces():
-    proc = _serve("--host", "0.0.0.0", "--port", "0")
-    try:
-        line = proc.stdout.readline()
-        assert "serving" in line
-    finally:
-        proc.terminate()
-        _, err = proc.communicate(timeout=10)
-    assert "warning" in err and "0.0.0.0" in err
-
-
-def test_cli_serve_bad_input_is_one_line_exit_2():
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    s.listen()
-    try:
-        r = subprocess.run(
-            [sys.executable, "-m", "tactilize.cli", "serve", "--no-open", "--port", str(s.getsockname()[1])],
-            capture_output=True,
-            text=True,
-            timeout=60,
-        )
-    finally:
-        s.close()
-    assert r.returncode == 2 and "cannot listen" in r.stderr and len(r.stderr.strip().splitlines()) == 1
-    r = subprocess.run(
-        [sys.executable, "-m", "tactilize.cli", "serve", "--no-open", "--profile", "nope"], capture_output=True, text=True, timeout=60
-    )
-    assert r.returncode == 2 and "nope" in r.stderr and "Traceback" not in r.stderr
-    r = subprocess.run(
-        [sys.executable, "-m", "tactilize.cli", "serve", "--no-open", "--port", "0", "--output", "teleport"],
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
-    assert r.returncode == 2 and "teleport" in r.stderr
+# ------------------------------------------------------------------- output faults
 
 
 def test_output_errors_reach_the_page():
@@ -571,22 +482,6 @@ def test_output_errors_reach_the_page():
                     ws.receive_json()
             assert info.value.code == 1011
     assert out.stops >= 1  # whatever apply half-did was stopped
-
-
-def test_accepted_connections_have_no_nagle_delay():
-    # A drive written right after a wire trace must not wait for the client's
-    # delayed ACK (about 40 ms): the server's connections carry TCP_NODELAY.
-    listener = bind_socket("127.0.0.1", 0)
-    try:
-        client = socket.create_connection(listener.getsockname()[:2], timeout=5)
-        conn, _ = listener.accept()
-        try:
-            assert conn.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY) != 0
-        finally:
-            conn.close()
-            client.close()
-    finally:
-        listener.close()
 
 
 def test_ws_hover_and_lift_hold_the_simulated_wire_in_standby():
