@@ -262,7 +262,7 @@ def run(strokes: int, seconds: float, echo_n: int, rate_hz: float) -> dict:
     browser = None
     try:
         httpx.get(base + "api/textures", timeout=60)
-        with tempfile.TemporaryDirectory(prefix="bench-page-") as profile_dir:
+        with tempfile.TemporaryDirectory(prefix="bench-page-", ignore_cleanup_errors=True) as profile_dir:
             browser, page = open_chromium(profile_dir)
             try:
                 page.call("Page.enable")

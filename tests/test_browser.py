@@ -424,6 +424,42 @@ def test_the_page_shows_the_wire_state_and_hover_readies_it(page):
     page.wait_for_function("() => (window.tactilize.wireState || []).every(s => s === 'standby')", timeout=10_000)
 
 
+def test_readouts_are_written_only_when_their_text_changes(page):
+    # Every write to the document is a style, layout and paint: the wire trace
+    # comes 20 times a second and the drive readouts 10, mostly unchanged.
+    pick(page, "corduroy")
+    page.wait_for_function("() => Array.isArray(window.tactilize.wireState)", timeout=10_000)
+    page.evaluate(
+        """() => { const c = (window.__writes = {wire: 0, direction: 0, surface: 0, traces: 0});
+                   const watch = (sel, key, opts) => new MutationObserver((ms) => { c[key] += ms.length; })
+                       .observe(document.querySelector(sel), opts);
+                   watch('#wire-state', 'wire', {childList: true, characterData: true, subtree: true});
+                   watch('#drive-direction', 'direction', {childList: true, characterData: true, subtree: true});
+                   watch('#surface', 'surface', {attributes: true, attributeFilter: ['data-state']});
+                   window.tactilize.ws.addEventListener('message', (ev) => { const t = JSON.parse(ev.data).type;
+                       if (t === 'wire') c.traces++; else if (t === 'drive') c.drives = (c.drives || 0) + 1; });
+                   window.__wireBefore = window.tactilize.wireState.join(); }"""
+    )
+    time.sleep(0.6)
+    idle = page.evaluate("({...window.__writes, same: window.tactilize.wireState.join() === window.__wireBefore})")
+    assert idle["traces"] >= 5  # the trace kept coming
+    assert idle["same"] and idle["wire"] == 0
+    # A steady stroke to the right: the direction reads 0 deg from its first drive
+    # until the pen comes to rest ("–"), and the surface turns on once, however
+    # many drives come back (the readouts follow them 10 times a second).
+    pen = Pen(page)
+    box = surface_box(page)
+    page.evaluate("""() => new MutationObserver(() => { const t = document.querySelector('#drive-direction').textContent;
+                       if (t !== '–') window.__directionsShown = (window.__directionsShown || []).concat([t]); })
+                     .observe(document.querySelector('#drive-direction'), {childList: true, characterData: true, subtree: true})""")
+    pen.stroke(box["x"] + 20, box["y"] + 60, 30.0 / DEFAULT_MM_PER_PX, duration_s=0.8)
+    w = page.evaluate("window.__writes")
+    assert w["drives"] > 20
+    assert page.evaluate("window.__directionsShown") == ["0"]
+    assert w["direction"] <= 2 and w["surface"] == 1
+    pen.lift(pen.last_x, box["y"] + 60)
+
+
 def short_stroke_counted(page, server, n=60):
     """Press, ``n`` pen moves 4 ms apart, lift; returns (samples the page sent,
     samples the server received) over the stroke."""

@@ -427,9 +427,11 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
             except asyncio.TimeoutError:
                 pass
             try:
-                # Built off the event loop: a pen batch arriving meanwhile must not
-                # wait for the plot's data (it shows in the server-side p99).
-                text = await loop.run_in_executor(None, _trace_text, source)
+                # Built on the event loop, in the gap after a drive: it takes about
+                # 0.1 ms, while handing it to a worker thread woke that thread and
+                # passed the GIL to and fro 20 times a second, and the pen's
+                # batches paid for it in their tail (docs/serve.md, Performance).
+                text = _trace_text(source)
             except Exception as exc:  # the page's plot must never kill the pen
                 log.debug("wire trace failed: %s", exc)
                 return

@@ -11,6 +11,9 @@ import * as calibration from "./calibrate.js";
 import * as strokeExport from "./stroke-export.js";
 
 const $ = (sel) => document.querySelector(sel);
+// A readout is written only when its text changes: every write is a style,
+// layout and paint of the page, and readouts follow a pen 10 .. 20 times a second.
+const setText = (el, text) => { if (el.textContent !== text) el.textContent = text; };
 const HISTORY = 1000;
 
 // Scripting handle (for users' scripts and the browser tests).
@@ -60,7 +63,7 @@ function connect() {
     else if (msg.type === "wire") {
       draw.addWire(msg);
       T.wireState = msg.state || null;
-      $("#wire-state").textContent = T.wireState ? T.wireState.join(" / ") : "–";
+      setText($("#wire-state"), T.wireState ? T.wireState.join(" / ") : "–");
     }
     else if (msg.type === "ready" || msg.type === "state") onSettings(msg);
     else if (msg.type === "error") showError(msg.message);
@@ -214,18 +217,19 @@ function showDrive(msg) {
   for (let i = 0; i < 2; i++) {
     const c = chans[i] || { pulse_frequency_hz: 0, pulse_width_s: 0, duty_ratio: 0, amplitude: 0, clamped: [] };
     const cell = (name) => document.querySelector(`[data-testid="drive-${name}${sfx[i]}"]`);
-    cell("frequency").textContent = fmt(c.pulse_frequency_hz, 1);
-    cell("pulse-width").textContent = fmt(c.pulse_width_s * 1e3, 3);
-    cell("duty").textContent = fmt(c.duty_ratio * 100, 2);
-    cell("amplitude").textContent = fmt(c.amplitude, 2);
-    cell("clamped").textContent = (c.clamped || []).join(", ");
+    setText(cell("frequency"), fmt(c.pulse_frequency_hz, 1));
+    setText(cell("pulse-width"), fmt(c.pulse_width_s * 1e3, 3));
+    setText(cell("duty"), fmt(c.duty_ratio * 100, 2));
+    setText(cell("amplitude"), fmt(c.amplitude, 2));
+    setText(cell("clamped"), (c.clamped || []).join(", "));
   }
-  $("#drive-speed").textContent = fmt(msg ? msg.speed_mm_s : 0, 1);
-  $("#drive-direction").textContent = msg && msg.direction_deg !== null && msg.direction_deg !== undefined ? msg.direction_deg.toFixed(0) : "–";
-  $("#texture-fs").textContent = msg && msg.spatial_frequency_per_m !== null ? (msg.spatial_frequency_per_m / 1e3).toFixed(3) : "–";
-  $("#texture-is").textContent = msg && msg.spectral_intensity !== null ? msg.spectral_intensity.toFixed(3) : "–";
+  setText($("#drive-speed"), fmt(msg ? msg.speed_mm_s : 0, 1));
+  setText($("#drive-direction"), msg && msg.direction_deg !== null && msg.direction_deg !== undefined ? msg.direction_deg.toFixed(0) : "–");
+  setText($("#texture-fs"), msg && msg.spatial_frequency_per_m !== null ? (msg.spatial_frequency_per_m / 1e3).toFixed(3) : "–");
+  setText($("#texture-is"), msg && msg.spectral_intensity !== null ? msg.spectral_intensity.toFixed(3) : "–");
   const on = (shownOn = !!(msg && msg.on));
-  $("#surface").dataset.state = on ? "on" : "off";
+  const surface = $("#surface");
+  if (surface.dataset.state !== (on ? "on" : "off")) surface.dataset.state = on ? "on" : "off";
   audio.setDrives(chans.length ? chans : [{}, {}]);
 }
 
@@ -358,8 +362,8 @@ async function setup() {
   $("#drawing-mode").textContent = draw.mode;
   setInterval(() => {
     const st = (T.latency.last = meter.stats());
-    $("#latency-p50").textContent = st ? st.p50.toFixed(1) : "–";
-    $("#latency-p99").textContent = st ? st.p99.toFixed(1) : "–";
+    setText($("#latency-p50"), st ? st.p50.toFixed(1) : "–");
+    setText($("#latency-p99"), st ? st.p99.toFixed(1) : "–");
   }, 250);
   for (const r of document.querySelectorAll('input[name="view"]')) r.addEventListener("change", () => r.checked && setView(r.value));
   $("#fill").addEventListener("change", applySurface);
