@@ -201,10 +201,12 @@ class WireController:
     def position(self, drive: Drive) -> tuple[float, bool]:
         """Where a drive sits in its band, 0 .. 1 (see the module docstring), and
         whether a drive without a strength had to be brought into the band."""
+        return self._position(drive, *self.band_j(drive.pulse_frequency_hz))
+
+    def _position(self, drive: Drive, lo: float, hi: float) -> tuple[float, bool]:
         strength = getattr(drive, "strength", None)
         if strength is not None:
             return min(1.0, max(0.0, strength * drive.amplitude)), False
-        lo, hi = self.band_j(drive.pulse_frequency_hz)
         own = drive.amplitude * drive.pulse_width_s * self.circuit.power_at(self.spec.resistance_martensite_ohm)
         if own <= 0:
             return 0.0, True
@@ -218,7 +220,7 @@ class WireController:
         heat the circuit delivers now (measured in closed loop, nominal otherwise)."""
         f = drive.pulse_frequency_hz
         lo, hi = self.band_j(f)
-        pos, outside = self.position(drive)
+        pos, outside = self._position(drive, lo, hi)
         clamped = ("band",) if outside else ()
         energy = lo * (hi / lo) ** pos if hi > lo > 0 else hi
         power = self.on_power_w if self.closed_loop else self.circuit.power_at(self.spec.resistance_martensite_ohm)
@@ -334,10 +336,12 @@ class WireController:
             want = self.hold_w - sp.conductance_w_k * (self.operating_c - self.standby_c)
         else:
             d = self.drive
+            want = self.hold_w
             if not d.is_off:
                 f = d.pulse_frequency_hz
-                energy = self.plan(d).pulse_width_s * self._bound_power_w()
-            want = self.hold_w - f * self.plan(d).energy_j if not d.is_off else self.hold_w
+                plan = self.plan(d)
+                energy = plan.pulse_width_s * self._bound_power_w()
+                want -= f * plan.energy_j
             if self.closed_loop:
                 want += gain_p * (xi_avg - self.setpoint)
         room = self.envelope.bias_room_w(f, energy) / self._bound_power_w()
