@@ -420,7 +420,8 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
         while not closed.is_set():
             await asyncio.sleep(WIRE_PERIOD_S)
             # Like the simulation thread, build the trace just after a drive went
-            # out (if one does within half a period): its thread takes the GIL too.
+            # out (if one does within half a period): a batch arriving while it is
+            # built waits for it.
             drive_sent.clear()
             try:
                 await asyncio.wait_for(drive_sent.wait(), 0.5 * WIRE_PERIOD_S)
