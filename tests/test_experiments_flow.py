@@ -250,6 +250,17 @@ def test_simulation_is_resumable_and_never_duplicates(tmp_path):
     assert "simulation:alpha-law:11" in Store(db).meta()
 
 
+def rate_every_trial(client, proto, participant, rating_of, scales):
+    """One participant through every trial of ``proto`` (order 1), giving each
+    trial ``rating_of(profile)`` on every one of ``scales``."""
+    with client:
+        token = client.post(f"{API}/sessions", json={"participant_id": participant, "consent": True}).json()["session"]
+        client.post(f"{API}/sessions/{token}/calibration", json={"mm_per_px": 0.25, "felt": True})
+        for i, cid in enumerate(proto.condition_order(1)):
+            r = rating_of(proto.profile(cid))
+            client.post(f"{API}/sessions/{token}/answers", json={"trial": i, "ratings": {k: r for k in scales}})
+
+
 def test_personal_calibration_profile_is_usable(tmp_path):
     from tactilize.experiments.calibration import fit_personal_profile
     from tactilize.mapping import Profile
@@ -259,13 +270,7 @@ def test_personal_calibration_profile_is_usable(tmp_path):
     proto = load_protocol("alpha-law")
     # This person likes the steep sigmoid (k5 = 0.1) best, gentler and steeper less.
     liking = {0.02: 2, 0.05: 4, 0.1: 7, 0.2: 5}
-    with client:
-        token = client.post(f"{API}/sessions", json={"participant_id": "ME", "consent": True}).json()["session"]
-        client.post(f"{API}/sessions/{token}/calibration", json={"mm_per_px": 0.25, "felt": True})
-        for i, cid in enumerate(proto.condition_order(1)):
-            r = liking[proto.profile(cid).speed.slope_per_mm_s]
-            client.post(f"{API}/sessions/{token}/answers",
-                        json={"trial": i, "ratings": {"speed_match": r, "speed_difference": r}})
+    rate_every_trial(client, proto, "ME", lambda p: liking[p.speed.slope_per_mm_s], ("speed_match", "speed_difference"))
     prof, report = fit_personal_profile(Store(db), "ME")
     slope = prof.speed.slope_per_mm_s
     assert 0.05 < slope < 0.2 and report["fits"][0]["role"] == "speed"
@@ -329,13 +334,7 @@ def test_personal_calibration_fits_the_perceptual_profile(tmp_path):
     proto = load_protocol("perceptual-law")
     # This person likes the textures a little more compressed than the preset (k = 0.7).
     liking = {0.6: 4, 0.7: 7, 0.836: 5, 0.95: 3, 1.1: 2}
-    with client:
-        token = client.post(f"{API}/sessions", json={"participant_id": "PK", "consent": True}).json()["session"]
-        client.post(f"{API}/sessions/{token}/calibration", json={"mm_per_px": 0.25, "felt": True})
-        for i, cid in enumerate(proto.condition_order(1)):
-            r = liking[proto.profile(cid).frequency.exponent]
-            client.post(f"{API}/sessions/{token}/answers",
-                        json={"trial": i, "ratings": {"match": r, "difference": r}})
+    rate_every_trial(client, proto, "PK", lambda p: liking[p.frequency.exponent], ("match", "difference"))
     prof, report = fit_personal_profile(Store(db), "PK")
     assert report["base"] == "perceptual"  # the protocol's base, not the paper's
     k = prof.frequency.exponent
