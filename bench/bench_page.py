@@ -23,7 +23,9 @@ It prints, from one run:
    ``timeStamp`` to that echo and note its return (``bench_web.BARE_PEN_PAGE``)
    [ms], half of them before the pen page and half after.  Whatever the pen
    page does, it cannot beat this; the ratio to it is what the page and the
-   server add.
+   server add.  The CPU each process used during the floor's strokes is
+   printed too: the same work costs about twice the CPU time when the
+   machine's host is busy, so it tells which kind of run this was.
 
 Goal (docs/references.md, section 9 (simultaneity)): p99 under 5 ms on loopback.
 
@@ -240,19 +242,24 @@ def cpu_times(browser_pid: int, server_pid: int) -> dict[str, float]:
     return out
 
 
-def floor_strokes(page: DevTools, echo_port: int, strokes: int, seconds: float, interval_s: float) -> tuple[list[float], str]:
+def floor_strokes(page: DevTools, echo_port: int, strokes: int, seconds: float, interval_s: float,
+                  pids: tuple[int, int]) -> tuple[list[float], str, dict[str, float], float]:
     """The floor: ``strokes`` strokes on the bare pen page (``bench_web.BARE_PEN_PAGE``);
-    returns each pen event's event -> echo time [ms], and the event it listened to."""
+    returns each pen event's event -> echo time [ms], the event it listened to,
+    the CPU time [s] each part used during the strokes (``pids``: the browser and
+    the echo server, counted as "server") and the strokes' wall time [s]."""
     page.call("Page.navigate", {"url": f"http://127.0.0.1:{echo_port}/pen"})
     page.wait_for("window.__bare && window.__bare.ready")
     page.stroke(100, 100, 20 / (25.4 / 96), 0.5, interval_s)  # not counted, like the pen page's first
     time.sleep(0.3)
     page.evaluate("window.__bare.values = []")
+    cpu0, wall0 = cpu_times(*pids), time.perf_counter()
     for k in range(strokes):
         page.stroke(100, 130 + 12 * k, 20 / (25.4 / 96), seconds, interval_s)
         time.sleep(0.3)
+    cpu1, wall1 = cpu_times(*pids), time.perf_counter()
     got = page.evaluate("({values: window.__bare.values, input: window.__bare.input})")
-    return got["values"], got["input"]
+    return got["values"], got["input"], {k: cpu1[k] - cpu0.get(k, 0.0) for k in cpu1}, wall1 - wall0
 
 
 def run(strokes: int, seconds: float, echo_n: int, rate_hz: float) -> dict:
@@ -271,7 +278,7 @@ def run(strokes: int, seconds: float, echo_n: int, rate_hz: float) -> dict:
                 # The floor before and after the pen page, half its strokes each, so a
                 # machine that gets busier or quieter during the run weighs on both alike.
                 interval = 1.0 / rate_hz
-                bare, bare_input = floor_strokes(page, echo_port, max(1, strokes // 2), seconds, interval)
+                bare, bare_input, bare_cpu, bare_wall = floor_strokes(page, echo_port, max(1, strokes // 2), seconds, interval, (browser.pid, echo.pid))
                 page.call("Page.navigate", {"url": base})
                 page.wait_for("document.body && document.body.dataset.ready === 'true' && !!window.tactilize.settings && !!window.tactilize.settings.texture")
                 page.evaluate("window.tactilize.texture !== 'corduroy' && document.querySelector('[data-testid=texture][data-id=corduroy]').click()")
@@ -297,7 +304,11 @@ def run(strokes: int, seconds: float, echo_n: int, rate_hz: float) -> dict:
                 mode = page.evaluate("window.tactilize.inputMode || 'pointermove'")
                 drawing = page.evaluate("window.tactilize.drawing || 'page'")
                 stats = httpx.get(base + "api/stats", params={"last": lat["batches"]}).json()
-                bare += floor_strokes(page, echo_port, max(1, strokes - strokes // 2), seconds, interval)[0]
+                more, _, more_cpu, more_wall = floor_strokes(page, echo_port, max(1, strokes - strokes // 2), seconds, interval, (browser.pid, echo.pid))
+                bare += more
+                bare_wall += more_wall
+                for k, t in more_cpu.items():
+                    bare_cpu[k] = bare_cpu.get(k, 0.0) + t
                 echo_rtt = page.evaluate(f"({ECHO_IN_PAGE})({json.dumps([f'ws://127.0.0.1:{echo_port}/ws', echo_n])})", timeout=120)
             finally:
                 page.close()
@@ -326,6 +337,7 @@ def run(strokes: int, seconds: float, echo_n: int, rate_hz: float) -> dict:
         "echo_in_page_ms": {"p50": pct(echo_rtt, 50), "p99": pct(echo_rtt, 99), "max": max(echo_rtt)},
         "ratio_to_echo": {"p50": pct(v, 50) / pct(echo_rtt, 50), "p99": pct(v, 99) / pct(echo_rtt, 99)},
         "bare_pen_echo_ms": {"input": bare_input, "n": len(b), "p50": pct(b, 50), "p99": pct(b, 99), "max": max(b) if b else None},
+        "cpu_percent_during_bare_pen_strokes": {k: round(100 * t / bare_wall, 1) for k, t in bare_cpu.items()},
         "ratio_to_bare_pen_echo": {"p50": pct(v, 50) / pct(b, 50), "p99": pct(v, 99) / pct(b, 99)},
     }
 
@@ -361,6 +373,9 @@ def main(argv=None):
     b = doc["bare_pen_echo_ms"]
     print(f"bare pen echo (reference, floor: the same strokes on a page that only echoes each {b['input']}'s timestamp, "
           f"{b['n']} events): p50 {b['p50']:.2f} ms   p99 {b['p99']:.2f} ms   max {b['max']:.2f} ms")
+    cpu = doc["cpu_percent_during_bare_pen_strokes"]
+    print("  CPU during its strokes [% of one core]: " + ", ".join(f"{k} {v:.0f}" for k, v in sorted(cpu.items(), key=lambda kv: -kv[1]))
+          + f"; {sum(cpu.values()):.0f} of {100 * doc['cpu_count']} (\"server\": the bare echo)")
     q = doc["ratio_to_bare_pen_echo"]
     print(f"ratio event -> drive / bare pen echo: p50 {q['p50']:.2f}   p99 {q['p99']:.2f}")
 
