@@ -43,6 +43,9 @@ _PIECE_US = {"off": 20_000, "standby": 2_000, "warming": 250, "vibrating": 10_00
 _STATE_CODE = {name: i for i, name in enumerate(STATES)}
 #: Longest simulated time [us] the real-time thread advances under one hold of the lock.
 _SLICE_US = 5_000
+#: Asked for once per piece of a warming burst (every 250 us): one shared value,
+#: not a new validated Drive each time.
+_OFF = Drive.off()
 
 
 class _Channel:
@@ -333,7 +336,7 @@ class SimulatedOutput(OutputBase):
             if ctrl.state == "warming":
                 # Each burst is short enough that the envelope's bound holds for it alone.
                 step = max(1, min(step, int(ctrl.burst_s() * _US)))
-            want = ctrl.drive if ctrl.pulses_on else Drive.off()
+            want = ctrl.drive if ctrl.pulses_on else _OFF
             if want != ch.scheduled:
                 if want.is_off:
                     self._close_pulse(ch)
