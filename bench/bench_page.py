@@ -62,7 +62,7 @@ CHROMIUM_ARGS = ["--headless=new", "--no-sandbox", "--disable-gpu", "--disable-b
 # batch sent, and when a drive comes back, the delay of every batch it covers.
 INSTRUMENT = r"""
 (() => {
-  const lat = (window.__benchLatency = { pending: [], values: [], batches: 0, rows: 0 });
+  const lat = (window.__benchLatency = { pending: [], values: [], times: [], batches: 0, rows: 0 });
   const Native = window.WebSocket;
   const send = Native.prototype.send;
   Native.prototype.send = function (data) {
@@ -84,7 +84,10 @@ INSTRUMENT = r"""
         const now = performance.now();
         let m; try { m = JSON.parse(ev.data); } catch (e) { return; }
         if (m.type !== "drive" || m.resting || typeof m.seq !== "number") return;
-        while (lat.pending.length && lat.pending[0][0] <= m.seq) lat.values.push(now - lat.pending.shift()[1]);
+        while (lat.pending.length && lat.pending[0][0] <= m.seq) {
+          const t = lat.pending.shift()[1];
+          lat.values.push(now - t); lat.times.push(t);
+        }
       });
     }
   };
@@ -243,23 +246,45 @@ def cpu_times(browser_pid: int, server_pid: int) -> dict[str, float]:
 
 
 def floor_strokes(page: DevTools, echo_port: int, strokes: int, seconds: float, interval_s: float,
-                  pids: tuple[int, int]) -> tuple[list[float], str, dict[str, float], float]:
+                  pids: tuple[int, int]) -> tuple[list[float], list[float], str, dict[str, float], float]:
     """The floor: ``strokes`` strokes on the bare pen page (``bench_web.BARE_PEN_PAGE``);
-    returns each pen event's event -> echo time [ms], the event it listened to,
+    returns each pen event's event -> echo time [ms] and timestamp [ms], the event it listened to,
     the CPU time [s] each part used during the strokes (``pids``: the browser and
     the echo server, counted as "server") and the strokes' wall time [s]."""
     page.call("Page.navigate", {"url": f"http://127.0.0.1:{echo_port}/pen"})
     page.wait_for("window.__bare && window.__bare.ready")
     page.stroke(100, 100, 20 / (25.4 / 96), 0.5, interval_s)  # not counted, like the pen page's first
     time.sleep(0.3)
-    page.evaluate("window.__bare.values = []")
+    page.evaluate("window.__bare.values = []; window.__bare.times = []")
     cpu0, wall0 = cpu_times(*pids), time.perf_counter()
     for k in range(strokes):
         page.stroke(100, 130 + 12 * k, 20 / (25.4 / 96), seconds, interval_s)
         time.sleep(0.3)
     cpu1, wall1 = cpu_times(*pids), time.perf_counter()
-    got = page.evaluate("({values: window.__bare.values, input: window.__bare.input})")
-    return got["values"], got["input"], {k: cpu1[k] - cpu0.get(k, 0.0) for k in cpu1}, wall1 - wall0
+    got = page.evaluate("({values: window.__bare.values, times: window.__bare.times, input: window.__bare.input})")
+    return got["values"], got["times"], got["input"], {k: cpu1[k] - cpu0.get(k, 0.0) for k in cpu1}, wall1 - wall0
+
+
+#: Batches counted as a stroke's start: the first ones after a pause are slower
+#: at every hop (caches and processes gone cold), so they are shown apart.
+START_BATCHES = 5
+
+
+def by_stroke_position(times_ms: list[float], values_ms: list[float], gap_ms: float = 100.0) -> dict:
+    """Event-to-drive [ms] of the first :data:`START_BATCHES` batches of each
+    stroke and of the rest; strokes are told apart by a gap of ``gap_ms`` [ms]
+    between consecutive batches' newest samples."""
+    start, rest = [], []
+    k, prev = 0, None
+    for t, v in zip(times_ms, values_ms):
+        # A new page load starts its clock again: a timestamp going back is a new stroke too.
+        k = 0 if prev is None or not 0 <= t - prev <= gap_ms else k + 1
+        prev = t
+        (start if k < START_BATCHES else rest).append(v)
+    return {
+        "stroke_start": {"n": len(start), "p50": pct(start, 50), "max": max(start) if start else None},
+        "rest": {"n": len(rest), "p50": pct(rest, 50), "p99": pct(rest, 99), "max": max(rest) if rest else None},
+    }
 
 
 def run(strokes: int, seconds: float, echo_n: int, rate_hz: float) -> dict:
@@ -278,7 +303,7 @@ def run(strokes: int, seconds: float, echo_n: int, rate_hz: float) -> dict:
                 # The floor before and after the pen page, half its strokes each, so a
                 # machine that gets busier or quieter during the run weighs on both alike.
                 interval = 1.0 / rate_hz
-                bare, bare_input, bare_cpu, bare_wall = floor_strokes(page, echo_port, max(1, strokes // 2), seconds, interval, (browser.pid, echo.pid))
+                bare, bare_times, bare_input, bare_cpu, bare_wall = floor_strokes(page, echo_port, max(1, strokes // 2), seconds, interval, (browser.pid, echo.pid))
                 page.call("Page.navigate", {"url": base})
                 page.wait_for("document.body && document.body.dataset.ready === 'true' && !!window.tactilize.settings && !!window.tactilize.settings.texture")
                 page.evaluate("window.tactilize.texture !== 'corduroy' && document.querySelector('[data-testid=texture][data-id=corduroy]').click()")
@@ -287,7 +312,7 @@ def run(strokes: int, seconds: float, echo_n: int, rate_hz: float) -> dict:
                 # One stroke not counted: the page's first drives pay for compiling and first paints.
                 page.stroke(box["x"] + 10, box["y"] + 20, 20 / (25.4 / 96), 0.5, interval)
                 time.sleep(0.3)
-                page.evaluate("window.__benchLatency.values = []; window.__benchLatency.batches = 0; window.__benchLatency.rows = 0")
+                page.evaluate("window.__benchLatency.values = []; window.__benchLatency.times = []; window.__benchLatency.batches = 0; window.__benchLatency.rows = 0")
                 stats0 = httpx.get(base + "api/stats").json()
                 moves = 0
                 readouts = []
@@ -300,12 +325,13 @@ def run(strokes: int, seconds: float, echo_n: int, rate_hz: float) -> dict:
                     time.sleep(0.25)
                 cpu1, wall1 = cpu_times(browser.pid, server.pid), time.perf_counter()
                 time.sleep(0.3)
-                lat = page.evaluate("({values: window.__benchLatency.values, batches: window.__benchLatency.batches, rows: window.__benchLatency.rows})")
+                lat = page.evaluate("({values: window.__benchLatency.values, times: window.__benchLatency.times, batches: window.__benchLatency.batches, rows: window.__benchLatency.rows})")
                 mode = page.evaluate("window.tactilize.inputMode || 'pointermove'")
                 drawing = page.evaluate("window.tactilize.drawing || 'page'")
                 stats = httpx.get(base + "api/stats", params={"last": lat["batches"]}).json()
-                more, _, more_cpu, more_wall = floor_strokes(page, echo_port, max(1, strokes - strokes // 2), seconds, interval, (browser.pid, echo.pid))
+                more, more_times, _, more_cpu, more_wall = floor_strokes(page, echo_port, max(1, strokes - strokes // 2), seconds, interval, (browser.pid, echo.pid))
                 bare += more
+                bare_times += more_times
                 bare_wall += more_wall
                 for k, t in more_cpu.items():
                     bare_cpu[k] = bare_cpu.get(k, 0.0) + t
@@ -331,12 +357,14 @@ def run(strokes: int, seconds: float, echo_n: int, rate_hz: float) -> dict:
         "samples_sent": lat["rows"],
         "samples_received_by_server": c1.get("samples_received", 0) - c0.get("samples_received", 0),
         "event_to_drive_ms": {"n": len(v), "p50": pct(v, 50), "p99": pct(v, 99), "max": max(v) if v else None},
+        "event_to_drive_by_position_ms": by_stroke_position(lat["times"], v),
         "page_readout_ms": readouts,
         "server_latency_us": stats["server_latency_us"],
         "cpu_percent_during_strokes": {k: round(100 * (cpu1[k] - cpu0.get(k, 0.0)) / (wall1 - wall0), 1) for k in cpu1},
         "echo_in_page_ms": {"p50": pct(echo_rtt, 50), "p99": pct(echo_rtt, 99), "max": max(echo_rtt)},
         "ratio_to_echo": {"p50": pct(v, 50) / pct(echo_rtt, 50), "p99": pct(v, 99) / pct(echo_rtt, 99)},
         "bare_pen_echo_ms": {"input": bare_input, "n": len(b), "p50": pct(b, 50), "p99": pct(b, 99), "max": max(b) if b else None},
+        "bare_pen_echo_by_position_ms": by_stroke_position(bare_times, b),
         "cpu_percent_during_bare_pen_strokes": {k: round(100 * t / bare_wall, 1) for k, t in bare_cpu.items()},
         "ratio_to_bare_pen_echo": {"p50": pct(v, 50) / pct(b, 50), "p99": pct(v, 99) / pct(b, 99)},
     }
@@ -360,6 +388,10 @@ def main(argv=None):
           f"{doc['batches_sent']} batches; the server received {doc['samples_received_by_server']} samples")
     print(f"event -> drive in the page ({e['n']} batches): p50 {e['p50']:.2f} ms   p99 {e['p99']:.2f} ms   "
           f"max {e['max']:.2f} ms   (goal p99 < 5 ms)")
+    pos = doc["event_to_drive_by_position_ms"]
+    a, z = pos["stroke_start"], pos["rest"]
+    print(f"  first {START_BATCHES} batches of each stroke ({a['n']}): p50 {a['p50']:.2f} ms   max {a['max']:.2f} ms;   "
+          f"the rest ({z['n']}): p50 {z['p50']:.2f} ms   p99 {z['p99']:.2f} ms   max {z['max']:.2f} ms")
     shown = [x for x in doc["page_readout_ms"] if x]
     if shown:
         print("  the page's own readout after each stroke (last second): "
@@ -373,6 +405,9 @@ def main(argv=None):
     b = doc["bare_pen_echo_ms"]
     print(f"bare pen echo (reference, floor: the same strokes on a page that only echoes each {b['input']}'s timestamp, "
           f"{b['n']} events): p50 {b['p50']:.2f} ms   p99 {b['p99']:.2f} ms   max {b['max']:.2f} ms")
+    a, z = doc["bare_pen_echo_by_position_ms"]["stroke_start"], doc["bare_pen_echo_by_position_ms"]["rest"]
+    print(f"  first {START_BATCHES} events of each stroke ({a['n']}): p50 {a['p50']:.2f} ms   max {a['max']:.2f} ms;   "
+          f"the rest ({z['n']}): p50 {z['p50']:.2f} ms   p99 {z['p99']:.2f} ms   max {z['max']:.2f} ms")
     cpu = doc["cpu_percent_during_bare_pen_strokes"]
     print("  CPU during its strokes [% of one core]: " + ", ".join(f"{k} {v:.0f}" for k, v in sorted(cpu.items(), key=lambda kv: -kv[1]))
           + f"; {sum(cpu.values()):.0f} of {100 * doc['cpu_count']} (\"server\": the bare echo)")

@@ -76,10 +76,10 @@ def stop(proc):
 BARE_PEN_PAGE = """<!doctype html><html><head><meta charset="utf-8"><title>bare pen echo</title>
 <style>html, body { margin: 0; height: 100%; } #pad { position: fixed; inset: 0; touch-action: none; }</style></head>
 <body><div id="pad"></div><script>
-const bare = (window.__bare = { values: [], sent: 0, ready: false });
+const bare = (window.__bare = { values: [], times: [], sent: 0, ready: false });
 const ws = new WebSocket(`ws://${location.host}/ws`);
 ws.onopen = () => { bare.ready = true; };
-ws.onmessage = (ev) => { const now = performance.now(); bare.values.push(now - JSON.parse(ev.data).t); };
+ws.onmessage = (ev) => { const now = performance.now(), t = JSON.parse(ev.data).t; bare.values.push(now - t); bare.times.push(t); };
 const pad = document.getElementById("pad");
 const kind = "onpointerrawupdate" in window ? "pointerrawupdate" : "pointermove";
 bare.input = kind;
