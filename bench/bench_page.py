@@ -24,8 +24,8 @@ It prints, from one run:
    [ms], half of them before the pen page and half after.  Whatever the pen
    page does, it cannot beat this; the ratio to it is what the page and the
    server add.  The CPU each process used during the floor's strokes is
-   printed too: the same work costs about twice the CPU time when the
-   machine's host is busy, so it tells which kind of run this was.
+   printed too: on a shared machine the same work can cost twice the CPU
+   time at one hour as at another, so it tells which kind of run this was.
 
 Goal (docs/references.md, section 9 (simultaneity)): p99 under 5 ms on loopback.
 
@@ -287,6 +287,13 @@ def by_stroke_position(times_ms: list[float], values_ms: list[float], gap_ms: fl
     }
 
 
+def position_line(what: str, pos: dict) -> str:
+    """One printed line of :func:`by_stroke_position`'s result."""
+    a, z = pos["stroke_start"], pos["rest"]
+    return (f"  first {START_BATCHES} {what} of each stroke ({a['n']}): p50 {a['p50']:.2f} ms   max {a['max']:.2f} ms;   "
+            f"the rest ({z['n']}): p50 {z['p50']:.2f} ms   p99 {z['p99']:.2f} ms   max {z['max']:.2f} ms")
+
+
 def run(strokes: int, seconds: float, echo_n: int, rate_hz: float) -> dict:
     server, port = start([sys.executable, "-m", "tactilize.cli", "serve", "--no-open", "--port", "0"])
     echo, echo_port = start([sys.executable, os.path.join(os.path.dirname(os.path.abspath(__file__)), "bench_web.py"), "--serve-echo"])
@@ -388,10 +395,7 @@ def main(argv=None):
           f"{doc['batches_sent']} batches; the server received {doc['samples_received_by_server']} samples")
     print(f"event -> drive in the page ({e['n']} batches): p50 {e['p50']:.2f} ms   p99 {e['p99']:.2f} ms   "
           f"max {e['max']:.2f} ms   (goal p99 < 5 ms)")
-    pos = doc["event_to_drive_by_position_ms"]
-    a, z = pos["stroke_start"], pos["rest"]
-    print(f"  first {START_BATCHES} batches of each stroke ({a['n']}): p50 {a['p50']:.2f} ms   max {a['max']:.2f} ms;   "
-          f"the rest ({z['n']}): p50 {z['p50']:.2f} ms   p99 {z['p99']:.2f} ms   max {z['max']:.2f} ms")
+    print(position_line("batches", doc["event_to_drive_by_position_ms"]))
     shown = [x for x in doc["page_readout_ms"] if x]
     if shown:
         print("  the page's own readout after each stroke (last second): "
@@ -405,9 +409,7 @@ def main(argv=None):
     b = doc["bare_pen_echo_ms"]
     print(f"bare pen echo (reference, floor: the same strokes on a page that only echoes each {b['input']}'s timestamp, "
           f"{b['n']} events): p50 {b['p50']:.2f} ms   p99 {b['p99']:.2f} ms   max {b['max']:.2f} ms")
-    a, z = doc["bare_pen_echo_by_position_ms"]["stroke_start"], doc["bare_pen_echo_by_position_ms"]["rest"]
-    print(f"  first {START_BATCHES} events of each stroke ({a['n']}): p50 {a['p50']:.2f} ms   max {a['max']:.2f} ms;   "
-          f"the rest ({z['n']}): p50 {z['p50']:.2f} ms   p99 {z['p99']:.2f} ms   max {z['max']:.2f} ms")
+    print(position_line("events", doc["bare_pen_echo_by_position_ms"]))
     cpu = doc["cpu_percent_during_bare_pen_strokes"]
     print("  CPU during its strokes [% of one core]: " + ", ".join(f"{k} {v:.0f}" for k, v in sorted(cpu.items(), key=lambda kv: -kv[1]))
           + f"; {sum(cpu.values()):.0f} of {100 * doc['cpu_count']} (\"server\": the bare echo)")
