@@ -326,3 +326,17 @@ def test_each_rule_refuses_the_document_that_breaks_it_and_only_it(docs, fmt, ru
     assert all(v.path is not None and v.message for v in found)
     with pytest.raises(ConformanceError, match=rule.replace(".", r"\.")):
         validate(bad, fmt)
+
+
+def test_the_registry_validates_every_document_before_it_writes_it(monkeypatch, stroke_timeline):
+    import tactilize.export.registry as registry
+
+    seen, real = [], registry.validate
+    monkeypatch.setattr(registry, "validate", lambda doc, fmt: seen.append(fmt) or real(doc, fmt))
+    for fmt in FORMATS:
+        render(stroke_timeline, fmt)
+    assert seen == list(FORMATS)
+    # ...and what it refuses does not get written
+    monkeypatch.setattr(registry, "validate", lambda doc, fmt: real({**doc, "avatars": [{"id": 0}]}, fmt))
+    with pytest.raises(ConformanceError, match="hjif.avatar-fields"):
+        render(stroke_timeline, "hjif")
