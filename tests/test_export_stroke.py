@@ -219,8 +219,10 @@ def test_hjif_field_names_and_types(timeline):
     doc = json.loads(render(timeline, "hjif"))
     assert set(doc) == {"version", "profile", "level", "date", "description", "timescale", "avatars", "perceptions", "syncs"}
     assert doc["profile"] in ("Main", "Simple Parametric") and isinstance(doc["timescale"], int) and doc["timescale"] == 1000
-    assert doc["avatars"] == [{"id": 0, "lod": 0, "type": "Vibration"}]
+    # id 0 is reserved for "unspecified" (the MPEG reference reader refuses it); the perception names it
+    assert doc["avatars"] == [{"id": 1, "lod": 0, "type": "Vibration"}]
     (perc,) = doc["perceptions"]
+    assert perc["avatar_id"] == 1 and perc["reference_devices"][0]["id"] == 1
     assert {"id", "avatar_id", "description", "perception_modality", "effect_library", "channels",
             "reference_devices"} <= set(perc)
     assert perc["perception_modality"] == "Vibrotactile"
@@ -241,6 +243,8 @@ def test_hjif_field_names_and_types(timeline):
                     assert set(kf) == {"relative_position", "amplitude_modulation", "frequency_modulation"}
                     assert isinstance(kf["relative_position"], int) and kf["relative_position"] >= 0
                     assert 0.0 <= kf["amplitude_modulation"] <= 1.0
+                    # the reference reader takes only an integer: a fractional frequency would play silence
+                    assert isinstance(kf["frequency_modulation"], int)
                     assert band["lower_frequency_limit"] <= kf["frequency_modulation"] <= band["upper_frequency_limit"]
 
 

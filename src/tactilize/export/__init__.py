@@ -14,6 +14,7 @@ per concern:
 :mod:`.hjif`       MPEG-I Haptics (ISO/IEC 23090-31), ``.hjif``
 :mod:`.haptic`     Meta Haptics ``.haptic``
 :mod:`.readers`    AHAP, ``.hjif`` and ``.haptic`` back to drive over time
+:mod:`.conformance` the rules of AHAP, Android, ``.hjif`` and ``.haptic`` (``check``, ``validate``)
 
 No SMA envelope is applied to a steady drive: these files are for other
 actuators (voice coils, LRAs, phone motors).  A stroke's timeline holds both

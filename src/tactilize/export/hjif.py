@@ -6,23 +6,26 @@ gives them: the root's ``version``, ``profile``, ``level``, ``date``,
 Vibrotactile perception; one channel per actuator (the pen's two); in each,
 
 * a ``VectorialWave`` band whose ``Basis`` effects (one per run of the stroke
-  at 65 Hz and above) carry keyframes of ``relative_position`` [ticks],
-  ``amplitude_modulation`` (0..1) and ``frequency_modulation`` [Hz] over the
-  stroke, on a ``Sine`` base signal;
+  at 65 Hz and above, split so no keyframe lies more than
+  :data:`HJIF_MAX_EFFECT_TICKS` after its effect) carry keyframes of
+  ``relative_position`` [ticks], ``amplitude_modulation`` (0..1) and
+  ``frequency_modulation`` [Hz] over the stroke, on a ``Sine`` base signal;
 * a ``Transient`` band with one effect per pulse where the train is slower
   (the taps), its keyframe carrying the tap's amplitude and the train's
   pulse frequency [Hz].
 
-Times are integer ticks of ``timescale`` = 1000 per second (1 ms).  Band
-frequency limits are integers [Hz].  The reference device describes the
-actuator the drive was made for: its frequency range from the profile's limits.
-Its field names (``id``, ``name``, ``body_part_mask``, ``minimum_frequency``,
-``maximum_frequency``, ``type``) are this project's reading where section 6 is
-silent.
+Every document keeps the rules of :mod:`.conformance.hjif` (the MPEG reference
+reader's): ``frequency_modulation`` is a whole number of hertz (the reader
+drops any other number, and a band without a frequency plays silence); the
+avatar and the reference device have id 1 (0 is reserved); times are integer
+ticks of ``timescale`` = 1000 per second (1 ms); band frequency limits are
+integers [Hz].  The reference device describes the actuator the drive was made
+for: its frequency range from the profile's limits.
 
 References
 ----------
 .. [1] docs/references.md, section 6 (MPEG-I Haptics).
+.. [2] docs/references.md, section 6 (MPEG-I reader rules).
 """
 
 from __future__ import annotations
@@ -33,45 +36,68 @@ from typing import Any
 
 from .timeline import CONTROL_STEP_S, SHARPNESS_LOW_HZ, DriveTimeline, control_points
 
-__all__ = ["hjif_document", "HJIF_TIMESCALE"]
+__all__ = ["hjif_document", "HJIF_TIMESCALE", "HJIF_VERSION", "HJIF_MAX_EFFECT_TICKS"]
 
-#: Ticks per second (the format's default).
+#: Ticks per second (the format's default; the reference synthesiser's phase assumes it).
 HJIF_TIMESCALE = 1000
+#: The edition written: the one the MPEG reference software writes (any year from 2023 is read).
+HJIF_VERSION = "2023"
+#: A keyframe's ``relative_position`` is 16 bits in the binary form: effects are split before it.
+HJIF_MAX_EFFECT_TICKS = 60_000
+#: The avatar, and the actuator's reference device (id 0 is reserved for "unspecified").
+_AVATAR_ID = 1
+_DEVICE_ID = 1
 
 
 def _ticks(t_s: float) -> int:
     return int(round(t_s * HJIF_TIMESCALE))
 
 
-def _band_limits(freqs: list[float]) -> tuple[int, int]:
+def _hz(f: float) -> int:
+    """A frequency as the reader takes it: a whole number of hertz."""
+    return int(round(f))
+
+
+def _band_limits(freqs: list[int]) -> tuple[int, int]:
     if not freqs:
         return 0, 1
-    return int(math.floor(min(freqs))), max(int(math.ceil(max(freqs))), int(math.floor(min(freqs))) + 1)
+    return min(freqs), max(max(freqs), min(freqs) + 1)
+
+
+def _pieces(a: float, b: float) -> list[tuple[float, float]]:
+    """``(start, end)`` [s] of a run cut so that no piece is longer than :data:`HJIF_MAX_EFFECT_TICKS`."""
+    step = HJIF_MAX_EFFECT_TICKS / HJIF_TIMESCALE
+    n = max(1, math.ceil((b - a) / step - 1e-9))
+    edges = [a + (b - a) * k / n for k in range(n + 1)]
+    return list(zip(edges, edges[1:]))
+
+
+def _keyframes(pts: list[Any], pos: int) -> list[dict[str, Any]]:
+    """Keyframes at whole ticks from ``pos``; of points that round to one tick, the first stays."""
+    out: list[dict[str, Any]] = []
+    for p in pts:
+        rel = _ticks(p.t_s) - pos
+        if out and rel <= out[-1]["relative_position"]:
+            continue
+        out.append({"relative_position": rel, "amplitude_modulation": round(p.amplitude, 4),
+                    "frequency_modulation": _hz(p.frequency_hz)})
+    return out
 
 
 def _channel(tl: DriveTimeline, kind: str, c: int, step_s: float) -> dict[str, Any]:
     from .ahap import continuous_spans
 
     effects = []
-    freqs: list[float] = []
-    for k, (a, b) in enumerate(continuous_spans(tl, kind, c)):
-        pts = control_points(tl, kind, c, step_s, start_s=a, end_s=b)
-        pos = _ticks(a)
-        effects.append({
-            "id": k,
-            "effect_type": "Basis",
-            "position": pos,
-            "phase": 0.0,
-            "base_signal": "Sine",
-            "keyframes": [
-                {"relative_position": _ticks(p.t_s) - pos, "amplitude_modulation": round(p.amplitude, 4),
-                 "frequency_modulation": round(p.frequency_hz, 3)}
-                for p in pts
-            ],
-        })
-        freqs += [p.frequency_hz for p in pts]
+    freqs: list[int] = []
+    for a0, b0 in continuous_spans(tl, kind, c):
+        for a, b in _pieces(a0, b0):
+            pos = _ticks(a)
+            keyframes = _keyframes(control_points(tl, kind, c, step_s, start_s=a, end_s=b), pos)
+            effects.append({"id": len(effects), "effect_type": "Basis", "position": pos, "phase": 0.0,
+                            "base_signal": "Sine", "keyframes": keyframes})
+            freqs += [k["frequency_modulation"] for k in keyframes]
     taps = []
-    tap_f: list[float] = []
+    tap_f: list[int] = []
     for p in tl.pulses(kind, c):
         f = p.drive.pulse_frequency_hz
         if f < SHARPNESS_LOW_HZ:
@@ -82,9 +108,9 @@ def _channel(tl: DriveTimeline, kind: str, c: int, step_s: float) -> dict[str, A
                 "phase": 0.0,
                 "base_signal": "Sine",
                 "keyframes": [{"relative_position": 0, "amplitude_modulation": round(p.amplitude, 4),
-                               "frequency_modulation": round(f, 3)}],
+                               "frequency_modulation": _hz(f)}],
             })
-            tap_f.append(f)
+            tap_f.append(_hz(f))
     bands = []
     if effects:
         lo, hi = _band_limits(freqs)
@@ -97,7 +123,7 @@ def _channel(tl: DriveTimeline, kind: str, c: int, step_s: float) -> dict[str, A
     return {
         "id": c,
         "description": f"actuator {c + 1} of the pen",
-        "reference_device_id": 0,
+        "reference_device_id": _DEVICE_ID,
         "gain": 1.0,
         "mixing_coefficient": 1.0,
         "body_part_mask": 0,
@@ -114,23 +140,24 @@ def hjif_document(tl: DriveTimeline, kind: str = "profile", step_s: float = CONT
     if tl.meta.get("image"):
         desc += f" on {tl.meta['image']}"
     return {
-        "version": "2025",
+        "version": HJIF_VERSION,
         "profile": "Main",
         "level": 1,
         "date": _dt.date.today().isoformat(),
         "description": desc,
         "timescale": HJIF_TIMESCALE,
-        "avatars": [{"id": 0, "lod": 0, "type": "Vibration"}],
+        "avatars": [{"id": _AVATAR_ID, "lod": 0, "type": "Vibration"}],
         "perceptions": [
             {
                 "id": 0,
-                "avatar_id": 0,
+                "avatar_id": _AVATAR_ID,
                 "description": "texture under the pen",
                 "perception_modality": "Vibrotactile",
                 "effect_library": [],
                 "reference_devices": [
-                    {"id": 0, "name": str(tl.meta.get("actuator", "tactile pen actuator")), "body_part_mask": 0,
-                     "minimum_frequency": float(lo_hz), "maximum_frequency": float(hi_hz), "type": "Unknown"}
+                    {"id": _DEVICE_ID, "name": str(tl.meta.get("actuator", "tactile pen actuator")), "body_part_mask": 0,
+                     "minimum_frequency": float(min(lo_hz, hi_hz)), "maximum_frequency": float(max(lo_hz, hi_hz)),
+                     "type": "Unknown"}
                 ],
                 "channels": [_channel(tl, kind, c, step_s) for c in range(tl.channels)],
             }

@@ -2,7 +2,9 @@
 
 Every format renders a *source*: a :class:`~tactilize.drive.Drive` (or a list,
 one per channel) held for a duration, or a :class:`~.timeline.DriveTimeline`
-made from a stroke (:func:`~.stroke.run_stroke`).  The CLI, :func:`export`,
+made from a stroke (:func:`~.stroke.run_stroke`).  AHAP, Android, ``.hjif``
+and ``.haptic`` documents pass their validator (:mod:`.conformance`) or are
+refused with a :class:`~.conformance.ConformanceError`.  The CLI, :func:`export`,
 the catalog's HTTP API and the pen page's stroke export all read
 :data:`FORMATS`.
 """
@@ -20,6 +22,7 @@ from ..errors import SignalError
 from ..synthesis import DEFAULT_SAMPLE_RATE_HZ
 from .ahap import ahap_document
 from .android import android_document
+from .conformance import validate
 from .haptic import haptic_document
 from .hjif import hjif_document
 from .steady import _drives, _json_bytes, _write, csv_bytes, drive_document, pcm_wav, wav_bytes
@@ -91,9 +94,11 @@ def _json(src: Source, t: float, fs: int, kind: str, x: dict[str, Any]) -> bytes
 
 
 def _doc(fn: Callable[..., dict[str, Any]], name: str, one: bool = True) -> Callable[..., bytes]:
+    # Every document is held to its format's rules before it is written: a
+    # drive the format cannot carry is refused here, not by a player later.
     def render_doc(src: Source, t: float, fs: int, kind: str, x: dict[str, Any]) -> bytes:
         tl = _one(src, t) if one else _timeline(src, t)
-        return _json_bytes(fn(tl, kind), f"<{name}>")
+        return _json_bytes(validate(fn(tl, kind), name), f"<{name}>")
 
     return render_doc
 
