@@ -63,7 +63,7 @@ class SurfaceStroke:
         self._x: deque[float] = deque()
         self._y: deque[float] = deque()
         self._s: deque[float] = deque()
-        self._fired: deque[tuple[float, float]] = deque(maxlen=256)  # (t_s, s_m) of pulses handed out and due
+        self._fired: deque[tuple[PulseEvent, float]] = deque(maxlen=256)  # (event, s_m) handed out and due
         self._pending: list[tuple[PulseEvent, float]] = []  # handed out, not yet due: (event, s_m)
         self._last_fired_t: float | None = None
         self.now_s: float | None = None
@@ -130,7 +130,7 @@ class SurfaceStroke:
         keep = []
         for ev, s in self._pending:
             if ev.t_s <= now:
-                self._fired.append((ev.t_s, s))
+                self._fired.append((ev, s))
                 self._last_fired_t = ev.t_s if self._last_fired_t is None else max(self._last_fired_t, ev.t_s)
             else:
                 keep.append((ev, s))
@@ -179,6 +179,13 @@ class SurfaceStroke:
             out.append(ev)
             self._pending.append((ev, s_j))
         return out
+
+    def recent(self, window_s: float) -> list[PulseEvent]:
+        """Events fired in the last ``window_s`` [s] before the newest sample, and those scheduled."""
+        if self.now_s is None:
+            return []
+        since = self.now_s - window_s
+        return [e for e, _ in self._fired if e.t_s >= since] + [e for e, _ in self._pending]
 
     def rest(self) -> list[PulseEvent]:
         """The pen rests: nothing more is predicted, what was pending is withdrawn."""
