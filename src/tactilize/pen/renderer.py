@@ -50,8 +50,11 @@ class RenderResult:
     features: Any
     requested: list[Drive]
     applied: list[Drive]
-    #: Pulse events this batch scheduled (the surface rendering), on the stroke's clock.
+    #: Pulse events this batch scheduled (the surface rendering), on the stroke's clock;
+    #: a batch re-schedules every event not yet fired, so count :attr:`pulses` instead.
     events: tuple = ()
+    #: Pulses that became due since the previous batch.
+    pulses: int = 0
 
     @property
     def on(self) -> bool:
@@ -86,6 +89,7 @@ class RenderResult:
             "spectral_intensity": float(feat.spectral_intensity) if feat is not None else None,
             "channels": channels,
             "events": len(self.events),
+            "pulses": self.pulses,
         }
 
 
@@ -279,7 +283,8 @@ class PenRenderer:
             applied = list(out.play_events([events] * self.channels, state.t_s, requested))
         else:
             applied = self._apply(requested)
-        self._last = RenderResult(True, True, state, feat, requested, applied, tuple(events))
+        pulses = self._surface.stroke.newly_fired
+        self._last = RenderResult(True, True, state, feat, requested, applied, tuple(events), pulses)
         return self._last
 
     def _apply(self, requested: list[Drive]) -> list[Drive]:

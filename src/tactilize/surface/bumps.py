@@ -17,6 +17,7 @@ from __future__ import annotations
 from typing import Any, NamedTuple
 
 import numpy as np
+from scipy.signal import find_peaks  # at import: a first stroke must not wait for it (0.5 s and more)
 
 __all__ = ["Crossings", "resample_path", "crossings_along"]
 
@@ -81,8 +82,6 @@ def crossings_along(surface: Any, t_s: np.ndarray, x_m: np.ndarray, y_m: np.ndar
     t_s, x_m, y_m, s_m : ndarray
         The resampled path (:func:`resample_path`).
     """
-    from scipy.signal import find_peaks
-
     h, ids, floors = surface.regions(x_m, y_m)
     picked: list[np.ndarray] = []
     proms: list[np.ndarray] = []

@@ -67,6 +67,8 @@ class SurfaceStroke:
         self._pending: list[tuple[PulseEvent, float]] = []  # handed out, not yet due: (event, s_m)
         self._last_fired_t: float | None = None
         self.now_s: float | None = None
+        #: Pulses that became due with the latest update (handed out before, due by now).
+        self.newly_fired = 0
 
     def reset(self) -> None:
         """Forget the stroke (lift, a new picture)."""
@@ -127,9 +129,11 @@ class SurfaceStroke:
         now = self._t[-1]
         self.now_s = now
         # What was handed out and is due by now has fired.
+        self.newly_fired = 0
         keep = []
         for ev, s in self._pending:
             if ev.t_s <= now:
+                self.newly_fired += 1
                 self._fired.append((ev, s))
                 self._last_fired_t = ev.t_s if self._last_fired_t is None else max(self._last_fired_t, ev.t_s)
             else:
