@@ -229,7 +229,11 @@ class SimulatedOutput(OutputBase):
         if self._closed:
             raise OutputError("<simulated>", "output is closed")
         drives = self._check(equivalent)
-        applied = [d if d.is_off else self._planned(ch, d) for ch, d in zip(self._chans, drives)]
+        applied: list[Drive] = []
+        for ch, d in zip(self._chans, drives):
+            # Both pins usually get the same drive: plan it once.
+            same = applied and d is drives[len(applied) - 1]
+            applied.append(d if d.is_off else applied[-1] if same else self._planned(ch, d))
         rel = [[(float(e.t_s) - now_s, float(e.strength)) for e in evs] for evs in channels]
         rel += [[] for _ in range(self.channels - len(rel))]
         with self._pending_lock:
@@ -238,8 +242,11 @@ class SimulatedOutput(OutputBase):
         return applied
 
     def _planned(self, ch: _Channel, d: Drive) -> Drive:
-        with self._lock:
-            plan = ch.ctrl.plan(d)
+        # Without the simulation's lock: a pen batch would wait for a whole slice of
+        # it (up to 5 ms) every batch.  plan() only reads a few floats of the
+        # controller, each read whole; what it returns is for the page, and every
+        # pulse is planned again, under the lock, when it is played.
+        plan = ch.ctrl.plan(d)
         clamped = d.clamped + tuple(n for n in plan.clamped if n not in d.clamped)
         return d.replace(pulse_width_s=plan.pulse_width_s, amplitude=plan.level, clamped=clamped)
 

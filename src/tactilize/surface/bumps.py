@@ -85,7 +85,13 @@ def crossings_along(surface: Any, t_s: np.ndarray, x_m: np.ndarray, y_m: np.ndar
     h, ids, floors = surface.regions(x_m, y_m)
     picked: list[np.ndarray] = []
     proms: list[np.ndarray] = []
-    if ids.size >= 3:
+    if ids.size >= 3 and ids[0] >= 0 and ids[0] == ids[-1] and (ids == ids[0]).all():
+        # One picture all along (the usual case): one search.
+        idx, props = find_peaks(h, prominence=float(floors[0]))
+        if idx.size:
+            picked.append(idx)
+            proms.append(props["prominences"])
+    elif ids.size >= 3:
         # Runs of one region (a picture); -1 (off every picture) is never searched.
         edges = np.flatnonzero(np.diff(ids)) + 1
         starts = np.concatenate(([0], edges))

@@ -17,8 +17,6 @@ from __future__ import annotations
 import math
 from typing import Any, Sequence
 
-import numpy as np
-
 from ..drive import Drive
 from .events import PulseEvent
 
@@ -59,20 +57,24 @@ def equivalent_drive(
     Drive
         Off when no event is in the window.
     """
-    t = np.sort(np.array([e.t_s for e in events if e.t_s >= now_s - window_s]))
-    if t.size == 0:
+    # Plain Python: a window holds a few dozen events, where each NumPy call costs more than the sums.
+    since = now_s - window_s
+    kept = [e for e in events if e.t_s >= since]
+    if not kept:
         return Drive.off()
-    strength = float(np.mean([e.strength for e in events if e.t_s >= now_s - window_s]))
-    if t.size >= 2 and t[-1] > t[0]:
-        iv = np.diff(t)
-        rate = (t.size - 1) / (t[-1] - t[0])
-        cv = float(np.std(iv) / np.mean(iv)) if iv.size > 1 else 0.0
+    t = sorted(e.t_s for e in kept)
+    strength = math.fsum(e.strength for e in kept) / len(kept)
+    if len(t) >= 2 and t[-1] > t[0]:
+        iv = [b - a for a, b in zip(t, t[1:])]
+        rate = (len(t) - 1) / (t[-1] - t[0])
+        mean = math.fsum(iv) / len(iv)
+        cv = math.sqrt(math.fsum((x - mean) ** 2 for x in iv) / len(iv)) / mean if len(iv) > 1 else 0.0
     else:
         rate, cv = 1.0 / window_s, 0.0
     width_law = getattr(profile, "width", None)
     width = float(width_law(strength)) if width_law is not None else 4e-4 * strength
     width = max(width, 2e-5)
-    clamped = tuple(sorted({c for e in events for c in e.clamped if e.t_s >= now_s - window_s}))
+    clamped = tuple(sorted({c for e in kept for c in e.clamped}))
     d = Drive(float(rate), width, 1.0, clamped, min(1.0, max(0.0, strength)), regularity_of_cv(cv))
     limits = getattr(profile, "limits", None)
     return limits.apply(d) if limits is not None else d

@@ -100,10 +100,12 @@ class SurfaceModel:
         y = np.asarray(y_m, dtype=np.float64) / self.display_pitch_m[1] - 0.5
         rows, cols = self.shape
         inside = (x >= -0.5) & (x < cols - 0.5) & (y >= -0.5) & (y < rows - 0.5)
-        xc = np.clip(x, 0.0, cols - 1.0)
-        yc = np.clip(y, 0.0, rows - 1.0)
-        x0 = np.minimum(xc.astype(np.intp), cols - 2) if cols > 1 else np.zeros(xc.shape, np.intp)
-        y0 = np.minimum(yc.astype(np.intp), rows - 2) if rows > 1 else np.zeros(yc.shape, np.intp)
+        # Clamped to the pixel centres; ufuncs, not np.clip (a pen batch samples ~100 points,
+        # where each call's overhead is the cost).
+        xc = np.minimum(np.maximum(x, 0.0), cols - 1.0)
+        yc = np.minimum(np.maximum(y, 0.0), rows - 1.0)
+        x0 = np.minimum(xc.astype(np.intp), max(cols - 2, 0))
+        y0 = np.minimum(yc.astype(np.intp), max(rows - 2, 0))
         fx, fy = xc - x0, yc - y0
         h = self.height
         x1, y1 = np.minimum(x0 + 1, cols - 1), np.minimum(y0 + 1, rows - 1)

@@ -18,6 +18,7 @@ Units: SI (s, m).
 from __future__ import annotations
 
 import math
+from bisect import bisect_left
 from collections import deque
 from typing import Any, Iterable
 
@@ -153,11 +154,15 @@ class SurfaceStroke:
             return []
         tip = getattr(self.surface, "tip_radius_m", 0.25e-3) / max(getattr(self.surface, "surface_per_display", 1.0), 1e-12)
         same = SAME_BUMP_SHARE * tip
-        fired_s = np.array([s for _, s in self._fired]) if self._fired else np.zeros(0)
+        # Fired arcs, in order (arc length only grows), within reach of this window.
+        while self._fired and self._fired[0][1] < self._s[0] - same:
+            self._fired.popleft()
+        fired_s = sorted(s for _, s in self._fired)
         times, arcs, strengths = [], [], []
         st = strength_of(c.prominence, c.floor, pressure)
         for ti, si, gi in zip(c.t_s.tolist(), c.s_m.tolist(), st.tolist()):
-            if fired_s.size and np.min(np.abs(fired_s - si)) < same:
+            k = bisect_left(fired_s, si)
+            if (k < len(fired_s) and fired_s[k] - si < same) or (k > 0 and si - fired_s[k - 1] < same):
                 continue
             if ti <= now - LATE_S:
                 continue  # too late to be felt as this bump
