@@ -53,7 +53,7 @@ def test_analyze_table_is_readable(grating_png):
 
 
 def test_drive_json_agrees_with_the_library(grating_png):
-    res = run("drive", str(grating_png), "--speed", "30", "--json")
+    res = run("drive", str(grating_png), "--speed", "30", "--json", "--profile", "paper")
     assert res.exit_code == 0, res.output
     doc = json.loads(res.output)
     feat = tz.extract_features(tz.load_image(grating_png))

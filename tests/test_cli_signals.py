@@ -37,7 +37,7 @@ def grating_png(tmp_path_factory):
 
 
 def test_simulate_a_stroke_reports_what_the_finger_gets():
-    res = run("simulate", "--texture", "corduroy", "--speed", "40", "--json")
+    res = run("simulate", "--texture", "corduroy", "--speed", "40", "--json", "--profile", "paper")
     assert res.exit_code == 0, res.output
     doc = json.loads(res.output)
     assert doc["follows"] is True and doc["standby"] is True

@@ -367,7 +367,7 @@ def test_cli_exports_a_recorded_stroke(tmp_path, tmap):
     (tmp_path / "s.csv").write_bytes(stroke_csv(s))
     out = tmp_path / "s.hjif"
     res = CliRunner().invoke(main, ["export", str(img), "--stroke", str(tmp_path / "s.csv"), "--format", "hjif",
-                                    "-o", str(out), "--json"])
+                                    "-o", str(out), "--json", "--profile", "paper"])
     assert res.exit_code == 0, res.output
     doc = json.loads(res.output)
     assert doc["min_frequency_hz"] < 65 < doc["max_frequency_hz"] and doc["drive_changes"] > 20

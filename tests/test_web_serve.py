@@ -45,11 +45,11 @@ def test_cli_serve_prints_address_on_loopback():
         m = re.search(r"http://127\.0\.0\.1:(\d+)/", line)
         assert m, line
         r = httpx.get(m.group(0) + "api/config", timeout=10)
-        # the pen's default is the perceptual profile; the paper's is one click away
-        assert r.status_code == 200 and r.json()["profile"] == "perceptual"
+        # the pen's default is the surface rendering; the presets are one click away
+        assert r.status_code == 200 and r.json()["profile"] == "surface"
         profiles = httpx.get(m.group(0) + "api/profiles", timeout=10).json()
-        assert profiles["default"] == "perceptual"
-        assert {"paper", "physical", "perceptual"} <= {p["name"] for p in profiles["profiles"]}
+        assert profiles["default"] == "surface"
+        assert {"paper", "physical", "perceptual", "surface"} <= {p["name"] for p in profiles["profiles"]}
     finally:
         proc.terminate()
         _, err = proc.communicate(timeout=10)

@@ -12,6 +12,12 @@ section 3 (frequency discrimination)), or when one train is clearly irregular an
 the other is not: their intervals' coefficients of variation differ by at least
 :data:`REGULARITY_JND_CV` (at that difference successive intervals of the
 irregular train typically differ by one frequency JND).  Strength is not counted.
+
+A profile whose rendering is ``surface`` is judged by what it produces for a
+stroke (docs/surfaces.md): each texture's surface is stroked straight at each
+speed, and the pulses' rate, interval CV and strength are the row; two textures
+are told apart by the same rule on the measured rate and CV
+(:func:`distinguishable_measured`).
 """
 
 from __future__ import annotations
@@ -24,7 +30,8 @@ from typing import Any, Sequence
 from .drive import Drive
 from .mapping import Profile
 
-__all__ = ["profile_report", "ProfileReport", "distinguishable", "interval_cv", "SPEEDS_MM_S", "FREQUENCY_JND"]
+__all__ = ["profile_report", "ProfileReport", "distinguishable", "distinguishable_measured", "interval_cv", "SPEEDS_MM_S",
+           "FREQUENCY_JND"]
 
 #: The stroking speeds of the report [mm/s] (docs/references.md, section 9 (stroking speeds)).
 SPEEDS_MM_S = (10.0, 20.0, 40.0, 60.0, 100.0, 160.0)
@@ -55,6 +62,15 @@ def distinguishable(a: Drive, b: Drive) -> bool:
     if hi >= lo * (1.0 + FREQUENCY_JND):
         return True
     return abs(interval_cv(a) - interval_cv(b)) >= REGULARITY_JND_CV
+
+
+def distinguishable_measured(a: tuple[float, float], b: tuple[float, float]) -> bool:
+    """True when the finger tells apart two pulse trains measured as (rate [1/s], interval CV)."""
+    (fa, ca), (fb, cb) = a, b
+    if fa <= 0 or fb <= 0:
+        return (fa <= 0) != (fb <= 0)
+    lo, hi = sorted((fa, fb))
+    return hi >= lo * (1.0 + FREQUENCY_JND) or abs(ca - cb) >= REGULARITY_JND_CV
 
 
 @dataclass
@@ -103,6 +119,7 @@ def profile_report(
     *,
     wire: Any = None,
     simulate_wire: bool = True,
+    images: dict[str, Any] | None = None,
 ) -> ProfileReport:
     """Drives, wire response and JND pairs of a profile over textures and speeds.
 
@@ -117,8 +134,14 @@ def profile_report(
         The simulated wire (the paper's 75 um).
     simulate_wire : bool
         Play every drive on the simulated wire (a few hundredths of a second each).
+    images : dict of name -> TextureImage, optional
+        The pictures of ``textures`` (a surface rendering strokes them); the
+        built-in textures' by default.
     """
     from .actuators.sma import feel
+
+    if getattr(profile, "rendering", "steady") == "surface":
+        return _surface_report(profile, images, speeds_mm_s, wire, simulate_wire)
 
     if textures is None:
         from .data import get_texture, texture_ids
@@ -150,6 +173,51 @@ def profile_report(
             report.pairs += 1
             if not distinguishable(drives[a], drives[b]):
                 fa, fb = drives[a].pulse_frequency_hz, drives[b].pulse_frequency_hz
+                ratio = max(fa, fb) / min(fa, fb) if min(fa, fb) > 0 else math.inf
+                report.close_pairs.append({"speed_mm_s": float(v), "a": a, "b": b, "frequency_ratio": ratio})
+    return report
+
+
+def _surface_report(profile: Profile, images: dict[str, Any] | None, speeds_mm_s: Sequence[float], wire: Any,
+                    simulate_wire: bool) -> ProfileReport:
+    """The report of a surface rendering: what a straight stroke at each speed produces."""
+    from .actuators.sma import feel
+    from .surface.model import surface_model
+    from .surface.straight import surface_stroke_drive
+
+    if images is None:
+        from .data import get_texture, texture_ids
+
+        images = {tid: get_texture(tid).image for tid in texture_ids()}
+    surfaces = {name: surface_model(img, tip_radius_m=profile.tip_radius_m) for name, img in images.items()}
+    report = ProfileReport(profile.name)
+    for v in speeds_mm_s:
+        measured: dict[str, tuple[float, float]] = {}
+        for name, sm in surfaces.items():
+            d, events, stats = surface_stroke_drive(sm, profile, v / 1e3)
+            measured[name] = (stats["rate_hz"], stats["interval_cv"])
+            row = {
+                "texture": name,
+                "speed_mm_s": float(v),
+                "frequency_hz": stats["rate_hz"],
+                "pulse_width_ms": d.pulse_width_s * 1e3,
+                "strength": stats["strength"],
+                "regularity": d.regularity,
+                "interval_cv": stats["interval_cv"],
+                "pulses": stats["pulses"],
+                "clamped": sorted({c for e in events for c in e.clamped}),
+            }
+            if simulate_wire and not d.is_off:
+                felt = feel(d, wire)
+                row.update(follows=felt.follows, displacement_pp_um=felt.displacement_pp_um,
+                           first_follow_ms=felt.first_follow_ms if math.isfinite(felt.first_follow_ms) else None)
+            else:
+                row.update(follows=False, displacement_pp_um=0.0, first_follow_ms=None)
+            report.rows.append(row)
+        for a, b in itertools.combinations(measured, 2):
+            report.pairs += 1
+            if not distinguishable_measured(measured[a], measured[b]):
+                fa, fb = measured[a][0], measured[b][0]
                 ratio = max(fa, fb) / min(fa, fb) if min(fa, fb) > 0 else math.inf
                 report.close_pairs.append({"speed_mm_s": float(v), "a": a, "b": b, "frequency_ratio": ratio})
     return report

@@ -18,6 +18,9 @@ all declared here with what an output that lacks them answers
 ``traces(seconds)``        recent traces for the page, or None (no simulation)
 ``connected``              the device answers (True)
 ``events``                 what happened to the connection, as (time, kind, detail)
+``plays_events``           plays pulse events (``play_events(channels, now_s,
+                           equivalent)``, docs/surfaces.md); False: the
+                           default ``play_events`` applies the equivalent drives
 =========================  ===================================================
 """
 
@@ -85,6 +88,14 @@ class OutputBase:
     connected: bool = True
     #: (time [s], kind, detail) of what happened to the connection
     events: Sequence[tuple[float, str, str]] = ()
+    #: Plays pulse events itself; outputs that cannot get the equivalent drives.
+    plays_events: bool = False
+
+    def play_events(self, channels: Sequence[Sequence[Any]], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
+        """Per channel, pulse events from ``now_s`` [s, the stroke's clock] on, replacing those
+        not yet fired; an output that cannot play events applies ``equivalent``, the steady
+        drive of the window (docs/surfaces.md)."""
+        return self.apply(equivalent)
 
     def standby(self) -> None:
         """Texture off, actuators held ready for the next touch (the pen lifted or

@@ -16,6 +16,12 @@ finger gets can be read back (:meth:`SimulatedOutput.pulse_log`).
 
 The plant may differ from what the controller was told (``plant_wire``,
 ``plant_circuit``): cells that sag, air that is warmer than configured.
+
+Pulse events (the surface rendering, docs/surfaces.md): :meth:`SimulatedOutput.play_events`
+replaces each channel's events not yet fired; the controller holds the operating
+point on the equivalent drive, and each event becomes one pulse whose heat is its
+strength's place in the felt band at its own interval, bounded by the channel's
+running heat estimate (:class:`~tactilize.actuators.sma.heat.RunningHeat`).
 """
 
 from __future__ import annotations
@@ -33,6 +39,7 @@ from ..synthesis import PulseScheduler
 from .base import OutputBase
 from .sma import Circuit, SafetyEnvelope, WireController, WireModel, WireSpec, build_envelope
 from .sma.controller import STATES
+from .simulated_events import event_starts, run_event_block, take_events
 
 __all__ = ["SimulatedOutput"]
 
@@ -62,6 +69,14 @@ class _Channel:
         self.width_s = 0.0
         self.current_a = 0.0
         self.peak_c = self.model.temperature_c
+        #: Pulse events still to fire (simulated start [us], strength), in order; None: steady drive.
+        self.events: deque[tuple[int, float]] | None = None
+        self.last_event_us: int | None = None
+        self.heat: RunningHeat | None = None
+        self.events_fired = 0
+        self.events_dropped = 0
+        #: Pulses of events: (start [s], rise during the pulse [m]).
+        self.event_log: deque[tuple[float, float]] = deque(maxlen=4096)
 
 
 class SimulatedOutput(OutputBase):
@@ -102,6 +117,8 @@ class SimulatedOutput(OutputBase):
     #: turns it into a position in the felt band (module docstring of
     #: :mod:`tactilize.actuators.sma.controller`), so both pins can play it.
     amplitude_is_intensity = False
+    #: Plays pulse events (:meth:`play_events`).
+    plays_events = True
 
     def __init__(
         self,
@@ -191,6 +208,61 @@ class SimulatedOutput(OutputBase):
         self._drives = applied
         return applied
 
+    def play_events(self, channels: Sequence[Sequence[Any]], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
+        """Per channel, the pulse events to play from now on; replaces those not yet fired.
+
+        Parameters
+        ----------
+        channels : sequence of sequence of PulseEvent
+            Per channel, events with ``t_s`` on the stroke's clock.
+        now_s : float
+            The stroke-clock time [s] that is *now* (the newest pen sample's).
+        equivalent : sequence of Drive
+            Per channel, the steady drive of the window: the operating point the
+            controller holds while the events play.
+
+        Returns
+        -------
+        list of Drive
+            What :meth:`apply` would give for ``equivalent``.
+        """
+        if self._closed:
+            raise OutputError("<simulated>", "output is closed")
+        drives = self._check(equivalent)
+        applied: list[Drive] = []
+        for ch, d in zip(self._chans, drives):
+            # Both pins usually get the same drive: plan it once.
+            same = applied and d is drives[len(applied) - 1]
+            applied.append(d if d.is_off else applied[-1] if same else self._planned(ch, d))
+        rel = [[(float(e.t_s) - now_s, float(e.strength)) for e in evs] for evs in channels]
+        rel += [[] for _ in range(self.channels - len(rel))]
+        with self._pending_lock:
+            self._pending.append(("events", (drives, rel)))  # type: ignore[arg-type]
+        self._drives = applied
+        return applied
+
+    def _planned(self, ch: _Channel, d: Drive) -> Drive:
+        # Without the simulation's lock: a pen batch would wait for a whole slice of
+        # it (up to 5 ms) every batch.  plan() only reads a few floats of the
+        # controller, each read whole; what it returns is for the page, and every
+        # pulse is planned again, under the lock, when it is played.
+        plan = ch.ctrl.plan(d)
+        clamped = d.clamped + tuple(n for n in plan.clamped if n not in d.clamped)
+        return d.replace(pulse_width_s=plan.pulse_width_s, amplitude=plan.level, clamped=clamped)
+
+    def event_counts(self) -> list[dict[str, int]]:
+        """Per channel: events fired as pulses, and events dropped (the wire was not yet in its
+        band, or the running heat estimate left no room)."""
+        with self._lock:
+            return [{"fired": ch.events_fired, "dropped": ch.events_dropped} for ch in self._chans]
+
+    def event_log(self, channel: int = 0) -> list[tuple[float, float]]:
+        """Every recent pulse event of a channel whose period has ended: ``(start [s], rise [m])``,
+        the pin's own travel during the pulse.  An irregular train has no period to compare a
+        pulse with, so an event is followed when this rise reaches FOLLOW_THRESHOLD_M."""
+        with self._lock:
+            return list(self._chans[channel].event_log)
+
     def standby(self) -> None:
         """The pen is over the picture with nothing to render: hold every wire ready."""
         self._hand_over("standby", None)
@@ -211,7 +283,11 @@ class SimulatedOutput(OutputBase):
             pending, self._pending = self._pending, []
         now = self._t_us * 1e-6
         for kind, drives in pending:
+            if kind == "events":
+                take_events(self, drives, now)  # type: ignore[arg-type]
+                continue
             for c, ch in enumerate(self._chans):
+                ch.events = None
                 if kind == "stop":
                     ch.ctrl.stop()
                 elif kind == "standby":
@@ -310,6 +386,10 @@ class SimulatedOutput(OutputBase):
         amps = ch.model.circuit.current_at(R)
         if level > 0:
             ch.ctrl.observe(R, amps, dur_us * 1e-6, ch.model.time_s)
+        if ch.heat is not None:
+            ch.heat.run(dur_us * 1e-6, level)
+            if level > 0:
+                ch.heat.anchor(ch.ctrl.martensite_fraction)
         marks.append((at_us, at_us + dur_us, level * amps, _STATE_CODE[ch.ctrl.state]))
 
     def _close_pulse(self, ch: _Channel) -> None:
@@ -318,6 +398,8 @@ class SimulatedOutput(OutputBase):
             t, x0, x1 = ch.open_pulse
             x2 = ch.model.displacement_m
             ch.log.append((t, min(x1 - x0, x1 - x2), max(x0, x1, x2) - min(x0, x1, x2)))
+            if ch.events is not None:
+                ch.event_log.append((t, x1 - x0))
             ch.open_pulse = None
 
     def _run_channel(self, ch: _Channel, t0_us: int, n: int, rec: list, marks: list) -> None:
@@ -337,6 +419,10 @@ class SimulatedOutput(OutputBase):
                 # Each burst is short enough that the envelope's bound holds for it alone.
                 step = max(1, min(step, int(ctrl.burst_s() * _US)))
             want = ctrl.drive if ctrl.pulses_on else _OFF
+            if ch.events is not None:
+                run_event_block(self, ch, event_starts(ch, t0_us + cursor, step, want), step, t0_us, cursor, rec, marks)
+                cursor += step
+                continue
             if want != ch.scheduled:
                 if want.is_off:
                     self._close_pulse(ch)

@@ -118,7 +118,7 @@ def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, 
 @click.argument("image")
 @click.option("--speed", "speed_mm_s", type=float, required=True, help="Stroking speed [mm/s].")
 @click.option("--direction-deg", type=float, default=None, help="Stroke direction [deg], counter-clockwise from +x.")
-@click.option("--profile", "profile_name", default="paper", show_default=True, help="Preset name or TOML file.")
+@click.option("--profile", "profile_name", default="surface", show_default=True, help="Preset name or TOML file.")
 @click.option("--dpi", type=float, callback=_positive("dpi"), help="Pixels per inch of the displayed image.")
 @click.option("--width-mm", type=float, callback=_positive("width-mm"), help="Displayed width of the image [mm].")
 @click.option("--output", "output_spec", default=None, help="Send the drive to: simulated | serial:PATH | audio[:DEVICE].")
@@ -148,10 +148,13 @@ def drive(
     img = load_image(image, dpi=dpi, width_mm=width_mm)
     feat = extract_features(img)
     direction = math.radians(direction_deg) if direction_deg is not None else None
-    drv = profile.drive(feat, speed_m_s=speed_mm_s / 1e3, direction_rad=direction)
+    from ..surface.straight import rendered_drive
+
+    drv = rendered_drive(profile, img, feat, speed_mm_s / 1e3, direction)
     doc = {
         "image": image,
         "profile": profile.name,
+        "rendering": profile.rendering,
         "speed_mm_s": speed_mm_s,
         "spatial_frequency_per_m": feat.spatial_frequency_per_m,
         "spectral_intensity": feat.spectral_intensity,
@@ -167,7 +170,7 @@ def drive(
         return
     clamp = ", ".join(drv.clamped) if drv.clamped else "none"
     click.echo(
-        f"{image} at {speed_mm_s:g} mm/s, profile {profile.name}\n"
+        f"{image} at {speed_mm_s:g} mm/s, profile {profile.name} ({profile.rendering} rendering)\n"
         f"  pulse frequency  {drv.pulse_frequency_hz:.1f} Hz\n"
         f"  pulse width      {drv.pulse_width_s * 1e3:.3f} ms\n"
         f"  duty ratio       {drv.duty_ratio * 100:.2f} %\n"
@@ -259,7 +262,7 @@ def batch(
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address to bind; anything but loopback must be asked for.")
 @click.option("--port", type=click.IntRange(0, 65535), default=8765, show_default=True, help="TCP port (0: any free port).")
 @click.option("--output", "output_spec", default="simulated", show_default=True, help="simulated | serial:PORT | audio[:DEVICE]")
-@click.option("--profile", "profile_name", default=None, help="Preset name or TOML file [default: perceptual].")
+@click.option("--profile", "profile_name", default=None, help="Preset name or TOML file [default: surface].")
 @click.option("--open/--no-open", "open_browser", default=None, help="Open the page in a browser [default: when a display exists].")
 @click.option("--catalog", "catalog_path", default=None, help="Also serve this catalog (Parquet folder or SQLAlchemy URL) at /api/catalog.")
 def serve(host: str, port: int, output_spec: str, profile_name: str | None, open_browser: bool | None, catalog_path: str | None) -> None:
@@ -308,7 +311,7 @@ _CIRCUIT_HELP = "Driver circuit: aa-resistor (default), usb-resistor, aa-sink, a
 @click.option("--image", "image_path", default=None, help="Or an image file to stroke.")
 @click.option("--speed", "speed_mm_s", type=float, default=None, help="Steady stroking speed [mm/s].")
 @click.option("--direction", "direction_deg", type=float, default=None, help="Stroke direction [deg, y up].")
-@click.option("--profile", "profile_name", default="paper", show_default=True, help="Preset name or TOML file.")
+@click.option("--profile", "profile_name", default="surface", show_default=True, help="Preset name or TOML file.")
 @click.option("--standby/--no-standby", default=True, show_default=True,
               help="The wire waits in standby (or cold and off) when the pen touches.")
 @click.option("--open-loop", is_flag=True, help="The controller trusts the nominal circuit and air.")
@@ -370,7 +373,7 @@ def envelope_cmd(wire: str, circuit: str, length_mm: float | None, plot_path: st
 @click.option("--format", "fmt", type=str, required=True, help="wav | csv | json | log | ahap | android | hjif | haptic")
 @click.option("--drive", "drive_kind", type=click.Choice(["profile", "wire"]), default="profile", show_default=True,
               help="The profile's drive (for phones, players, voice coils) or what the simulated SMA wire applied.")
-@click.option("--profile", "profile_name", default="paper", show_default=True, help="Preset name or TOML file.")
+@click.option("--profile", "profile_name", default="surface", show_default=True, help="Preset name or TOML file.")
 @click.option("--dpi", type=float, callback=_positive("dpi"), help="Pixels per inch of the displayed image.")
 @click.option("--width-mm", type=float, callback=_positive("width-mm"), help="Displayed width of the image [mm].")
 @click.option("-o", "--output", "out_path", required=True, help="File to write.")

@@ -31,16 +31,22 @@ def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     profile = Profile.resolve(opt["profile_name"])
     img = load_image(opt["image"], dpi=opt["dpi"], width_mm=opt["width_mm"])
     tmap = texture_map(img)
-    extra: dict[str, Any] = {"image": opt["image"], "profile": profile.name}
+    surface = None
+    if profile.rendering == "surface":
+        from ..surface import surface_model
+
+        surface = surface_model(img, tip_radius_m=profile.tip_radius_m)
+    extra: dict[str, Any] = {"image": opt["image"], "profile": profile.name, "rendering": profile.rendering}
     if opt["stroke_path"] is not None:
         stroke = read_stroke(opt["stroke_path"], tmap.width_m, tmap.height_m)
         extra["stroke"] = opt["stroke_path"]
-        tl = run_stroke(stroke, tmap, profile, meta=extra)
+        tl = run_stroke(stroke, tmap, profile, meta=extra, surface=surface)
     else:
         speed = check_finite(opt["speed_mm_s"], "--speed", minimum=0.0, unit="mm/s")
         stroke = synthetic_stroke(tmap.width_m, tmap.height_m, speed * 1e-3, duration, direction)
         extra.update(speed_mm_s=speed, direction_deg=direction)
-        tl = run_stroke(stroke, tmap, profile, start_s=0.0, end_s=duration, meta=dict(extra), mirror=True)
+        tl = run_stroke(stroke, tmap, profile, start_s=0.0, end_s=duration, meta=dict(extra), mirror=True,
+                        surface=surface)
     limits = profile.limits.to_dict()
     tl.meta.setdefault("min_frequency_hz", limits.get("min_frequency_hz", 0.0))
     tl.meta.setdefault("max_frequency_hz", limits.get("max_frequency_hz", 300.0))

@@ -18,7 +18,7 @@ def profile() -> None:
 
 
 @profile.command("report")
-@click.option("--profile", "profile_name", default="perceptual", show_default=True, help="Preset name or TOML file.")
+@click.option("--profile", "profile_name", default="surface", show_default=True, help="Preset name or TOML file.")
 @click.option("--image", "images", multiple=True, help="An image to include instead of the built-in textures (repeat).")
 @click.option("--dpi", type=float, default=None, help="Pixels per inch of the given images.")
 @click.option("--width-mm", type=float, default=None, help="Displayed width of the given images [mm].")
@@ -28,23 +28,25 @@ def profile() -> None:
 def report_cmd(profile_name: str, images: tuple[str, ...], dpi: float | None, width_mm: float | None,
                no_wire: bool, plot_path: str | None, as_json: bool) -> None:
     """The drive each texture gets at 10 .. 160 mm/s, whether the wire follows, and the pairs
-    closer than one JND at equal speed."""
+    closer than one JND at equal speed.  A surface rendering (the default) is judged by what
+    it produces for a straight stroke: pulse rate, interval CV and strength."""
     from . import emit_json
     from ..mapping import Profile
     from ..report import FREQUENCY_JND, SPEEDS_MM_S, profile_report
 
     prof = Profile.resolve(profile_name)
-    textures = None
+    textures = pictures = None
     if images:
         from ..features import extract_features
         from ..image import load_image
 
         if dpi is not None and width_mm is not None:
             raise TactilizeError("--dpi/--width-mm", "give one of them, not both")
-        textures = {}
+        textures, pictures = {}, {}
         for path in images:
-            textures[path] = extract_features(load_image(path, dpi=dpi, width_mm=width_mm))
-    rep = profile_report(prof, textures, simulate_wire=not no_wire)
+            pictures[path] = load_image(path, dpi=dpi, width_mm=width_mm)
+            textures[path] = extract_features(pictures[path])
+    rep = profile_report(prof, textures, simulate_wire=not no_wire, images=pictures)
     doc = rep.to_dict()
     if plot_path:
         from .plots import plot_profile_report
@@ -60,11 +62,19 @@ def report_cmd(profile_name: str, images: tuple[str, ...], dpi: float | None, wi
 def _table(rep: Any, speeds: tuple[float, ...]) -> str:
     names = list(dict.fromkeys(r["texture"] for r in rep.rows))
     width = max(10, *(len(n) for n in names))
-    lines = [f"profile {rep.profile}: pulse frequency [Hz] per texture and speed (* = the wire does not follow)",
-             f"  {'texture':{width}}" + "".join(f"{v:>9g}" for v in speeds) + "   regularity"]
+    measured = bool(rep.rows) and "pulses" in rep.rows[0]
+    what = "pulse rate [1/s] a straight stroke produces" if measured else "pulse frequency [Hz]"
+    lines = [f"profile {rep.profile}: {what} per texture and speed (* = the wire does not follow)",
+             f"  {'texture':{width}}" + "".join(f"{v:>9g}" for v in speeds)
+             + ("   interval CV, strength (mean over speeds)" if measured else "   regularity")]
     for n in names:
         rows = [r for r in rep.rows if r["texture"] == n]
         cells = "".join(f"{r['frequency_hz']:>8.1f}{'' if r['follows'] else '*'}{' ' if r['follows'] else ''}" for r in rows)
+        if measured:
+            cv = sum(r["interval_cv"] for r in rows) / len(rows)
+            st = sum(r["strength"] for r in rows) / len(rows)
+            lines.append(f"  {n:{width}}{cells}   {cv:.2f}, {st:.2f}")
+            continue
         reg = rows[0]["regularity"]
         lines.append(f"  {n:{width}}{cells}   {'even' if reg is None else f'{reg:.2f}'}")
     lines.append(f"  told apart at equal speed: {rep.pairs - len(rep.close_pairs)}/{rep.pairs} pairs "

@@ -58,12 +58,15 @@ def simulate_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     profile = Profile.resolve(opt["profile_name"])
     feat = extract_features(img)
     direction = None if opt["direction_deg"] is None else math.radians(opt["direction_deg"])
-    drive = profile.drive(feat, opt["speed_mm_s"] / 1e3, direction)
+    from ..surface.straight import rendered_drive
+
+    drive = rendered_drive(profile, img, feat, opt["speed_mm_s"] / 1e3, direction)
     report = feel(drive, spec, circuit, standby=opt["standby"], duration_s=opt["duration_s"],
                   closed_loop=not opt["open_loop"])
     doc = {
         "source": source,
         "profile": profile.name,
+        "rendering": profile.rendering,
         "speed_mm_s": opt["speed_mm_s"],
         "wire": spec.name,
         "circuit": circuit.name,

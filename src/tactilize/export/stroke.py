@@ -226,13 +226,33 @@ class _Mirrored:
         return self.tmap.lookup(_reflect(x_m, 0.0, self.w), _reflect(y_m, 0.0, self.h))
 
 
+class _MirroredSurface:
+    """A surface model continued beyond its edges by mirror images of itself."""
+
+    def __init__(self, surface: Any) -> None:
+        self.surface = surface
+        self.step_m = surface.step_m
+        self.tip_radius_m = surface.tip_radius_m
+        self.surface_per_display = surface.surface_per_display
+        self.w, self.h = surface.width_m * (1 - 1e-9), surface.height_m * (1 - 1e-9)
+
+    def regions(self, x_m: Any, y_m: Any) -> Any:
+        import numpy as np
+
+        def fold(v: Any, span: float) -> Any:
+            u = np.mod(np.asarray(v, dtype=np.float64), 2 * span)
+            return np.where(u <= span, u, 2 * span - u)
+
+        return self.surface.regions(fold(x_m, self.w), fold(y_m, self.h))
+
+
 def _same_drive(drive: Any, n: int, state: Any) -> list[Any]:
     return [drive] * n
 
 
 def run_stroke(stroke: Stroke, texture_map: Any, profile: Any, output: Any = "simulated", *,
                frame_s: float = FRAME_S, start_s: float | None = None, end_s: float | None = None,
-               meta: dict[str, Any] | None = None, mirror: bool = False) -> DriveTimeline:
+               meta: dict[str, Any] | None = None, mirror: bool = False, surface: Any = None) -> DriveTimeline:
     """Render ``stroke`` on ``texture_map`` as the pen server does; the drive per frame.
 
     Parameters
@@ -257,6 +277,10 @@ def run_stroke(stroke: Stroke, texture_map: Any, profile: Any, output: Any = "si
     mirror : bool
         Continue the picture beyond its edges with mirror images (for a
         synthetic stroke longer than the picture).
+    surface : SurfaceModel, optional
+        The picture as a surface, for a profile whose rendering is ``surface``
+        (docs/surfaces.md): the simulated wire plays its pulse events, and the
+        rows hold the equivalent drive of each frame's window.
     """
     from ..pen import _Recorder
 
@@ -269,8 +293,10 @@ def run_stroke(stroke: Stroke, texture_map: Any, profile: Any, output: Any = "si
         output = _Recorder()
     # Both channels get the profile's drive, as on the SMA wire (the phantom
     # split of audio outputs would leave one channel of a phone file silent).
+    if surface is not None and mirror:
+        surface = _MirroredSurface(surface)
     renderer = PenRenderer(_Mirrored(texture_map) if mirror else texture_map, profile, output, resend_rel=0.0,
-                           splitter=_same_drive)
+                           splitter=_same_drive, surface=surface)
     samples = stroke.samples()
     t0 = samples[0].t_s
     origin = t0 if start_s is None else start_s

@@ -21,7 +21,12 @@ from ..errors import DriveError, ProfileError, check_finite
 from .laws import ConstantAmplitude, EvenPulses, LinearWidth, LogFrequency, NoDirection, SigmoidSpeed, law_from_dict
 from .limits import ActuatorLimits
 
-__all__ = ["Profile", "preset_names", "DriveFeatures", "FeaturesForDrive"]
+__all__ = ["Profile", "preset_names", "DriveFeatures", "FeaturesForDrive", "RENDERINGS"]
+
+#: How a profile renders a picture: ``steady`` (one drive from the picture's features
+#: and the stroke's speed, the paper's way) or ``surface`` (a pulse per bump the tip
+#: crosses, docs/surfaces.md).  A TOML without ``rendering`` is steady.
+RENDERINGS = ("steady", "surface")
 
 
 @runtime_checkable
@@ -82,6 +87,11 @@ class Profile:
     regularity: Any = field(default_factory=EvenPulses)
     limits: ActuatorLimits = field(default_factory=ActuatorLimits)
     description: str = ""
+    #: One of :data:`RENDERINGS`; the laws above still give the drive where only
+    #: features are known (catalogs, experiments).
+    rendering: str = "steady"
+    #: Stylus tip radius [m] of the surface rendering (docs/references.md, section 3 (stylus tip)).
+    tip_radius_m: float = 0.25e-3
 
     # -- the laws
 
@@ -185,7 +195,8 @@ class Profile:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], source: str = "<dict>") -> "Profile":
-        known = {"name", "description", "frequency", "speed", "width", "amplitude", "direction", "regularity", "actuator"}
+        known = {"name", "description", "rendering", "surface", "frequency", "speed", "width", "amplitude", "direction",
+                 "regularity", "actuator"}
         unknown = set(data) - known
         if unknown:
             raise ProfileError(source, f"unknown section(s) {', '.join(sorted(unknown))}")
@@ -199,6 +210,7 @@ class Profile:
         for role in ("frequency", "speed", "width", "amplitude", "direction", "regularity"):
             if role in data:
                 kwargs[role] = law_from_dict(role, data[role], source)
+        kwargs.update(_rendering_from_dict(data, source))
         if "actuator" in data:
             act = dict(data["actuator"])
             fields_ = {f.name for f in dataclasses.fields(ActuatorLimits)}
@@ -224,7 +236,8 @@ class Profile:
             "direction": self.direction.to_dict(),
             "regularity": self.regularity.to_dict(),
             "actuator": self.limits.to_dict(),
-        }
+        } | ({"rendering": self.rendering, "surface": {"tip_radius_mm": self.tip_radius_m * 1e3}}
+             if self.rendering != "steady" else {})
 
     def to_toml(self) -> str:
         import tomli_w
@@ -242,6 +255,23 @@ class Profile:
 
     def replace(self, **changes: Any) -> "Profile":
         return dataclasses.replace(self, **changes)
+
+
+def _rendering_from_dict(data: dict[str, Any], source: str) -> dict[str, Any]:
+    """``rendering`` and the ``[surface]`` table of a profile's TOML (both optional)."""
+    out: dict[str, Any] = {}
+    rendering = data.get("rendering", "steady")
+    if rendering not in RENDERINGS:
+        raise ProfileError(source, f"rendering must be one of {', '.join(RENDERINGS)}, got {rendering!r}")
+    out["rendering"] = rendering
+    surface = data.get("surface", {})
+    if not isinstance(surface, dict) or set(surface) - {"tip_radius_mm"}:
+        raise ProfileError(source, "[surface] takes only tip_radius_mm")
+    if "tip_radius_mm" in surface:
+        tip = check_finite(surface["tip_radius_mm"], source, what="[surface] tip_radius_mm", error=ProfileError,
+                           above=0.0, maximum=10.0, unit="mm")
+        out["tip_radius_m"] = tip * 1e-3
+    return out
 
 
 def preset_names() -> list[str]:

@@ -50,6 +50,11 @@ class RenderResult:
     features: Any
     requested: list[Drive]
     applied: list[Drive]
+    #: Pulse events this batch scheduled (the surface rendering), on the stroke's clock;
+    #: a batch re-schedules every event not yet fired, so count :attr:`pulses` instead.
+    events: tuple = ()
+    #: Pulses that became due since the previous batch.
+    pulses: int = 0
 
     @property
     def on(self) -> bool:
@@ -83,6 +88,8 @@ class RenderResult:
             "spatial_frequency_per_m": float(feat.spatial_frequency_per_m) if feat is not None else None,
             "spectral_intensity": float(feat.spectral_intensity) if feat is not None else None,
             "channels": channels,
+            "events": len(self.events),
+            "pulses": self.pulses,
         }
 
 
@@ -140,6 +147,10 @@ class PenRenderer:
     refresh_s : float
         ...but the output gets the current drive at least this often [s], so a
         safety envelope that depends on the wire's state is asked again.
+    surface : SurfaceModel or CompositeSurface, optional
+        The picture as a surface; a profile whose ``rendering`` is ``surface``
+        then fires a pulse per bump crossed (docs/surfaces.md): an output that
+        plays events gets them, any other the equivalent drive of the window.
 
     Notes
     -----
@@ -159,8 +170,10 @@ class PenRenderer:
         splitter: Callable[[Drive, int, StrokeState | None], list[Drive]] | None = None,
         resend_rel: float = 0.005,
         refresh_s: float = 0.1,
+        surface: Any = None,
     ) -> None:
         self.texture_map = texture_map
+        self._surface = _SurfacePath(surface)
         self.profile = profile or Profile.preset("paper")
         self.output = output
         self.tracker = tracker or StrokeTracker()
@@ -179,10 +192,17 @@ class PenRenderer:
         """The latest result."""
         return self._last
 
-    def set_texture(self, texture_map: Any) -> RenderResult:
-        """Show another picture: the stroke restarts and the output stops."""
+    def set_texture(self, texture_map: Any, surface: Any = None) -> RenderResult:
+        """Show another picture (and its surface, for the surface rendering): the
+        stroke restarts and the output stops."""
         self.texture_map = texture_map
+        self._surface = _SurfacePath(surface)
         return self.lift()
+
+    @property
+    def surface(self) -> Any:
+        """The picture's surface model, or None."""
+        return self._surface.surface
 
     def set_profile(self, profile: Profile) -> None:
         """Use other laws from the next sample on."""
@@ -192,12 +212,16 @@ class PenRenderer:
         """The pen left the surface: forget the stroke and rest the output at once
         (an SMA wire stays in standby for a while, ready for the next touch)."""
         self.tracker.reset()
+        self._surface.reset()
         self._stop()
         self._last = RenderResult(False, False, None, None, self._off, self._off)
         return self._last
 
     def feed(self, samples: Iterable[PenSample]) -> RenderResult:
         """Add a batch of samples and drive the output for the newest one."""
+        if self._surface.on(self.profile):
+            batch = list(samples)
+            return self._render(self.tracker.extend(batch), batch)
         state = self.tracker.extend(samples)
         return self._render(state)
 
@@ -232,17 +256,35 @@ class PenRenderer:
             return
         self.output.standby()
 
-    def _render(self, state: StrokeState | None) -> RenderResult:
+    def _render(self, state: StrokeState | None, batch: list[PenSample] | None = None) -> RenderResult:
         # No state: every sample so far was rejected, nothing is known about the pen.
         feat = None if state is None else self.texture_map.lookup(state.x_m, state.y_m)
         if feat is None:
+            self._surface.reset()
             self._stop()
             self._last = RenderResult(True, False, state, None, self._off, self._off)
             return self._last
+        if self._surface.on(self.profile):
+            return self._render_surface(state, feat, batch or [])
         drive = self.profile.drive(feat, state.speed_m_s, state.direction_rad, state.pressure)
         requested = self.splitter(drive, self.channels, state)
         applied = self._apply(requested)
         self._last = RenderResult(True, True, state, feat, requested, applied)
+        return self._last
+
+    def _render_surface(self, state: StrokeState, feat: Any, batch: list[PenSample]) -> RenderResult:
+        """A pulse per bump crossed: events to an output that plays them, else their equivalent drive."""
+        events, drive = self._surface.update(self.profile, state, batch)
+        requested = self.splitter(drive, self.channels, state)
+        out = self.output
+        if out is not None and getattr(out, "plays_events", False) and (events or not drive.is_off):
+            self._running = True
+            self._sent = None  # the steady resend rule does not apply to events
+            applied = list(out.play_events([events] * self.channels, state.t_s, requested))
+        else:
+            applied = self._apply(requested)
+        pulses = self._surface.stroke.newly_fired
+        self._last = RenderResult(True, True, state, feat, requested, applied, tuple(events), pulses)
         return self._last
 
     def _apply(self, requested: list[Drive]) -> list[Drive]:
@@ -271,6 +313,37 @@ class PenRenderer:
     def close(self) -> None:
         """Stop the output (the renderer does not own it, so it is not closed)."""
         self.lift()
+
+
+class _SurfacePath:
+    """The surface rendering's state: the picture's surface and the stroke's events over it."""
+
+    def __init__(self, surface: Any) -> None:
+        self.surface = surface
+        self.stroke = None
+        if surface is not None:
+            from ..surface.stroke import SurfaceStroke
+
+            self.stroke = SurfaceStroke(surface)
+
+    def on(self, profile: Any) -> bool:
+        return self.stroke is not None and getattr(profile, "rendering", "steady") == "surface"
+
+    def reset(self) -> None:
+        if self.stroke is not None:
+            self.stroke.reset()
+
+    def update(self, profile: Any, state: StrokeState, batch: list[PenSample]) -> tuple[list, Drive]:
+        from ..surface.equivalent import WINDOW_S, equivalent_drive
+
+        stroke = self.stroke
+        if state.direction_rad is None or state.speed_m_s <= 0:
+            # A resting pen adds no path and fires nothing (what was pending is withdrawn).
+            stroke.update(batch, 0.0, None, state.pressure)
+            stroke.rest()
+            return [], Drive.off()
+        events = stroke.update(batch, state.speed_m_s, state.direction_rad, state.pressure)
+        return events, equivalent_drive(stroke.recent(WINDOW_S), state.t_s, profile)
 
 
 def _close(a: Sequence[Drive], b: Sequence[Drive], rel: float) -> bool:

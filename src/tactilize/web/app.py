@@ -92,12 +92,15 @@ class TextureEntry:
         builtin: bool,
         make_png: Callable[[], bytes],
         make_map: Callable[[], Any],
+        make_surface: Callable[[], Any] | None = None,
     ) -> None:
         self.id, self.name, self.description = id, name, description
         self.width_m, self.height_m = float(width_m), float(height_m)
         self.width_px, self.height_px = int(width_px), int(height_px)
         self.builtin = builtin
         self._make_png, self._make_map = make_png, make_map
+        self._make_surface = make_surface
+        self._surface: Any = None
         self._png: bytes | None = None
         self._map: Any = None
         self._lock = threading.Lock()
@@ -119,6 +122,16 @@ class TextureEntry:
                 if self._map is None:
                     self._map = self._make_map()
         return self._map
+
+    @property
+    def surface(self):
+        """The :class:`~tactilize.surface.SurfaceModel` at the displayed size (None when the
+        entry has no picture to make one from)."""
+        if self._surface is None and self._make_surface is not None:
+            with self._lock:
+                if self._surface is None:
+                    self._surface = self._make_surface()
+        return self._surface
 
     def describe(self, with_features: bool = True) -> dict[str, Any]:
         """JSON-ready listing entry (sizes in mm for the page, SI features)."""
@@ -214,9 +227,12 @@ class ServerState:
         grey = (img.pixels * 255.0 + 0.5).astype("uint8")
         png = png_bytes(grey, img.dpi[0])
         tmap = texture_map(img)  # now, in the upload's thread: the first stroke must not wait
+        from ..surface import surface_model
+
+        surface = surface_model(img)  # likewise (bench/bench_surfaces.py measures it)
         entry = TextureEntry(
             tid, name, f"Uploaded picture {name}", img.width_m, img.height_m, img.shape[1], img.shape[0], False,
-            lambda: png, lambda: tmap,
+            lambda: png, lambda: tmap, lambda: surface,
         )
         self.textures[tid] = entry
         self.uploads.append(tid)
@@ -225,11 +241,13 @@ class ServerState:
         return entry
 
     def warm(self) -> None:
-        """Generate every built-in picture and its map (about a second, once)."""
+        """Generate every built-in picture, its map and its surface (about a second, once)."""
+        from ..surface import stroke as _  # noqa: F401  (scipy.signal: not on a pen batch's path)
+
         for tid in self._builtin_ids:
             e = self.textures.get(tid)
             if e is not None:
-                _ = e.png, e.map
+                _ = e.png, e.map, e.surface
 
     # ----------------------------------------------------------- stats
 
@@ -258,8 +276,14 @@ def _builtin_entry(t: Any) -> TextureEntry:
 
     return TextureEntry(
         t.id, t.name, t.description, t.width_m, t.height_m, *TEXTURE_SIZE_PX, True,
-        lambda: t.png, lambda: builtin_map(t.id),
+        lambda: t.png, lambda: builtin_map(t.id), lambda: _surface_of(t),
     )
+
+
+def _surface_of(t: Any) -> Any:
+    from ..surface import surface_model
+
+    return surface_model(t.image)
 
 
 def _default_output() -> tuple[Any, str]:

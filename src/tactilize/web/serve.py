@@ -17,9 +17,9 @@ from typing import Any, Callable, Iterable
 from ..errors import TactilizeError
 from .http import is_loopback
 
-#: The pen's default profile: textures told apart and every stroke felt on the wire
-#: (src/tactilize/profiles/perceptual.toml says why each constant is what it is).
-DEFAULT_PROFILE = "perceptual"
+#: The pen's default profile, as every command's: the surface rendering, a pulse per
+#: bump under the stylus tip (docs/surfaces.md).
+DEFAULT_PROFILE = "surface"
 
 __all__ = ["DEFAULT_PROFILE", "serve", "is_loopback", "bind_socket", "display_available"]
 

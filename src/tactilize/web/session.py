@@ -39,7 +39,10 @@ Server to page
 ``{"type": "ready", ...}`` and ``{"type": "state", ...}``
     The session's settings after a change (texture, profile, mm_per_px, limits).
 ``{"type": "drive", "seq": N, ...}``
-    After each batch (or lift): per channel the applied drive (frequency [Hz],
+    After each batch (or lift): ``rendering`` (``steady`` or ``surface``) and,
+    for the surface rendering, ``events``, the pulses this batch scheduled
+    ahead, and ``pulses``, those that became due since the previous batch
+    (docs/surfaces.md); per channel the applied drive (frequency [Hz],
     width [s] and [ms], duty ratio, amplitude, the limits that clamped), the
     speed [m/s] and [mm/s], direction [deg, y up], whether the pen is down and
     over the picture.  ``seq`` echoes the newest batch it covers; ``resting``
@@ -196,7 +199,7 @@ class PenSession:
         self.texture_id = None
         self.repeat = None
         self.composite = (list(ids), cols, cmap)
-        self.renderer.set_texture(cmap)
+        self.renderer.set_texture(cmap, _composite_surface([e.surface for e in entries], cols, cmap))
         return self.describe("state")
 
     def _samples(self, msg: dict[str, Any]) -> None:
@@ -274,12 +277,13 @@ class PenSession:
             self.texture_id = entry.id
             self.repeat = (repeat[0], repeat[1]) if repeat is not None and repeat != [1, 1] else None
             if self.repeat is None:
-                self.renderer.set_texture(entry.map)
+                self.renderer.set_texture(entry.map, entry.surface)
             else:
                 from ..composite import CompositeMap
 
                 cols, rows = self.repeat
-                self.renderer.set_texture(CompositeMap.of([entry.map] * (cols * rows), cols))
+                cmap = CompositeMap.of([entry.map] * (cols * rows), cols)
+                self.renderer.set_texture(cmap, _composite_surface([entry.surface] * (cols * rows), cols, cmap))
         if mm is not None:
             self.m_per_px = float(mm) * 1e-3
             self.renderer.lift()
@@ -296,6 +300,7 @@ class PenSession:
             "texture": self.texture_id,
             "mm_per_px": self.m_per_px * 1e3,
             "profile": p.name,
+            "rendering": p.rendering,
             "limits": p.limits.to_dict(),
             "output": self.state.output_name,
             "channels": self.renderer.channels,
@@ -340,6 +345,7 @@ class PenSession:
     def _drive_msg(self, res: Any) -> dict[str, Any]:
         d = res.to_dict()
         d["type"] = "drive"
+        d["rendering"] = self.renderer.profile.rendering
         d["seq"] = self.seq
         d["resting"] = False
         return d
@@ -361,6 +367,15 @@ class PenSession:
         if self._idle is not None:
             self._idle.cancel()
         self.renderer.lift()
+
+
+def _composite_surface(surfaces: list[Any], cols: int, cmap: Any) -> Any:
+    """The surfaces laid out as the composite map lays the pictures (None if one is missing)."""
+    if any(s is None for s in surfaces):
+        return None
+    from ..surface import CompositeSurface
+
+    return CompositeSurface.of(surfaces, cols, cmap.cell_m)
 
 
 class _NoPicture:

@@ -230,12 +230,17 @@ function showDrive(msg) {
   const on = (shownOn = !!(msg && msg.on));
   const surface = $("#surface");
   if (surface.dataset.state !== (on ? "on" : "off")) surface.dataset.state = on ? "on" : "off";
+  // The surface rendering fires a pulse per bump crossed (docs/surfaces.md): its
+  // frequency is the local rate of those pulses, and the page counts them.
+  if (msg && msg.rendering && surface.dataset.rendering !== msg.rendering) surface.dataset.rendering = msg.rendering;
+  if (T.pulses) surface.dataset.pulses = String(T.pulses);
   audio.setDrives(chans.length ? chans : [{}, {}]);
 }
 
 function onDrive(msg) {
   if (!msg.resting && typeof msg.seq === "number") meter.drive(msg.seq);
   T.lastDrive = msg;
+  if (msg.pulses) T.pulses = (T.pulses || 0) + msg.pulses;
   T.drives.push(msg);
   if (T.drives.length > HISTORY) T.drives.splice(0, T.drives.length - HISTORY);
   const chans = msg.channels && msg.channels.length ? msg.channels : [{}, {}];

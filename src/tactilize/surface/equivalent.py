@@ -1,0 +1,80 @@
+"""The steady Drive that stands for the events of the next window, for outputs that cannot play events.
+
+Serial boards, the audio output (until part 2) and the exports take one
+:class:`~tactilize.drive.Drive` per channel.  :func:`equivalent_drive` gives them
+the statistically equivalent one (docs/surfaces.md, "How events replace the
+steady Drive"): its frequency the events' local rate, its regularity from their
+intervals' coefficient of variation (inverting the jitter law of
+:mod:`tactilize.synthesis`), its strength their mean strength, its width the
+profile's width law at that strength.  The SMA outputs also command their
+operating point with it while they play the events themselves.
+
+Units: SI (s, Hz).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Sequence
+
+from ..drive import Drive
+from .events import PulseEvent
+
+__all__ = ["equivalent_drive", "regularity_of_cv", "WINDOW_S"]
+
+#: Events this far behind the newest sample still count towards the window [s].
+WINDOW_S = 0.15
+#: Interval CV of a train jittered at full depth (JITTER_MAX_PERIODS / sqrt(6)).
+_FULL_JITTER_CV = 0.6 / math.sqrt(6.0)
+
+
+def regularity_of_cv(cv: float) -> float:
+    """The ``Drive.regularity`` whose jittered train has intervals of coefficient of variation ``cv``."""
+    return float(min(1.0, max(0.0, 1.0 - cv / _FULL_JITTER_CV)))
+
+
+def equivalent_drive(
+    events: Sequence[PulseEvent],
+    now_s: float,
+    profile: Any = None,
+    *,
+    window_s: float = WINDOW_S,
+) -> Drive:
+    """The steady drive of the events around ``now_s`` [s] (the last ``window_s`` and all ahead).
+
+    Parameters
+    ----------
+    events : sequence of PulseEvent
+        Recent and scheduled events, any order.
+    now_s : float
+        The newest sample's time [s] on the stroke's clock.
+    profile : Profile, optional
+        Its width law turns strength into a width and its limits apply; without
+        one the width is 0.4 ms x strength (the paper's reading of h) and no limits act.
+
+    Returns
+    -------
+    Drive
+        Off when no event is in the window.
+    """
+    # Plain Python: a window holds a few dozen events, where each NumPy call costs more than the sums.
+    since = now_s - window_s
+    kept = [e for e in events if e.t_s >= since]
+    if not kept:
+        return Drive.off()
+    t = sorted(e.t_s for e in kept)
+    strength = math.fsum(e.strength for e in kept) / len(kept)
+    if len(t) >= 2 and t[-1] > t[0]:
+        iv = [b - a for a, b in zip(t, t[1:])]
+        rate = (len(t) - 1) / (t[-1] - t[0])
+        mean = math.fsum(iv) / len(iv)
+        cv = math.sqrt(math.fsum((x - mean) ** 2 for x in iv) / len(iv)) / mean if len(iv) > 1 else 0.0
+    else:
+        rate, cv = 1.0 / window_s, 0.0
+    width_law = getattr(profile, "width", None)
+    width = float(width_law(strength)) if width_law is not None else 4e-4 * strength
+    width = max(width, 2e-5)
+    clamped = tuple(sorted({c for e in kept for c in e.clamped}))
+    d = Drive(float(rate), width, 1.0, clamped, min(1.0, max(0.0, strength)), regularity_of_cv(cv))
+    limits = getattr(profile, "limits", None)
+    return limits.apply(d) if limits is not None else d

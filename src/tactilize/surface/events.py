@@ -1,0 +1,204 @@
+"""Pulse events: one per bump crossed, with a strength placed in the felt band.
+
+:func:`place_events` turns crossings (times and prominences) into
+:class:`PulseEvent` values by the rules of docs/surfaces.md ("What is rendered"):
+strength is the prominence on a log scale between the picture's prominence
+floor (0) and :data:`FULL_PROMINENCE` (1), scaled by pressure; clustered bumps
+get weaker pulses; above :data:`RATE_ONLY_HZ` only the rate is rendered; no two
+pulses are closer than :data:`MIN_INTERVAL_S`.  :func:`stroke_events` is the whole
+pure path: a stroke's samples and a surface in, events out.
+
+Units: SI (s, Hz); strength in [0, 1].
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple, Sequence
+
+import numpy as np
+
+from .bumps import crossings_along, resample_path
+
+__all__ = [
+    "PulseEvent",
+    "place_events",
+    "stroke_events",
+    "strength_of",
+    "FULL_PROMINENCE",
+    "RATE_ONLY_HZ",
+    "MAX_RATE_HZ",
+    "MIN_INTERVAL_S",
+    "CLUSTER_INTERVAL_S",
+    "REFERENCE_PRESSURE",
+    "event_statistics",
+    "local_rate_hz",
+]
+
+#: Prominence [luminance units] that gets full strength: half the luminance range.
+FULL_PROMINENCE = 0.5
+#: Above this local rate [pulses/s] only the rate is rendered (every pulse there
+#: gets its neighbourhood's median strength).
+RATE_ONLY_HZ = 150.0
+#: The wire's fastest pulse rate [Hz]: the paper's pen vibrates up to 300 Hz
+#: (docs/references.md, section 1).
+MAX_RATE_HZ = 300.0
+#: No two pulses closer than this [s]; a closer crossing merges into the pulse before.
+MIN_INTERVAL_S = 1.0 / MAX_RATE_HZ
+#: A pulse closer than this [s] to the one before is a cluster: weaker in
+#: proportion to its interval (the band's top falls as 1 / f above about 150 Hz
+#: on the 75 um wire, docs/signals-and-wire.md).
+CLUSTER_INTERVAL_S = 1.0 / RATE_ONLY_HZ
+#: Pressure reported for a pressed button without a pressure sensor (Pointer Events):
+#: full strength at or above it.
+REFERENCE_PRESSURE = 0.5
+
+
+class PulseEvent(NamedTuple):
+    """One pulse to play.
+
+    Attributes
+    ----------
+    t_s : float
+        When [s], on the stroke's clock (the pen samples' timestamps).
+    strength : float
+        Place in the felt band at the local interval, 0 (least felt) .. 1 (most).
+    clamped : tuple of str
+        What changed it: ``"cluster"`` (weakened, too close to the one before),
+        ``"rate_only"`` (strength of its neighbourhood), ``"merged"`` (a closer
+        crossing was folded into it), ``"late"`` (found after its time, played at once).
+    """
+
+    t_s: float
+    strength: float
+    clamped: tuple[str, ...] = ()
+
+
+def strength_of(prominence: Any, floor: Any, pressure: float | None = None) -> np.ndarray:
+    """Strength in [0, 1] of bumps of ``prominence`` on a picture with prominence ``floor``
+    (log scale from the floor to :data:`FULL_PROMINENCE`), scaled by ``pressure``."""
+    p = np.asarray(prominence, dtype=np.float64)
+    lo = np.asarray(floor, dtype=np.float64)
+    span = np.log(np.maximum(FULL_PROMINENCE / lo, 1.0 + 1e-9))
+    s = np.clip(np.log(np.maximum(p, 1e-12) / lo) / span, 0.0, 1.0)
+    if pressure is not None:
+        s = s * min(1.0, max(0.0, float(pressure)) / REFERENCE_PRESSURE)
+    return s
+
+
+def local_rate_hz(t_s: np.ndarray) -> np.ndarray:
+    """Crossing rate [1/s] at each crossing: two over the interval between its neighbours
+    (one over the one interval at either end); 0 for a lone crossing."""
+    t = np.asarray(t_s, dtype=np.float64)
+    n = t.size
+    if n < 2:
+        return np.zeros(n)
+    span = np.empty(n)
+    span[1:-1] = (t[2:] - t[:-2]) / 2.0
+    span[0] = t[1] - t[0]
+    span[-1] = t[-1] - t[-2]
+    return np.where(span > 0, 1.0 / np.maximum(span, 1e-12), np.inf)
+
+
+def place_events(
+    t_s: Sequence[float],
+    strength: Sequence[float],
+    *,
+    previous_t_s: float | None = None,
+) -> list[PulseEvent]:
+    """Pulse events for crossings at ``t_s`` [s] (increasing) of given ``strength``.
+
+    Parameters
+    ----------
+    t_s : sequence of float
+        Crossing times [s], increasing.
+    strength : sequence of float
+        Each crossing's strength in [0, 1] (:func:`strength_of`).
+    previous_t_s : float, optional
+        Time of the pulse already played before these [s] (its interval counts).
+
+    Returns
+    -------
+    list of PulseEvent
+    """
+    t = np.asarray(t_s, dtype=np.float64)
+    s = np.asarray(strength, dtype=np.float64).copy()
+    n = t.size
+    if n == 0:
+        return []
+    rate = local_rate_hz(t if previous_t_s is None else np.concatenate(([previous_t_s], t)))
+    rate = rate[-n:]
+    fast = rate > RATE_ONLY_HZ
+    if fast.any():
+        # Only rate is rendered there: each pulse carries its neighbourhood's median.
+        for i in np.flatnonzero(fast).tolist():
+            s[i] = float(np.median(s[max(0, i - 3) : i + 4]))
+    out: list[PulseEvent] = []
+    last = previous_t_s
+    for i in range(n):
+        ti, si = float(t[i]), float(s[i])
+        clamped: tuple[str, ...] = ("rate_only",) if fast[i] else ()
+        if last is not None:
+            gap = ti - last
+            if gap < MIN_INTERVAL_S:
+                if out and "merged" not in out[-1].clamped:
+                    out[-1] = out[-1]._replace(clamped=out[-1].clamped + ("merged",))
+                continue
+            if gap < CLUSTER_INTERVAL_S and not fast[i]:
+                si *= gap / CLUSTER_INTERVAL_S
+                clamped += ("cluster",)
+        out.append(PulseEvent(ti, si, clamped))
+        last = ti
+    return out
+
+
+def stroke_events(
+    surface: Any,
+    t_s: Sequence[float],
+    x_m: Sequence[float],
+    y_m: Sequence[float],
+    pressure: float | None = None,
+) -> list[PulseEvent]:
+    """Every pulse of a whole stroke, offline: the pure path of the surface rendering.
+
+    Parameters
+    ----------
+    surface : SurfaceModel or CompositeSurface
+    t_s : sequence of float
+        Sample times [s], increasing.
+    x_m, y_m : sequence of float
+        Sample positions [display m] from the picture's top-left, y down.
+    pressure : float, optional
+        Pen pressure in [0, 1] for the whole stroke; None when unknown.
+    """
+    if len(t_s) < 2:
+        return []
+    path = resample_path(t_s, x_m, y_m, surface.step_m)
+    c = crossings_along(surface, *path)
+    if c.t_s.size == 0:
+        return []
+    return place_events(c.t_s, strength_of(c.prominence, c.floor, pressure))
+
+
+def event_statistics(events: Sequence[PulseEvent], duration_s: float | None = None) -> dict[str, float]:
+    """Rate [1/s], intervals' coefficient of variation and mean strength of events.
+
+    The rate is (n - 1) over the span of the events, or n over ``duration_s`` [s]
+    when given (a stroke's whole length, silent stretches counted).
+    """
+    n = len(events)
+    if n == 0:
+        return {"rate_hz": 0.0, "interval_cv": 0.0, "strength": 0.0, "pulses": 0}
+    t = np.array([e.t_s for e in events])
+    iv = np.diff(t)
+    if duration_s is not None and duration_s > 0:
+        rate = n / duration_s
+    else:
+        rate = (n - 1) / (t[-1] - t[0]) if n > 1 and t[-1] > t[0] else 0.0
+    cv = float(np.std(iv) / np.mean(iv)) if iv.size > 1 and np.mean(iv) > 0 else 0.0
+    return {
+        "rate_hz": float(rate),
+        "interval_cv": cv,
+        "strength": float(np.mean([e.strength for e in events])),
+        "pulses": n,
+    }
+
