@@ -13,6 +13,8 @@ Units: SI (s, Hz); strength in [0, 1].
 
 from __future__ import annotations
 
+import math
+import statistics
 from typing import Any, NamedTuple, Sequence
 
 import numpy as np
@@ -24,6 +26,7 @@ __all__ = [
     "place_events",
     "stroke_events",
     "strength_of",
+    "strengths",
     "FULL_PROMINENCE",
     "RATE_ONLY_HZ",
     "MAX_RATE_HZ",
@@ -76,27 +79,34 @@ class PulseEvent(NamedTuple):
 def strength_of(prominence: Any, floor: Any, pressure: float | None = None) -> np.ndarray:
     """Strength in [0, 1] of bumps of ``prominence`` on a picture with prominence ``floor``
     (log scale from the floor to :data:`FULL_PROMINENCE`), scaled by ``pressure``."""
-    p = np.asarray(prominence, dtype=np.float64)
-    lo = np.asarray(floor, dtype=np.float64)
-    span = np.log(np.maximum(FULL_PROMINENCE / lo, 1.0 + 1e-9))
-    s = np.clip(np.log(np.maximum(p, 1e-12) / lo) / span, 0.0, 1.0)
-    if pressure is not None:
-        s = s * min(1.0, max(0.0, float(pressure)) / REFERENCE_PRESSURE)
-    return s
+    p = np.broadcast_to(np.asarray(prominence, dtype=np.float64), np.shape(prominence))
+    lo = np.broadcast_to(np.asarray(floor, dtype=np.float64), p.shape)
+    return np.array(strengths(p.ravel().tolist(), lo.ravel().tolist(), pressure)).reshape(p.shape)
+
+
+def strengths(prominence: Sequence[float], floor: Sequence[float], pressure: float | None = None) -> list[float]:
+    """:func:`strength_of` on plain lists: a pen batch has a handful of bumps, where each
+    NumPy call costs more than the arithmetic."""
+    scale = 1.0 if pressure is None else min(1.0, max(0.0, float(pressure)) / REFERENCE_PRESSURE)
+    out = []
+    for p, lo in zip(prominence, floor):
+        span = math.log(max(FULL_PROMINENCE / lo, 1.0 + 1e-9))
+        out.append(min(1.0, max(0.0, math.log(max(p, 1e-12) / lo) / span)) * scale)
+    return out
+
+
+def _local_rates(t: Sequence[float]) -> list[float]:
+    n = len(t)
+    if n < 2:
+        return [0.0] * n
+    span = [t[1] - t[0]] + [(t[i + 1] - t[i - 1]) / 2.0 for i in range(1, n - 1)] + [t[-1] - t[-2]]
+    return [1.0 / max(d, 1e-12) if d > 0 else math.inf for d in span]
 
 
 def local_rate_hz(t_s: np.ndarray) -> np.ndarray:
     """Crossing rate [1/s] at each crossing: two over the interval between its neighbours
     (one over the one interval at either end); 0 for a lone crossing."""
-    t = np.asarray(t_s, dtype=np.float64)
-    n = t.size
-    if n < 2:
-        return np.zeros(n)
-    span = np.empty(n)
-    span[1:-1] = (t[2:] - t[:-2]) / 2.0
-    span[0] = t[1] - t[0]
-    span[-1] = t[-1] - t[-2]
-    return np.where(span > 0, 1.0 / np.maximum(span, 1e-12), np.inf)
+    return np.array(_local_rates(np.asarray(t_s, dtype=np.float64).tolist()), dtype=np.float64)
 
 
 def place_events(
@@ -120,22 +130,23 @@ def place_events(
     -------
     list of PulseEvent
     """
-    t = np.asarray(t_s, dtype=np.float64)
-    s = np.asarray(strength, dtype=np.float64).copy()
-    n = t.size
+    # Plain Python: a pen batch places a handful of crossings (docs/surfaces.md).
+    t = [float(v) for v in t_s]
+    s = [float(v) for v in strength]
+    n = len(t)
     if n == 0:
         return []
-    rate = local_rate_hz(t if previous_t_s is None else np.concatenate(([previous_t_s], t)))
-    rate = rate[-n:]
-    fast = rate > RATE_ONLY_HZ
-    if fast.any():
+    rate = _local_rates(t if previous_t_s is None else [float(previous_t_s)] + t)[-n:]
+    fast = [r > RATE_ONLY_HZ for r in rate]
+    if any(fast):
         # Only rate is rendered there: each pulse carries its neighbourhood's median.
-        for i in np.flatnonzero(fast).tolist():
-            s[i] = float(np.median(s[max(0, i - 3) : i + 4]))
+        for i in range(n):
+            if fast[i]:
+                s[i] = statistics.median(s[max(0, i - 3) : i + 4])
     out: list[PulseEvent] = []
     last = previous_t_s
     for i in range(n):
-        ti, si = float(t[i]), float(s[i])
+        ti, si = t[i], s[i]
         clamped: tuple[str, ...] = ("rate_only",) if fast[i] else ()
         if last is not None:
             gap = ti - last

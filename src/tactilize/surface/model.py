@@ -93,26 +93,39 @@ class SurfaceModel:
         of the tip radius, and never coarser than half a pixel."""
         return min(0.25 * self.tip_radius_m / self.surface_per_display, 0.5 * min(self.display_pitch_m))
 
+    def __post_init__(self) -> None:
+        # Made once per picture: the height with a one-pixel border repeating its edge, flat,
+        # so a lookup needs no clamping to the picture (a pen batch samples ~100 points, where
+        # each NumPy call's overhead is the cost).
+        padded = np.pad(self.height, 1, mode="edge")
+        object.__setattr__(self, "_padded", padded.ravel())
+        object.__setattr__(self, "_inv_pitch", (1.0 / self.display_pitch_m[0], 1.0 / self.display_pitch_m[1]))
+
     def sample(self, x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
         """Tip-filtered height at display positions [m] (from the top-left, y down),
         bilinear between pixel centres; NaN outside the picture."""
-        x = np.asarray(x_m, dtype=np.float64) / self.display_pitch_m[0] - 0.5
-        y = np.asarray(y_m, dtype=np.float64) / self.display_pitch_m[1] - 0.5
+        h, inside = self._lookup(x_m, y_m)
+        return np.where(inside, h, np.nan)
+
+    def _lookup(self, x_m: Any, y_m: Any) -> tuple[np.ndarray, np.ndarray]:
+        """(bilinear height, inside) at display positions; outside, the height is the nearest edge's."""
         rows, cols = self.shape
-        inside = (x >= -0.5) & (x < cols - 0.5) & (y >= -0.5) & (y < rows - 0.5)
-        # Clamped to the pixel centres; ufuncs, not np.clip (a pen batch samples ~100 points,
-        # where each call's overhead is the cost).
-        xc = np.minimum(np.maximum(x, 0.0), cols - 1.0)
-        yc = np.minimum(np.maximum(y, 0.0), rows - 1.0)
-        x0 = np.minimum(xc.astype(np.intp), max(cols - 2, 0))
-        y0 = np.minimum(yc.astype(np.intp), max(rows - 2, 0))
+        # Coordinates in the padded picture, where pixel centres are at 1 .. cols.
+        x = np.asarray(x_m, dtype=np.float64) * self._inv_pitch[0] + 0.5
+        y = np.asarray(y_m, dtype=np.float64) * self._inv_pitch[1] + 0.5
+        inside = (x >= 0.5) & (x < cols + 0.5) & (y >= 0.5) & (y < rows + 0.5)
+        xc = np.minimum(np.maximum(x, 0.0), float(cols))
+        yc = np.minimum(np.maximum(y, 0.0), float(rows))
+        x0 = xc.astype(np.intp)
+        y0 = yc.astype(np.intp)
         fx, fy = xc - x0, yc - y0
-        h = self.height
-        x1, y1 = np.minimum(x0 + 1, cols - 1), np.minimum(y0 + 1, rows - 1)
-        top = h[y0, x0] * (1 - fx) + h[y0, x1] * fx
-        bottom = h[y1, x0] * (1 - fx) + h[y1, x1] * fx
-        out = top * (1 - fy) + bottom * fy
-        return np.where(inside, out, np.nan)
+        w = cols + 2
+        i = y0 * w + x0
+        h = self._padded
+        top = h[i] * (1 - fx) + h[i + 1] * fx
+        i += w
+        bottom = h[i] * (1 - fx) + h[i + 1] * fx
+        return top * (1 - fy) + bottom * fy, inside
 
     def regions(self, x_m: np.ndarray, y_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(heights, region ids, prominence floors) along points: one region (0) inside, -1 outside.
@@ -120,9 +133,9 @@ class SurfaceModel:
         :class:`~tactilize.surface.composite.CompositeSurface` answers the same
         with one region per picture, so bumps are never found across a boundary.
         """
-        h = self.sample(x_m, y_m)
-        ids = np.where(np.isnan(h), -1, 0)
-        return h, ids, np.full(h.shape, self.prominence_floor)
+        h, inside = self._lookup(x_m, y_m)
+        ids = inside.astype(np.intp) - 1  # 0 inside, -1 outside
+        return np.where(inside, h, np.nan), ids, np.full(h.shape, self.prominence_floor)
 
     def at_scale(self, surface_pitch_m: float | tuple[float, float]) -> "SurfaceModel":
         """The same picture as a surface of another real size [m per pixel]."""

@@ -22,10 +22,9 @@ from bisect import bisect_left
 from collections import deque
 from typing import Any, Iterable
 
-import numpy as np
-
 from .bumps import crossings_along, resample_path
-from .events import PulseEvent, place_events, strength_of
+from .events import PulseEvent, place_events
+from .events import strengths as strengths_of
 
 __all__ = ["SurfaceStroke", "LOOKAHEAD_S", "HISTORY_M", "LATE_S"]
 
@@ -159,8 +158,8 @@ class SurfaceStroke:
             self._fired.popleft()
         fired_s = sorted(s for _, s in self._fired)
         times, arcs, strengths = [], [], []
-        st = strength_of(c.prominence, c.floor, pressure)
-        for ti, si, gi in zip(c.t_s.tolist(), c.s_m.tolist(), st.tolist()):
+        st = strengths_of(c.prominence.tolist(), c.floor.tolist(), pressure)
+        for ti, si, gi in zip(c.t_s.tolist(), c.s_m.tolist(), st):
             k = bisect_left(fired_s, si)
             if (k < len(fired_s) and fired_s[k] - si < same) or (k > 0 and si - fired_s[k - 1] < same):
                 continue
@@ -171,7 +170,7 @@ class SurfaceStroke:
             strengths.append(gi)
         if not times:
             return []
-        order = np.argsort(times, kind="stable")
+        order = sorted(range(len(times)), key=times.__getitem__)  # stable, as argsort's was
         times = [times[i] for i in order]
         arcs = [arcs[i] for i in order]
         strengths = [strengths[i] for i in order]

@@ -20,8 +20,10 @@ from .http import is_loopback
 #: The pen's default profile, as every command's: the surface rendering, a pulse per
 #: bump under the stylus tip (docs/surfaces.md).
 DEFAULT_PROFILE = "surface"
+#: CPython GIL switch interval [s] while serving (see serve()); the bench uses the same.
+SWITCH_INTERVAL_S = 0.0005
 
-__all__ = ["DEFAULT_PROFILE", "serve", "is_loopback", "bind_socket", "display_available"]
+__all__ = ["DEFAULT_PROFILE", "SWITCH_INTERVAL_S", "serve", "is_loopback", "bind_socket", "display_available"]
 
 
 def bind_socket(host: str, port: int) -> socket.socket:
@@ -139,7 +141,7 @@ def serve(
         # switch interval a pen batch could wait up to 5 ms for the event loop.
         # 0.5 ms keeps the wait under the 1 ms server-side budget.  This process
         # only serves, so the global setting harms nothing else.
-        sys.setswitchinterval(0.0005)
+        sys.setswitchinterval(SWITCH_INTERVAL_S)
         echo(f"tactilize: serving the tactile pen at {url} (output {output}, profile {prof.name}); Ctrl-C to stop")
         if open_browser is None:
             open_browser = display_available()
