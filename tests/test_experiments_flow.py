@@ -134,11 +134,12 @@ def test_bad_input_is_refused_and_leaves_the_data_intact(tmp_path):
         change = client.post(f"{API}/sessions/{token}/answers",
                              json={"trial": 0, "ratings": {"speed_match": 1, "speed_difference": 1}})
         assert change.status_code == 409 and "never overwritten" in change.json()["error"]
-        # Strokes sent by a stale page for the finished trial are not logged into it.
+        # Strokes for a trial the session has not reached are refused (no page has shown it);
+        # late ones for an answered trial are logged under it (tests/test_experiments_samples.py).
         with client.websocket_connect(f"/experiment/ws/{token}") as ws:
-            ws.send_json({"trial": 0, "image": "image1", "samples": [[0, 1, 1, None], [5, 2, 1, None]]})
+            ws.send_json({"trial": 3, "image": "image1", "batch": "b1", "samples": [[0, 1, 1, None], [5, 2, 1, None]]})
             err = ws.receive_json()
-            assert err["type"] == "error" and err["current_trial"] == 1
+            assert err["type"] == "error" and err["current_trial"] == 1 and err["batch"] == "b1"
             ws.send_bytes(b"\xff not json")
             assert ws.receive_json()["type"] == "error"  # a broken message does not end the connection
             ws.send_json({"type": "lift"})

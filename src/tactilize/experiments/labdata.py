@@ -143,6 +143,9 @@ def withdraw(store, protocol_name: str, code: str) -> dict[str, int]:
                                  ("stroke_samples", StrokeSample, StrokeSample.trial_id)):
             counts[name] = s.execute(delete(model).where(col.in_(trial_ids))).rowcount
         from .demographics import ParticipantInfo
+        from .samples import StrokeBatch
+
+        counts["stroke_batches"] = s.execute(delete(StrokeBatch).where(StrokeBatch.session_id.in_(sess_ids))).rowcount
 
         counts["demographics"] = s.execute(delete(ParticipantInfo).where(ParticipantInfo.session_id.in_(sess_ids))).rowcount
         counts["trials"] = s.execute(delete(Trial).where(Trial.id.in_(trial_ids))).rowcount

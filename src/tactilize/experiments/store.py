@@ -25,7 +25,7 @@ import json
 import platform
 import secrets
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 from sqlalchemy import (
     Boolean,
@@ -264,7 +264,7 @@ class Store:
                                  f"{redact_text(str(exc), url)})") from None
         if self.engine.dialect.name == "sqlite":
             event.listen(self.engine, "connect", _sqlite_pragmas)
-        from . import demographics, labdata  # noqa: F401  (their tables, before create_all)
+        from . import demographics, labdata, samples  # noqa: F401  (their tables, before create_all)
 
         try:
             Base.metadata.create_all(self.engine)
@@ -467,18 +467,6 @@ class Store:
                     return "duplicate"
                 raise ValueError({q: (again.get(q), r) for q, r in ratings.items() if again.get(q) != r}) from None
             return "recorded"
-
-    def log_samples(self, trial_id: int, rows: Iterable[dict[str, Any]]) -> int:
-        rows = list(rows)
-        if not rows:
-            return 0
-        with self.Session.begin() as s:
-            now = utcnow()
-            s.add_all([StrokeSample(trial_id=trial_id, received_at=now, **r) for r in rows])
-            t = s.get(Trial, trial_id)
-            if t.started_at is None:
-                t.started_at = now
-        return len(rows)
 
     # ------------------------------------------------------------ reporting
 
