@@ -58,11 +58,16 @@ def test_scripted_participant_completes_the_assessment(tmp_path):
                 ws.send_text(json.dumps({"trial": 0, "image": im["id"],
                                          "samples": [[k * 5.0, k * 0.3, 10.0, 0.5] for k in range(20)]}))
                 msg = ws.receive_json()
+                while msg["type"] == "ack":  # the previous batch's, once committed
+                    msg = ws.receive_json()
                 assert msg["type"] == "drive" and msg["logged"] == 20
                 assert msg["speed_mm_s"] == pytest.approx(60.0, rel=0.02)
                 drives[im["id"]] = msg["drive"]
             ws.send_text(json.dumps({"trial": 5, "image": "image1", "samples": [[0, 0, 0]]}))
-            assert ws.receive_json()["type"] == "error"
+            msg = ws.receive_json()
+            while msg["type"] == "ack":
+                msg = ws.receive_json()
+            assert msg["type"] == "error"
         # The paper's laws: image 6 (finest, weakest) gets the narrowest pulses.
         assert min(drives, key=lambda i: drives[i]["pulse_width_s"]) == "image6"
         assert all(d["pulse_frequency_hz"] <= 300.0 for d in drives.values())
