@@ -176,9 +176,10 @@ class Page:
     async def run(self, stroke_s: float, trials: int | None, echo_s: float | None = None):
         async with httpx.AsyncClient() as http:
             if echo_s is None:
-                st = (await self._post(http, "/experiment/api/sessions", {"participant_id": self.code,
-                                                                         "consent": True})).json()
-                self.token = st["session"]
+                r = await self._post(http, "/experiment/api/sessions", {"participant_id": self.code, "consent": True})
+                if r.status_code == 409:  # registered before a kill cut the answer: the page's Resume
+                    r = await self._post(http, "/experiment/api/resume", {"participant_id": self.code})
+                self.token = r.json()["session"]
                 st = (await self._post(http, f"/experiment/api/sessions/{self.token}/calibration",
                                        {"mm_per_px": 0.25, "felt": True})).json()
             conn = asyncio.create_task(self.connection())
