@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import CatalogError, CatalogVersionError
+from ..redact import ambiguous_user, redact_text
 
 __all__ = ["META_FILE", "PART_PREFIX", "ParquetStore", "SqlStore", "check_fingerprint", "is_sql_url", "open_store", "safe_url"]
 
@@ -35,13 +36,10 @@ def is_sql_url(out: str | os.PathLike) -> bool:
 
 
 def safe_url(url: str) -> str:
-    """The URL without its password, for messages."""
-    try:
-        import sqlalchemy as sa
+    """The URL without its secrets, for messages (:func:`tactilize.redact.redact_url`)."""
+    from ..redact import redact_url
 
-        return sa.engine.make_url(url).render_as_string(hide_password=True)
-    except Exception:
-        return url.split("@")[-1]
+    return redact_url(url)
 
 
 def check_fingerprint(where: str, old: Any, new: dict[str, Any]) -> None:
@@ -189,10 +187,13 @@ class SqlStore:
         import sqlalchemy as sa
 
         self.url = url
+        if ambiguous_user(url):
+            raise CatalogError(safe_url(url), "more than one '@' before the host: write an '@' inside the password as %40")
         try:
             self.engine = sa.create_engine(url)
         except Exception as exc:  # unknown dialect, missing driver, malformed URL
-            raise CatalogError(safe_url(url), f"cannot use this database URL ({exc.__class__.__name__}: {exc})") from None
+            raise CatalogError(safe_url(url), f"cannot use this database URL ({exc.__class__.__name__}: "
+                               f"{redact_text(str(exc), url)})") from None
         types = {"str": sa.Text, "float": sa.Float, "int": sa.BigInteger, "bool": sa.Boolean}
         md = sa.MetaData()
         self.table = sa.Table(
@@ -215,7 +216,8 @@ class SqlStore:
                 else:
                     check_fingerprint(safe_url(self.url), json.loads(old), fingerprint)
         except sa.exc.SQLAlchemyError as exc:
-            raise CatalogError(safe_url(self.url), f"database error ({exc.__class__.__name__}: {exc.orig if hasattr(exc, 'orig') else exc})") from None
+            detail = redact_text(str(exc.orig if hasattr(exc, "orig") else exc), self.url)
+            raise CatalogError(safe_url(self.url), f"database error ({exc.__class__.__name__}: {detail})") from None
 
     def done_ids(self, retry_failed: bool) -> set[str]:
         import sqlalchemy as sa

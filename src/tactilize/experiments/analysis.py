@@ -129,11 +129,10 @@ def _demographics(store) -> dict:
 
 
 def _redact(url: str) -> str:
-    # A PostgreSQL URL may carry a password; exports must not.
-    if "@" in url and "://" in url:
-        scheme, rest = url.split("://", 1)
-        return f"{scheme}://***@{rest.split('@', 1)[1]}"
-    return url
+    # The one rule for every database URL shown or written (tactilize.redact).
+    from ..redact import redact_url
+
+    return redact_url(url)
 
 
 def _f(x: Any) -> float | None:

@@ -17,7 +17,7 @@ from __future__ import annotations
 import json
 import math
 import re
-from dataclasses import dataclass, field
+import time
 from typing import Any
 
 from ..errors import RequestError, TactilizeError
@@ -25,11 +25,14 @@ from ..mapping import DriveFeatures
 from .protocols import Protocol
 from .store import ExperimentSession, Store, iso, utcnow
 
-__all__ = ["Flow", "FlowError", "StrokeHandler", "CODE_PATTERN"]
+__all__ = ["Flow", "FlowError", "StrokeHandler", "CODE_PATTERN", "OPEN_TRIAL_TTL_S"]
 
 CODE_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,31}$")
 # Plausible screen scales: 0.05 mm/px (a 500 DPI panel) .. 1 mm/px (a projector).
 MM_PER_PX_RANGE = (0.05, 1.0)
+#: How long the open trial of a session is taken from memory (seconds): bounds how long
+#: another process's answer may go unseen by the pen socket's drive.
+OPEN_TRIAL_TTL_S = 1.0
 
 
 class FlowError(RequestError):
@@ -54,6 +57,7 @@ class Flow:
         self.protocol_version = store.protocol_version(protocol)
         self._profiles = {c.id: protocol.profile(c.id) for c in protocol.conditions}
         self._features = {im.id: self._image_features(im) for im in protocol.images}
+        self._open_cache: dict[int, tuple[int | None, float]] = {}
 
     # ------------------------------------------------------------ helpers
 
@@ -243,6 +247,10 @@ class Flow:
             raise FlowError("trial", "a break is due first; reload the page", 409, current_trial=current)
         if self.protocol.require_every_image:
             from .labdata import stroked_images
+            from .samples import writer_for
+
+            # Samples sent before the answer may still be in the writer's queue.
+            writer_for(self.store).barrier()
 
             missing = [i for i in trial.image_ids if i not in stroked_images(self.store, trial.id)]
             if missing:
@@ -255,6 +263,7 @@ class Flow:
         except ValueError:
             raise FlowError("trial", f"trial {trial_index + 1} was already answered differently; answers are never "
                             "overwritten. Reload to continue.", 409, current_trial=current) from None
+        self._open_cache.pop(sess.id, None)
         if status == "recorded" and comment:
             from .labdata import record_event
 
@@ -351,113 +360,29 @@ class Flow:
 
     # ------------------------------------------------------------ strokes
 
-    def stroke_handler(self, token: str, output: Any = None) -> "StrokeHandler":
-        """A handler for one page's pen WebSocket; drives go to ``output`` too when given."""
+    def stroke_handler(self, token: str, output: Any = None):
+        """A handler for one page's pen WebSocket (:class:`.strokes.StrokeHandler`);
+        drives go to ``output`` too when given."""
+        from .strokes import StrokeHandler
+
         return StrokeHandler(self, self._session(token), output)
 
+    def open_trial(self, sess: ExperimentSession, fresh: bool = False) -> int | None:
+        """The index of the session's first trial without all its answers (None: done).
 
-@dataclass
-class StrokeHandler:
-    """Turns pen samples of one session into drives, and logs both.
+        Asked for every pen message, so it is kept in memory for
+        :data:`OPEN_TRIAL_TTL_S` seconds (an answer through this flow updates it
+        at once) and the drive back to the page never waits for a query."""
+        now = time.monotonic()
+        hit = self._open_cache.get(sess.id)
+        if fresh or hit is None or now - hit[1] > OPEN_TRIAL_TTL_S:
+            hit = self._open_cache[sess.id] = (self._first_open(sess), now)
+        return hit[0]
 
-    Messages (JSON)::
 
-        {"trial": 3, "image": "image2",
-         "samples": [[t_ms, x_mm, y_mm, pressure or null], ...]}
-        {"type": "lift"}
-        {"type": "reconnected", "trial": 3, "gap_s": 2.5, "queued": 120}
+def __getattr__(name: str):
+    if name == "StrokeHandler":  # moved to .strokes with the socket it serves
+        from .strokes import StrokeHandler
 
-    The page stamps every sample with the trial and image shown when it was
-    taken, so samples queued while the socket was down arrive under their own
-    trial; a ``reconnected`` message marks that trial ``interrupted``
-    (:mod:`.labdata`).  Positions are millimetres on the displayed image (the page converts CSS
-    pixels with the calibrated scale); the answer carries the drive at the last
-    sample.  Speed and direction come from the pen page's
-    :class:`~tactilize.pen.StrokeTracker` (one per image, so switching pictures
-    starts a new stroke).  Samples for a trial other than the open one are
-    refused: a stale page must not write into another trial's log.
-
-    When the app has an actuator output (``tactilize serve``'s), the condition's
-    drive is applied to it, the same on every channel as in the paper's pen,
-    and stopped on a lift, an error or the end of the connection.
-    """
-
-    flow: Flow
-    session: Any
-    output: Any = None
-    trackers: dict[str, Any] = field(default_factory=dict)
-    trial_cache: dict[int, Any] = field(default_factory=dict)
-
-    def stop(self) -> None:
-        for tr in self.trackers.values():
-            tr.reset()
-        if self.output is not None:
-            self.output.stop()
-
-    def _reconnected(self, msg: dict) -> dict[str, Any]:
-        """The page lost its socket during trial ``msg["trial"]`` and is back: mark
-        the trial interrupted (once per reconnection), whatever samples follow."""
-        from .labdata import record_event
-
-        idx = msg.get("trial")
-        trials = {t.index: t for t in self.flow.store.trials(self.session.id)}
-        if isinstance(idx, bool) or not isinstance(idx, int) or idx not in trials:
-            raise FlowError("stroke", "unknown trial", 422)
-        gap = msg.get("gap_s")
-        gap = float(gap) if isinstance(gap, (int, float)) and not isinstance(gap, bool) and math.isfinite(gap) else None
-        record_event(self.flow.store, trials[idx].id, "interrupted",
-                     {"gap_s": gap, "queued_samples": msg.get("queued") if isinstance(msg.get("queued"), int) else None})
-        return {"type": "marked", "trial": idx, "kind": "interrupted"}
-
-    def handle(self, msg: Any) -> dict[str, Any]:
-        from ..pen import StrokeTracker
-        from ..web.rows import sample_error, samples_from_css
-
-        if not isinstance(msg, dict):
-            raise FlowError("stroke", "expected a JSON object", 422)
-        if msg.get("type") == "lift":
-            self.stop()
-            return {"type": "lifted"}
-        if msg.get("type") == "reconnected":
-            return self._reconnected(msg)
-        idx = msg.get("trial")
-        image_id = msg.get("image")
-        samples = msg.get("samples")
-        trials = self.trial_cache or {t.index: t for t in self.flow.store.trials(self.session.id)}
-        self.trial_cache = trials
-        if isinstance(idx, bool) or not isinstance(idx, int) or idx not in trials:
-            raise FlowError("stroke", "unknown trial", 422)
-        trial = trials[idx]
-        if image_id not in trial.image_ids:
-            raise FlowError("stroke", f"image {image_id!r} is not part of trial {idx + 1}", 422)
-        if not isinstance(samples, list) or not samples or len(samples) > 1000:
-            raise FlowError("stroke", "samples must be a list of 1 .. 1000 [t_ms, x_mm, y_mm, pressure]", 422)
-        for row in samples:
-            err = sample_error(row)
-            if err:
-                raise FlowError("stroke", err, 422)
-        current = self.flow._first_open(self.session)
-        if current != idx:
-            self.stop()
-            raise FlowError("stroke", f"trial {idx + 1} is not open (a stale page?)", 409, current_trial=current)
-        profile = self.flow.profile(trial.condition_id)
-        feats = self.flow.image_features(image_id)
-        tracker = self.trackers.setdefault(image_id, StrokeTracker())
-        rows = []
-        drive = None
-        speed = 0.0
-        # Millimetres are "pixels" of 1 mm for the pen module's converter.
-        for ps in samples_from_css(samples, 1e-3):
-            tracker.add(ps)
-            st = tracker.state
-            speed = st.speed_m_s if st else 0.0
-            drive = profile.drive(feats, speed_m_s=speed, direction_rad=st.direction_rad if st else None,
-                                  pressure=ps.pressure)
-            rows.append({"image_id": image_id, "t_s": ps.t_s, "x_m": ps.x_m, "y_m": ps.y_m, "pressure": ps.pressure,
-                         "speed_m_s": speed, "pulse_frequency_hz": drive.pulse_frequency_hz,
-                         "pulse_width_s": drive.pulse_width_s, "amplitude": drive.amplitude})
-        self.flow.store.log_samples(trial.id, rows)
-        if self.output is not None:
-            self.output.apply([drive] * int(self.output.channels))
-        return {"type": "drive", "trial": idx, "image": image_id, "speed_mm_s": speed * 1e3,
-                "logged": len(rows), "drive": drive.to_dict()}
+        return StrokeHandler
+    raise AttributeError(name)

@@ -28,6 +28,7 @@ from sqlalchemy import DateTime, ForeignKey, Integer, String, Text, delete, sele
 from sqlalchemy.orm import Mapped, mapped_column
 
 from ..errors import TactilizeError
+from ..redact import redact_url
 from .store import (
     Answer,
     Base,
@@ -96,7 +97,7 @@ def backup(store, target: str | Path) -> dict[str, Any]:
 
     url = store.url
     if not url.startswith("sqlite:///"):
-        raise TactilizeError(url.split("@")[-1], "backup copies SQLite stores; use the database's own tools "
+        raise TactilizeError(redact_url(url), "backup copies SQLite stores; use the database's own tools "
                              "(pg_dump for PostgreSQL)")
     target = Path(target)
     if target.exists():
@@ -142,6 +143,9 @@ def withdraw(store, protocol_name: str, code: str) -> dict[str, int]:
                                  ("stroke_samples", StrokeSample, StrokeSample.trial_id)):
             counts[name] = s.execute(delete(model).where(col.in_(trial_ids))).rowcount
         from .demographics import ParticipantInfo
+        from .samples import StrokeBatch
+
+        counts["stroke_batches"] = s.execute(delete(StrokeBatch).where(StrokeBatch.session_id.in_(sess_ids))).rowcount
 
         counts["demographics"] = s.execute(delete(ParticipantInfo).where(ParticipantInfo.session_id.in_(sess_ids))).rowcount
         counts["trials"] = s.execute(delete(Trial).where(Trial.id.in_(trial_ids))).rowcount

@@ -25,7 +25,7 @@ import json
 import platform
 import secrets
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 from sqlalchemy import (
     Boolean,
@@ -241,8 +241,15 @@ class Store:
 
     def __init__(self, url: str | None = None, must_exist: bool = False):
         from ..errors import TactilizeError
+        from ..redact import ambiguous_user, redact_text, redact_url
 
         url = url or default_db_url()
+        if "://" not in url and redact_url(url) != url:
+            # user:password@host without a scheme would become a file path, printed whole.
+            raise TactilizeError(redact_url(url), "not a database URL (it needs a scheme, e.g. postgresql+psycopg://)")
+        if ambiguous_user(url):
+            raise TactilizeError(redact_url(url), "more than one '@' before the host: write an '@' inside the "
+                                 "password as %40")
         if "://" not in url:
             url = f"sqlite:///{Path(url).expanduser().resolve()}"
         self.url = url
@@ -253,15 +260,16 @@ class Store:
         try:
             self.engine = create_engine(url, future=True)
         except Exception as exc:  # a malformed URL or a missing driver
-            raise TactilizeError(url, f"cannot open database ({exc.__class__.__name__}: {exc})") from None
+            raise TactilizeError(redact_url(url), f"cannot open database ({exc.__class__.__name__}: "
+                                 f"{redact_text(str(exc), url)})") from None
         if self.engine.dialect.name == "sqlite":
             event.listen(self.engine, "connect", _sqlite_pragmas)
-        from . import demographics, labdata  # noqa: F401  (their tables, before create_all)
+        from . import demographics, labdata, samples  # noqa: F401  (their tables, before create_all)
 
         try:
             Base.metadata.create_all(self.engine)
         except Exception as exc:
-            raise TactilizeError(url, f"cannot open database ({exc.__class__.__name__})") from None
+            raise TactilizeError(redact_url(url), f"cannot open database ({exc.__class__.__name__})") from None
         self.Session = sessionmaker(self.engine, expire_on_commit=False)
         with self.Session.begin() as s:
             if s.get(Meta, "schema_version") is None:
@@ -459,18 +467,6 @@ class Store:
                     return "duplicate"
                 raise ValueError({q: (again.get(q), r) for q, r in ratings.items() if again.get(q) != r}) from None
             return "recorded"
-
-    def log_samples(self, trial_id: int, rows: Iterable[dict[str, Any]]) -> int:
-        rows = list(rows)
-        if not rows:
-            return 0
-        with self.Session.begin() as s:
-            now = utcnow()
-            s.add_all([StrokeSample(trial_id=trial_id, received_at=now, **r) for r in rows])
-            t = s.get(Trial, trial_id)
-            if t.started_at is None:
-                t.started_at = now
-        return len(rows)
 
     # ------------------------------------------------------------ reporting
 

@@ -13,7 +13,7 @@
     POST api/sessions/{s}/break       {trial}
     POST api/sessions/{s}/answers     {trial, ratings, response_time_s, submission_id, comment}
     GET  api/images/{id}.png
-    WS   ws/{s}          pen samples in, drives out (see flow.StrokeHandler)
+    WS   ws/{s}          pen samples in, drives out, acks after the commit (see .strokes)
 
 Experimenter routes (``api/admin/...``: sessions, export.csv, export.json,
 analysis) need the admin token whenever one is set, and :func:`serve_flow`
@@ -34,7 +34,7 @@ import secrets
 from importlib import resources
 from typing import Any
 
-from fastapi import APIRouter, FastAPI, Request, WebSocket, WebSocketDisconnect
+from fastapi import APIRouter, FastAPI, Request, WebSocket
 from fastapi.responses import FileResponse, JSONResponse, PlainTextResponse, RedirectResponse, Response
 from starlette.concurrency import run_in_threadpool
 
@@ -168,26 +168,9 @@ def experiment_router(flow: Flow) -> APIRouter:
             await ws.send_json({"type": "error", **exc.to_dict()})
             await ws.close(code=4404)
             return
-        try:
-            while True:
-                message = await ws.receive()
-                if message["type"] == "websocket.disconnect":
-                    return
-                text = message.get("text")
-                if text is None and message.get("bytes") is not None:
-                    text = message["bytes"].decode("utf-8", "replace")
-                try:
-                    msg = json.loads(text or "")
-                    reply = await run_in_threadpool(handler.handle, msg)
-                except json.JSONDecodeError:
-                    reply = {"type": "error", "error": "messages must be JSON", "source": "stroke"}
-                except FlowError as exc:
-                    reply = {"type": "error", **exc.to_dict()}
-                await ws.send_json(reply)
-        except WebSocketDisconnect:
-            return
-        finally:
-            await run_in_threadpool(handler.stop)
+        from .strokes import pump
+
+        await pump(ws, handler)
 
     # ------------------------------------------------------------ experimenter API
 

@@ -74,7 +74,7 @@ function render(state, keepMessage = false) {
   current = state;
   if (!keepMessage) message("");
   // A visit moves on to its next protocol under a new session: the pen socket follows.
-  if (session && state.session !== session) { closeSocket(); queue = []; trial = null; }
+  if (session && state.session !== session) { closeSocket(); trial = null; }
   session = state.session;
   localStorage.setItem("tactilize.session", session);
   $("title").textContent = state.protocol.title;
@@ -144,7 +144,7 @@ $("start").addEventListener("click", () => guarded(async () => {
 $("not-me").addEventListener("click", () => {
   closeSocket();
   localStorage.removeItem("tactilize.session");
-  session = null; current = null; trial = null; queue = [];
+  session = null; current = null; trial = null;
   document.body.dataset.state = "welcome";
   $("progress").textContent = "";
   $("participant-id").value = "";
@@ -177,7 +177,7 @@ $("calibrate").addEventListener("click", () => guarded(async () => {
 // ---------------------------------------------------------------- trial
 
 let trial = null, image = null, strokeMs = 0, lastT = null, shownAt = 0;
-let ws = null, queue = [], points = [], stroked = new Set();
+let points = [], stroked = new Set();
 
 function renderTrial(t) {
   const fresh = !trial || trial.index !== t.index;
@@ -264,8 +264,9 @@ function updateSubmit() {
   $("unstroked").textContent = unstroked.length ? `Still to stroke: ${unstroked.map((im) => im.label).join(", ")}.` : "";
   $("answers").hidden = !ready;
   $("stroke-time").textContent = (strokeMs / 1000).toFixed(1);
-  // The rating waits until the pen is live and every sample of this trial is sent.
-  $("submit").disabled = busy || !ready || !penLive() || queue.length > 0
+  // The rating waits until the pen is live and every sample is batched; a batch still
+  // on its way when the answer goes is stored under its own trial all the same.
+  $("submit").disabled = busy || !ready || !penLive() || queued() > 0
     || Object.keys(ratings()).length !== trial.questions.length;
 }
 
@@ -285,83 +286,156 @@ $("end-break").addEventListener("click", () => guarded(async () => {
 }));
 
 // ---------------------------------------------------------------- pen
-// The stroke stream survives a server restart: every sample is stamped with its
-// trial and image when it is taken (not when it is sent), queued while the
-// socket is down, and sent under its own trial once it is back.  The socket
-// reconnects with a growing delay; meanwhile the page says the pen is not live
-// and the rating waits, because the participant no longer feels the condition.
+// No sample is lost to a restarted server or a dropped network.  Every sample is
+// stamped with its trial and image when it is taken (not when it is sent).  Every
+// 30 ms the samples taken since go out as one batch with an id of its own, and the
+// page keeps the batch until the server acknowledges it, which it does only once the
+// batch is committed to the database.  After a reconnect the page sends again every
+// batch not yet acknowledged (and any left unacknowledged for RESEND_MS on a live
+// socket); the id makes a resend harmless, the server stores each batch once.  The
+// drive comes back at once, before the commit.  Meanwhile the socket reconnects with
+// a growing delay, the page says the pen is not live and the rating waits, because
+// the participant no longer feels the condition.
 
-let wsDelay = 250, wsDownSince = null, wsTimer = null, wsWanted = false;
-const WS_DELAY_MAX = 5000;
+const FLUSH_MS = 30, RESEND_MS = 3000, WS_DELAY_MAX = 5000;
+// An id for this page's batches: random, so two tabs or a reload never share one.
+const pageId = Array.from(crypto.getRandomValues(new Uint8Array(8)), (b) => b.toString(16).padStart(2, "0")).join("");
+let batchSeq = 0;
 
-function penLive() { return !!(ws && ws.readyState === 1); }
+// One session's socket, its queue of samples and its batches not yet acknowledged.
+class PenChannel {
+  constructor(sess) {
+    this.session = sess;
+    this.ws = null; this.queue = []; this.pending = new Map();
+    this.delay = 250; this.downSince = null; this.timer = null; this.retiring = false;
+    this.open();
+  }
+
+  live() { return !!(this.ws && this.ws.readyState === 1); }
+
+  open() {
+    clearTimeout(this.timer);
+    if (this.ws && this.ws.readyState <= 1) return;
+    const u = new URL(`ws/${this.session}`, document.baseURI);
+    u.protocol = u.protocol === "https:" ? "wss:" : "ws:";
+    const sock = new WebSocket(u);
+    this.ws = sock;
+    sock.onopen = () => {
+      this.delay = 250;
+      if (this.downSince !== null && trial && !this.retiring) {
+        // Tell the server this trial's stream had a gap; it marks the trial interrupted.
+        sock.send(JSON.stringify({ type: "reconnected", trial: trial.index,
+                                   gap_s: (performance.now() - this.downSince) / 1000,
+                                   queued: this.queue.length + this.pendingSamples() }));
+      }
+      this.downSince = null;
+      this.flush(true);
+      penStatus();
+    };
+    sock.onmessage = (ev) => this.receive(JSON.parse(ev.data));
+    sock.onclose = () => {
+      if (this.ws !== sock) return;
+      this.ws = null;
+      if (!this.retiring) audio.set(null);  // nothing drives the pen now: do not leave the last drive playing
+      if (this.downSince === null) this.downSince = performance.now();
+      penStatus();
+      if (this.closed) return;
+      this.timer = setTimeout(() => this.open(), this.delay);
+      this.delay = Math.min(WS_DELAY_MAX, this.delay * 2);
+      document.body.dataset.wsRetries = String(Number(document.body.dataset.wsRetries || 0) + 1);
+    };
+  }
+
+  receive(msg) {
+    if (msg.type === "ack" || (msg.type === "error" && msg.batch && !msg.retry)) {
+      // Stored (or refused for good: resending would not change the answer).
+      this.pending.delete(msg.batch);
+      document.body.dataset.unacked = String(this.pending.size);
+      if (this.retiring && !this.pending.size && !this.queue.length) this.close();
+    }
+    if (this.retiring) return;
+    if (msg.type === "drive") { audio.set(msg.drive); document.body.dataset.lastDriveHz = msg.drive.pulse_frequency_hz; }
+    else if (msg.type === "error" && !msg.retry) message(msg.error);
+    document.body.dataset.wsMessages = String(Number(document.body.dataset.wsMessages || 0) + 1);
+  }
+
+  pendingSamples() { let n = 0; for (const b of this.pending.values()) n += b.n; return n; }
+
+  // Batch what was queued (consecutive samples of one trial and image, at most 500
+  // each), then send what is due: every pending batch after a reconnect (all), else
+  // the new ones and those left unacknowledged for RESEND_MS.
+  flush(all = false) {
+    while (this.queue.length) {
+      const head = this.queue[0];
+      let n = 0;
+      while (n < this.queue.length && n < 500 && this.queue[n].trial === head.trial && this.queue[n].image === head.image) n++;
+      const id = `${pageId}-${++batchSeq}`;
+      const text = JSON.stringify({ trial: head.trial, image: head.image, batch: id,
+                                    samples: this.queue.slice(0, n).map((q) => q.s) });
+      this.pending.set(id, { text, n, sentAt: null });
+      this.queue = this.queue.slice(n);
+    }
+    document.body.dataset.unacked = String(this.pending.size);
+    if (!this.live()) return;
+    const now = performance.now();
+    for (const b of this.pending.values()) {
+      if (all || b.sentAt === null || now - b.sentAt > RESEND_MS) { this.ws.send(b.text); b.sentAt = now; }
+    }
+  }
+
+  send(obj) { if (this.live()) this.ws.send(JSON.stringify(obj)); }
+
+  // The page moves to another session (or none): keep this one's socket until every
+  // batch is acknowledged, then close it.
+  retire() {
+    this.retiring = true;
+    this.flush();
+    if (!this.pending.size) this.close();
+  }
+
+  close() {
+    this.closed = true;
+    clearTimeout(this.timer);
+    if (this.ws) { const s = this.ws; this.ws = null; s.close(); }
+  }
+}
+
+let pen = null;            // the channel of the session on screen
+const retired = new Set(); // channels of earlier sessions still draining
+
+function penLive() { return !!(pen && pen.live()); }
 
 function penStatus() {
   const live = penLive();
   document.body.dataset.pen = live ? "live" : "down";
-  $("pen-status").hidden = live || !wsWanted;
+  $("pen-status").hidden = live || !pen;
   if (current && current.state === "trial") updateSubmit();
 }
 
 function openSocket() {
-  wsWanted = true;
-  if (ws && ws.readyState <= 1) return;
-  clearTimeout(wsTimer);
-  const u = new URL(`ws/${session}`, document.baseURI);
-  u.protocol = u.protocol === "https:" ? "wss:" : "ws:";
-  const sock = new WebSocket(u);
-  ws = sock;
-  sock.onopen = () => {
-    wsDelay = 250;
-    if (wsDownSince !== null && trial) {
-      // Tell the server this trial's stream had a gap; it marks the trial interrupted.
-      sock.send(JSON.stringify({ type: "reconnected", trial: trial.index,
-                                 gap_s: (performance.now() - wsDownSince) / 1000, queued: queue.length }));
-    }
-    wsDownSince = null;
-    flush();
-    penStatus();
-  };
-  sock.onmessage = (ev) => {
-    const msg = JSON.parse(ev.data);
-    if (msg.type === "drive") { audio.set(msg.drive); document.body.dataset.lastDriveHz = msg.drive.pulse_frequency_hz; }
-    else if (msg.type === "error") message(msg.error);
-    document.body.dataset.wsMessages = String(Number(document.body.dataset.wsMessages || 0) + 1);
-  };
-  sock.onclose = () => {
-    if (ws !== sock) return;
-    ws = null;
-    audio.set(null);  // nothing drives the pen now: do not leave the last drive playing
-    if (wsDownSince === null) wsDownSince = performance.now();
-    penStatus();
-    if (wsWanted) {
-      wsTimer = setTimeout(openSocket, wsDelay);
-      wsDelay = Math.min(WS_DELAY_MAX, wsDelay * 2);
-      document.body.dataset.wsRetries = String(Number(document.body.dataset.wsRetries || 0) + 1);
-    }
-  };
+  if (pen && pen.session === session) { pen.open(); return; }
+  if (pen) closeSocket();
+  pen = new PenChannel(session);
 }
 
 function closeSocket() {
-  wsWanted = false;
-  clearTimeout(wsTimer);
-  if (ws) { const s = ws; ws = null; s.close(); }
+  if (pen) {
+    const old = pen;
+    pen = null;
+    old.retire();
+    if (!old.closed) retired.add(old);
+  }
   penStatus();
 }
 
+function queued() { return pen ? pen.queue.length : 0; }
+
 function flush() {
-  if (!queue.length || !penLive()) return;
-  // Consecutive samples of one trial and image go together, at most 500 a message.
-  while (queue.length) {
-    const head = queue[0];
-    let n = 0;
-    while (n < queue.length && n < 500 && queue[n].trial === head.trial && queue[n].image === head.image) n++;
-    ws.send(JSON.stringify({ trial: head.trial, image: head.image, samples: queue.slice(0, n).map((q) => q.s) }));
-    queue = queue.slice(n);
-  }
+  if (pen) pen.flush();
+  for (const ch of retired) { if (ch.closed) retired.delete(ch); else ch.flush(); }
   if (current && current.state === "trial") updateSubmit();
 }
-setInterval(flush, 30);
+setInterval(flush, FLUSH_MS);
 
 const surface = $("surface");
 surface.addEventListener("pointerdown", (ev) => { surface.setPointerCapture(ev.pointerId); lastT = ev.timeStamp; points = []; onMove(ev); });
@@ -370,12 +444,13 @@ const up = () => {
   lastT = null; audio.set(null);
   flush();
   // The actuator stops the moment the pen leaves the surface.
-  if (penLive()) ws.send(JSON.stringify({ type: "lift" }));
+  if (pen) pen.send({ type: "lift" });
 };
 surface.addEventListener("pointerup", up);
 surface.addEventListener("pointercancel", up);
 
 function onMove(ev) {
+  if (!pen) return;
   // Coalesced events carry every tablet sample with its own timestamp:
   // docs/references.md, section 5 (Pointer Events).
   const evs = ev.getCoalescedEvents ? ev.getCoalescedEvents() : [];
@@ -383,8 +458,8 @@ function onMove(ev) {
   const rect = surface.getBoundingClientRect();
   for (const e of list) {
     const xPx = e.clientX - rect.left, yPx = e.clientY - rect.top;
-    queue.push({ trial: trial.index, image: image.id,
-                 s: [e.timeStamp, xPx * mmPerPx, yPx * mmPerPx, e.pointerType === "mouse" ? null : e.pressure] });
+    pen.queue.push({ trial: trial.index, image: image.id,
+                     s: [e.timeStamp, xPx * mmPerPx, yPx * mmPerPx, e.pointerType === "mouse" ? null : e.pressure] });
     points.push([xPx, yPx]);
     stroked.add(image.id);
     if (lastT !== null && e.timeStamp - lastT < 200) strokeMs += e.timeStamp - lastT;

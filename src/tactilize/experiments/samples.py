@@ -1,0 +1,177 @@
+"""The stroke log's writer: pen samples stored once each, in group commits, off the event loop.
+
+Rules, and why:
+
+- every batch of samples the page sends carries an id chosen by the page; the
+  table :class:`StrokeBatch` holds one row per stored batch with
+  ``UNIQUE(session_id, batch_id)``, and the batch's samples are inserted in the
+  same transaction, so a batch resent after a reconnect (or twice by a confused
+  client) is stored once whatever happens, across processes too;
+- one thread per store gathers the batches waiting and commits them together
+  (a group commit): a commit costs milliseconds (SQLite with ``synchronous=FULL``
+  syncs to disk), so committing per message caps everyone at a few hundred
+  messages a second, while a group costs one commit for all of them;
+- a batch's :class:`~concurrent.futures.Future` resolves only after its
+  transaction committed; the page is acknowledged from there, and keeps every
+  unacknowledged batch to resend it, so what the page was told is stored
+  survives SIGKILL and what it was not told is sent again.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import logging
+import threading
+from concurrent.futures import Future
+from dataclasses import dataclass, field
+from typing import Any
+
+from sqlalchemy import DateTime, ForeignKey, Integer, String, UniqueConstraint, insert, select, update
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Mapped, mapped_column
+
+from .store import Base, StrokeSample, Trial, utcnow
+
+__all__ = ["StrokeBatch", "SampleWriter", "writer_for", "MAX_GROUP_ITEMS"]
+
+log = logging.getLogger(__name__)
+
+#: At most this many batches go into one transaction (bounds its statements' size).
+MAX_GROUP_ITEMS = 500
+
+
+class StrokeBatch(Base):
+    """One stored batch of pen samples: the page's id for it, its trial and size."""
+
+    __tablename__ = "stroke_batches"
+    __table_args__ = (UniqueConstraint("session_id", "batch_id", name="uq_stroke_batch"),)
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    session_id: Mapped[int] = mapped_column(ForeignKey("sessions.id"))
+    trial_id: Mapped[int] = mapped_column(ForeignKey("trials.id"), index=True)
+    batch_id: Mapped[str] = mapped_column(String(64))
+    n_samples: Mapped[int] = mapped_column(Integer)
+    received_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+@dataclass
+class _Item:
+    session_id: int
+    trial_id: int
+    batch_id: str
+    rows: list[dict[str, Any]]
+    future: Future = field(default_factory=Future)
+
+
+class SampleWriter:
+    """Writes batches of stroke samples in group commits from one thread.
+
+    Parameters
+    ----------
+    store : Store
+        The experiment store (its engine is shared; the writer opens its own
+        connections from the pool).
+    """
+
+    THREAD_NAME = "tactilize-samples"
+
+    def __init__(self, store):
+        self.store = store
+        self._cond = threading.Condition()
+        self._items: list[_Item] = []
+        self._submitted = 0
+        self._finished = 0
+        self._thread: threading.Thread | None = None
+
+    def submit(self, session_id: int, trial_id: int, batch_id: str, rows: list[dict[str, Any]]) -> Future:
+        """Queue one batch; the future gives ``"stored"`` or ``"duplicate"`` after the commit.
+
+        The future fails with the database's exception when the transaction does
+        not commit (nothing of the batch is stored then; the page resends it).
+        """
+        item = _Item(session_id, trial_id, str(batch_id), list(rows))
+        with self._cond:
+            if self._thread is None or not self._thread.is_alive():
+                self._thread = threading.Thread(target=self._run, name=self.THREAD_NAME, daemon=True)
+                self._thread.start()
+            self._items.append(item)
+            self._submitted += 1
+            self._cond.notify_all()
+        return item.future
+
+    def barrier(self, timeout_s: float | None = 30.0) -> bool:
+        """Wait until every batch submitted before this call is committed (or failed).
+
+        Returns False when ``timeout_s`` (seconds) passed first."""
+        with self._cond:
+            target = self._submitted
+            return self._cond.wait_for(lambda: self._finished >= target, timeout_s)
+
+    # ------------------------------------------------------------ the thread
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                self._cond.wait_for(lambda: bool(self._items))
+                group, self._items = self._items[:MAX_GROUP_ITEMS], self._items[MAX_GROUP_ITEMS:]
+            try:
+                statuses = self._write(group)
+            except Exception as exc:  # the database is unreachable, full...: nothing of the group is stored
+                log.warning("stroke samples not stored (%s); the pages keep them and resend", exc.__class__.__name__)
+                for it in group:
+                    it.future.set_exception(exc)
+            else:
+                for it, status in zip(group, statuses):
+                    it.future.set_result(status)
+            with self._cond:
+                self._finished += len(group)
+                self._cond.notify_all()
+
+    def _write(self, group: list[_Item]) -> list[str]:
+        for _attempt in range(3):
+            try:
+                return self._write_once(group)
+            except IntegrityError:
+                # Another process stored one of these batches between our check and
+                # our insert: the unique key refused it; the next check sees it.
+                continue
+        return self._write_once(group)
+
+    def _write_once(self, group: list[_Item]) -> list[str]:
+        batches = StrokeBatch.__table__
+        now = utcnow()
+        with self.store.engine.begin() as conn:
+            ids = sorted({it.batch_id for it in group})
+            seen = set(conn.execute(select(batches.c.session_id, batches.c.batch_id)
+                                    .where(batches.c.batch_id.in_(ids))))
+            fresh, statuses = [], []
+            for it in group:
+                key = (it.session_id, it.batch_id)
+                if key in seen:
+                    statuses.append("duplicate")
+                    continue
+                seen.add(key)
+                fresh.append(it)
+                statuses.append("stored")
+            if fresh:
+                conn.execute(insert(batches), [{"session_id": it.session_id, "trial_id": it.trial_id,
+                                                "batch_id": it.batch_id, "n_samples": len(it.rows),
+                                                "received_at": now} for it in fresh])
+                conn.execute(insert(StrokeSample.__table__),
+                             [{"trial_id": it.trial_id, "received_at": now, **r} for it in fresh for r in it.rows])
+                conn.execute(update(Trial.__table__)
+                             .where(Trial.__table__.c.id.in_(sorted({it.trial_id for it in fresh})),
+                                    Trial.__table__.c.started_at.is_(None))
+                             .values(started_at=now))
+        return statuses
+
+
+_LOCK = threading.Lock()
+
+
+def writer_for(store) -> SampleWriter:
+    """The one writer of ``store`` (created on first use): one thread per database."""
+    with _LOCK:
+        w = store.__dict__.get("_sample_writer")
+        if w is None:
+            w = store.__dict__["_sample_writer"] = SampleWriter(store)
+        return w

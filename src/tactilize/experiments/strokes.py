@@ -1,0 +1,247 @@
+"""The experiment's pen socket: samples in, drives out at once, acknowledgements after the commit.
+
+Messages from the page (JSON)::
+
+    {"trial": 3, "image": "image2", "batch": "<page id>-17",
+     "samples": [[t_ms, x_mm, y_mm, pressure or null], ...]}
+    {"type": "lift"}
+    {"type": "reconnected", "trial": 3, "gap_s": 2.5, "queued": 120}
+    {"type": "ping"}
+
+Answers::
+
+    {"type": "drive", "trial", "image", "batch", "speed_mm_s", "logged", "drive"}   at once
+    {"type": "ack", "batch", "trial", "stored": "stored" | "duplicate"}            after the commit
+    {"type": "error", "error", "source", "status", "batch"?, "retry"?}
+    {"type": "marked", ...}, {"type": "lifted"}, {"type": "pong"}
+
+The page keeps every batch until its ``ack`` and resends the ones not yet
+acknowledged after a reconnect (and any left unacknowledged for a few
+seconds); the batch id makes the resend harmless (:mod:`.samples`).  A batch
+is stored under the trial and image the page stamped it with when the samples
+were taken, also when it arrives after that trial was answered (the participant
+may press Save while the last samples are on their way); only a trial the
+session has not reached yet is refused.  The drive answers only batches of the
+open trial: a late batch is logged, not felt.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import math
+import uuid
+from concurrent.futures import Future
+from dataclasses import dataclass, field
+from typing import Any
+
+from .flow import FlowError
+from .samples import writer_for
+
+__all__ = ["StrokeHandler", "pump"]
+
+#: Longest batch id the page may choose (the column's width).
+MAX_BATCH_ID = 64
+
+
+def _batch_id(value: Any) -> str:
+    if value is None:  # a client without ids (an old page): stored, but a resend would be stored again
+        return "server-" + uuid.uuid4().hex
+    if not isinstance(value, str) or not 1 <= len(value) <= MAX_BATCH_ID:
+        raise FlowError("stroke", f"batch must be an id of 1 .. {MAX_BATCH_ID} characters", 422)
+    return value
+
+
+@dataclass
+class StrokeHandler:
+    """Turns pen samples of one session into drives, and logs both.
+
+    Positions are millimetres on the displayed image (the page converts CSS
+    pixels with the calibrated scale).  Speed and direction come from the pen
+    page's :class:`~tactilize.pen.StrokeTracker`, one per trial and image, so
+    switching pictures starts a new stroke and a late batch does not disturb
+    the stroke of the open trial.
+
+    When the app has an actuator output (``tactilize serve``'s), the condition's
+    drive is applied to it, the same on every channel as in the paper's pen,
+    and stopped on a lift, an error or the end of the connection.
+    """
+
+    flow: Any
+    session: Any
+    output: Any = None
+    trackers: dict[tuple[int, str], Any] = field(default_factory=dict)
+    trial_cache: dict[int, Any] = field(default_factory=dict)
+
+    def stop(self) -> None:
+        for tr in self.trackers.values():
+            tr.reset()
+        if self.output is not None:
+            self.output.stop()
+
+    def _trials(self) -> dict[int, Any]:
+        if not self.trial_cache:  # the plan never changes once the session exists
+            self.trial_cache = {t.index: t for t in self.flow.store.trials(self.session.id)}
+        return self.trial_cache
+
+    def _reconnected(self, msg: dict) -> dict[str, Any]:
+        """The page lost its socket during trial ``msg["trial"]`` and is back: mark
+        the trial interrupted (once per reconnection), whatever samples follow."""
+        from .labdata import record_event
+
+        idx = msg.get("trial")
+        trials = self._trials()
+        if isinstance(idx, bool) or not isinstance(idx, int) or idx not in trials:
+            raise FlowError("stroke", "unknown trial", 422)
+        gap = msg.get("gap_s")
+        gap = float(gap) if isinstance(gap, (int, float)) and not isinstance(gap, bool) and math.isfinite(gap) else None
+        record_event(self.flow.store, trials[idx].id, "interrupted",
+                     {"gap_s": gap, "queued_samples": msg.get("queued") if isinstance(msg.get("queued"), int) else None})
+        return {"type": "marked", "trial": idx, "kind": "interrupted"}
+
+    def take(self, msg: Any) -> tuple[dict[str, Any] | None, Future | None]:
+        """Handle one message without waiting for the database.
+
+        Returns the answer to send now (None for a late batch) and, for a batch
+        of samples, the future of its write (see :meth:`.SampleWriter.submit`).
+        Raises :class:`~.flow.FlowError` for a message refused as a whole.
+        """
+        from ..pen import StrokeTracker
+        from ..web.rows import sample_error, samples_from_css
+
+        if not isinstance(msg, dict):
+            raise FlowError("stroke", "expected a JSON object", 422)
+        kind = msg.get("type")
+        if kind == "lift":
+            self.stop()
+            return {"type": "lifted"}, None
+        if kind == "reconnected":
+            return self._reconnected(msg), None
+        if kind == "ping":
+            return {"type": "pong"}, None
+        idx = msg.get("trial")
+        image_id = msg.get("image")
+        samples = msg.get("samples")
+        trials = self._trials()
+        if isinstance(idx, bool) or not isinstance(idx, int) or idx not in trials:
+            raise FlowError("stroke", "unknown trial", 422)
+        trial = trials[idx]
+        if image_id not in trial.image_ids:
+            raise FlowError("stroke", f"image {image_id!r} is not part of trial {idx + 1}", 422)
+        if not isinstance(samples, list) or not samples or len(samples) > 1000:
+            raise FlowError("stroke", "samples must be a list of 1 .. 1000 [t_ms, x_mm, y_mm, pressure]", 422)
+        for row in samples:
+            err = sample_error(row)
+            if err:
+                raise FlowError("stroke", err, 422)
+        batch = _batch_id(msg.get("batch"))
+        current = self.flow.open_trial(self.session)
+        if current is not None and idx > current:
+            current = self.flow.open_trial(self.session, fresh=True)
+            if current is not None and idx > current:
+                raise FlowError("stroke", f"trial {idx + 1} is not open yet (a stale page?)", 409, current_trial=current)
+        profile = self.flow.profile(trial.condition_id)
+        feats = self.flow.image_features(image_id)
+        if len(self.trackers) > 16:  # strokes of trials long answered
+            self.trackers = {k: v for k, v in self.trackers.items() if current is None or k[0] >= current - 1}
+        tracker = self.trackers.setdefault((idx, image_id), StrokeTracker())
+        rows = []
+        drive = None
+        speed = 0.0
+        # Millimetres are "pixels" of 1 mm for the pen module's converter.
+        for ps in samples_from_css(samples, 1e-3):
+            tracker.add(ps)
+            st = tracker.state
+            speed = st.speed_m_s if st else 0.0
+            drive = profile.drive(feats, speed_m_s=speed, direction_rad=st.direction_rad if st else None,
+                                  pressure=ps.pressure)
+            rows.append({"image_id": image_id, "t_s": ps.t_s, "x_m": ps.x_m, "y_m": ps.y_m, "pressure": ps.pressure,
+                         "speed_m_s": speed, "pulse_frequency_hz": drive.pulse_frequency_hz,
+                         "pulse_width_s": drive.pulse_width_s, "amplitude": drive.amplitude})
+        future = writer_for(self.flow.store).submit(self.session.id, trial.id, batch, rows)
+        if idx != current:
+            return None, future  # logged under its own trial, not felt: the page has moved on
+        if self.output is not None:
+            self.output.apply([drive] * int(self.output.channels))
+        return {"type": "drive", "trial": idx, "image": image_id, "batch": batch, "speed_mm_s": speed * 1e3,
+                "logged": len(rows), "drive": drive.to_dict()}, future
+
+    def handle(self, msg: Any, timeout_s: float = 60.0) -> dict[str, Any]:
+        """Handle one message and wait for its samples' commit (synthetic participants, tests).
+
+        The answer is :meth:`take`'s, with ``stored`` (``"stored"`` or
+        ``"duplicate"``) for a batch; a late batch answers ``{"type": "logged"}``.
+        """
+        reply, future = self.take(msg)
+        if future is None:
+            return reply
+        status = future.result(timeout=timeout_s)
+        reply = reply or {"type": "logged", "trial": msg.get("trial"), "image": msg.get("image")}
+        return {**reply, "stored": status}
+
+
+def _ack(future: Future, batch: str, trial: Any) -> dict[str, Any]:
+    exc = future.exception()
+    if exc is None:
+        return {"type": "ack", "batch": batch, "trial": trial, "stored": future.result()}
+    return {"type": "error", "source": "samples", "status": 503, "batch": batch, "retry": True,
+            "error": "the samples could not be stored yet; the page keeps them and sends them again"}
+
+
+async def pump(ws, handler: StrokeHandler) -> None:
+    """Serve one accepted WebSocket until it closes.
+
+    Handling runs in the thread pool and never waits for the database: the
+    drive goes back as soon as it is computed, and each batch's ``ack`` follows
+    from the writer's thread once its group committed.  One task sends, so
+    answers and acknowledgements never interleave on the socket.
+    """
+    from starlette.concurrency import run_in_threadpool
+    from starlette.websockets import WebSocketDisconnect
+
+    loop = asyncio.get_running_loop()
+    out: asyncio.Queue = asyncio.Queue()
+
+    def post(doc: dict[str, Any]) -> None:  # from the writer's thread
+        try:
+            loop.call_soon_threadsafe(out.put_nowait, doc)
+        except RuntimeError:  # the loop is gone: the page resends what it did not see acknowledged
+            pass
+
+    async def sender() -> None:
+        while (doc := await out.get()) is not None:
+            await ws.send_json(doc)
+
+    sending = asyncio.create_task(sender())
+    try:
+        while not sending.done():
+            message = await ws.receive()
+            if message["type"] == "websocket.disconnect":
+                return
+            text = message.get("text")
+            if text is None and message.get("bytes") is not None:
+                text = message["bytes"].decode("utf-8", "replace")
+            future = msg = None
+            try:
+                msg = json.loads(text or "")
+                reply, future = await run_in_threadpool(handler.take, msg)
+            except json.JSONDecodeError:
+                reply = {"type": "error", "error": "messages must be JSON", "source": "stroke", "status": 400}
+            except FlowError as exc:
+                reply = {"type": "error", **exc.to_dict(), "status": exc.status}
+                if isinstance(msg, dict) and isinstance(msg.get("batch"), str):
+                    reply["batch"] = msg["batch"]  # refused for good: the page drops it
+            if reply is not None:
+                out.put_nowait(reply)
+            if future is not None:
+                batch, trial = (reply or {}).get("batch") or msg.get("batch"), msg.get("trial")
+                future.add_done_callback(lambda f, b=batch, t=trial: post(_ack(f, b, t)))
+    except WebSocketDisconnect:
+        return
+    finally:
+        out.put_nowait(None)
+        try:
+            await sending
+        except Exception:  # the socket closed under the sender: nothing more can be told
+            pass
+        await run_in_threadpool(handler.stop)
