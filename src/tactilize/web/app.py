@@ -298,6 +298,8 @@ def create_app(
     extra_routers: Iterable[APIRouter] = (),
     warm: bool = True,
     close_output: bool | None = None,
+    hosts: Iterable[str] | None = None,
+    max_sockets: int | None = None,
 ) -> FastAPI:
     """Build the tactile pen application.
 
@@ -318,6 +320,13 @@ def create_app(
         Generate the built-in pictures at startup (in a thread, not blocking requests).
     close_output : bool, optional
         Close the output at shutdown; by default only when the app opened it.
+    hosts : iterable of str, optional
+        The host names the app answers to (:func:`.guard.accepted_hosts` of the
+        bind address); the loopback names by default.  Requests and sockets naming
+        another host, and sockets or state-changing requests from another site's
+        page, are refused (:mod:`.guard`).
+    max_sockets : int, optional
+        WebSockets open at once, at most (:data:`.guard.DEFAULT_MAX_SOCKETS`).
 
     Returns
     -------
@@ -356,6 +365,9 @@ def create_app(
 
     app = FastAPI(title="tactilize", lifespan=lifespan, docs_url="/api/docs", redoc_url=None)
     app.state.tactilize = state
+    from . import guard
+
+    guard.install(app, hosts, guard.DEFAULT_MAX_SOCKETS if max_sockets is None else max_sockets)
 
     @app.get("/", include_in_schema=False)
     async def index() -> FileResponse:
