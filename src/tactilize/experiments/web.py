@@ -43,6 +43,7 @@ from starlette.concurrency import run_in_threadpool
 
 from ..web.encode import jsonable
 from ..web.http import ErrorAnsweringRoute, is_loopback
+from ..web.ownership import TRIAL, page_output
 from .flow import Flow, FlowError
 
 __all__ = ["experiment_router", "create_experiment_app", "serve_flow", "is_loopback", "PREFIX"]
@@ -162,12 +163,15 @@ def experiment_router(flow: Flow) -> APIRouter:
     @router.websocket("/ws/{token}")
     async def pen(ws: WebSocket, token: str) -> None:
         await ws.accept()
-        # Inside ``tactilize serve``'s app the pen's actuators are its output.
+        # Inside ``tactilize serve``'s app the pen's actuators are its output: a
+        # trial holds a device before any pen page; a simulated wire is its own.
         server_state = getattr(ws.app.state, "tactilize", None)
-        output = getattr(server_state, "output", None)
+        output = None if server_state is None else page_output(server_state, TRIAL)
         try:
             handler = await run_in_threadpool(flow.stroke_handler, token, output)
         except FlowError as exc:
+            if output is not None:
+                output.close()
             await ws.send_json({"type": "error", **exc.to_dict()})
             await ws.close(code=4404)
             return
@@ -191,6 +195,8 @@ def experiment_router(flow: Flow) -> APIRouter:
             return
         finally:
             await run_in_threadpool(handler.stop)
+            if output is not None:
+                output.close()
 
     # ------------------------------------------------------------ experimenter API
 

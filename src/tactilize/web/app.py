@@ -164,6 +164,9 @@ class ServerState:
         self.latency_ns: "collections.deque[int]" = collections.deque(maxlen=20_000)
         self.counters: dict[str, int] = collections.Counter()
         self.sessions = 0
+        #: makes one output per page (a simulated wire), or None: the pages take
+        #: turns on ``output`` (web/ownership.py)
+        self.page_output_factory: Callable[[], Any] | None = None
         from ..data import builtin_textures
 
         for t in builtin_textures():
@@ -275,6 +278,12 @@ def _default_output() -> tuple[Any, str]:
         return _Recorder(), "recorder"
 
 
+def _simulated() -> Any:
+    from ..actuators.factory import open_output
+
+    return open_output("simulated")
+
+
 def _settle_heap() -> None:
     """Keep the garbage collector's full passes off the pen's path.
 
@@ -300,6 +309,7 @@ def create_app(
     close_output: bool | None = None,
     hosts: Iterable[str] | None = None,
     max_sockets: int | None = None,
+    page_outputs: Callable[[], Any] | None = None,
 ) -> FastAPI:
     """Build the tactile pen application.
 
@@ -327,6 +337,11 @@ def create_app(
         page, are refused (:mod:`.guard`).
     max_sockets : int, optional
         WebSockets open at once, at most (:data:`.guard.DEFAULT_MAX_SOCKETS`).
+    page_outputs : callable, optional
+        Makes one output per page (a simulated wire: each page feels its own).
+        Without it ``output`` is one device the pages take turns on
+        (:mod:`.ownership`).  By default per page when the app opens the
+        simulated wire itself.
 
     Returns
     -------
@@ -339,7 +354,10 @@ def create_app(
     if output is None:
         output, default_name = _default_output()
         output_name = output_name or default_name
+        if page_outputs is None and default_name == "simulated":
+            page_outputs = _simulated
     state = ServerState(output, profile, m_per_px, output_name or "")
+    state.page_output_factory = page_outputs
     if close_output is None:
         close_output = owned
 

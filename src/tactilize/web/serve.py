@@ -123,8 +123,10 @@ def serve(
         raise
     try:
         max_sockets = DEFAULT_MAX_SOCKETS if max_sockets is None else max_sockets
+        # A simulated wire is no device: every page gets its own (web/ownership.py).
+        per_page = (lambda: open_output(output)) if output.strip().lower() == "simulated" else None
         app = create_app(out, prof, output_name=output, extra_routers=extra_routers, close_output=True,
-                         hosts=accepted_hosts(host, extra_hosts), max_sockets=max_sockets)
+                         hosts=accepted_hosts(host, extra_hosts), max_sockets=max_sockets, page_outputs=per_page)
         bound_host, bound_port = sock.getsockname()[:2]
         shown = f"[{bound_host}]" if ":" in bound_host else bound_host
         url = f"http://{shown}:{bound_port}/"
