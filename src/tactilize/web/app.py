@@ -167,6 +167,11 @@ class ServerState:
         #: makes one output per page (a simulated wire), or None: the pages take
         #: turns on ``output`` (web/ownership.py)
         self.page_output_factory: Callable[[], Any] | None = None
+        from .limits import EXPORTS_ADMITTED, EXPORTS_RUNNING, UPLOADS_ADMITTED, UPLOADS_RUNNING, WorkGate
+
+        #: heavy requests, bounded (web/limits.py)
+        self.upload_gate = WorkGate("upload", UPLOADS_ADMITTED, UPLOADS_RUNNING)
+        self.export_gate = WorkGate("stroke export", EXPORTS_ADMITTED, EXPORTS_RUNNING)
         from ..data import builtin_textures
 
         for t in builtin_textures():
@@ -475,8 +480,18 @@ def _api_router() -> APIRouter:
 
     @r.post("/textures")
     async def upload(request: Request) -> Any:
-        """Multipart form: ``file`` (the picture), optional ``width_mm`` or ``dpi``."""
+        """Multipart form: ``file`` (the picture), optional ``width_mm`` or ``dpi``;
+        503 while :data:`.limits.UPLOADS_ADMITTED` others are inside (before the body is read)."""
         s = st(request)
+        try:
+            async with s.upload_gate.admit():
+                return await _upload(s, request)
+        except RequestError as exc:
+            if exc.status == 503:
+                s.counters["uploads_busy"] += 1
+            raise
+
+    async def _upload(s: ServerState, request: Request) -> Any:
         too_large = f"file too large (limit {MAX_UPLOAD_BYTES // (1024 * 1024)} MB)"
         # The body is bounded *before* the multipart parser sees it: a parser
         # left alone would spool any size to disk before the handler could refuse.
@@ -514,7 +529,7 @@ def _api_router() -> APIRouter:
         if not data:
             raise RequestError(src, f"{src}: empty file", 422)
         try:
-            entry = await asyncio.get_running_loop().run_in_executor(None, s.add_upload, data, src, w_mm, dpi)
+            entry = await s.upload_gate.run(s.add_upload, data, src, w_mm, dpi)
         except ImageError as exc:
             s.counters["uploads_refused"] += 1
             raise RequestError(src, f"{src}: {exc.fault}", 415 if "not an image" in exc.fault else 422) from None
