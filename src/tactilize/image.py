@@ -18,7 +18,7 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
-from .errors import ImageError
+from .errors import ImageError, path_fault
 
 __all__ = ["DEFAULT_DPI", "DEFAULT_MAX_PIXELS", "DRAFT_MIN_SIDE_PX", "METRES_PER_INCH", "TextureImage", "load_image"]
 
@@ -374,8 +374,9 @@ def _from_pillow(
         fp: Any = io.BytesIO(source)
     elif isinstance(source, (str, os.PathLike)):
         path = Path(source)
-        if not path.exists():
-            raise ImageError(name, "file not found")
+        fault = path_fault(path)
+        if fault is not None:
+            raise ImageError(name, fault)
         if path.is_dir():
             raise ImageError(name, "is a directory, not an image")
         if path.stat().st_size == 0:

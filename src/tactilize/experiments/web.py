@@ -157,6 +157,10 @@ def experiment_router(flow: Flow) -> APIRouter:
     @router.get("/api/images/{image_id}.png")
     def image(image_id: str, protocol: str | None = None) -> Response:
         # A visit (several protocols) names the protocol: image ids may repeat across them.
+        if protocol and not hasattr(flow, "flows"):  # one protocol: the name must be its own
+            if protocol != flow.protocol.name:
+                raise FlowError("protocol", f"no protocol {protocol!r} here (this server runs {flow.protocol.name!r})", 404)
+            protocol = None
         png = flow.image_png(image_id, protocol) if protocol else flow.image_png(image_id)
         return Response(png, media_type="image/png", headers={"Cache-Control": "max-age=3600"})
 
@@ -190,7 +194,10 @@ def experiment_router(flow: Flow) -> APIRouter:
                     reply = {"type": "error", "error": "messages must be JSON", "source": "stroke"}
                 except FlowError as exc:
                     reply = {"type": "error", **exc.to_dict()}
-                await ws.send_json(reply)
+                try:
+                    await ws.send_json(reply)
+                except RuntimeError:  # the page went: Starlette refuses any send after a failed one
+                    return
         except WebSocketDisconnect:
             return
         finally:

@@ -407,10 +407,20 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
     drive_sent = asyncio.Event()
 
     async def send(doc: dict[str, Any]) -> None:
-        if ws.application_state != WebSocketState.CONNECTED:
-            return
+        await send_text(dumps(doc, compact=True))
+
+    async def send_text(text: str) -> None:
+        # The page may go at any moment, between the check and the send too: a
+        # send that fails because it went is the end of the session, not an error
+        # (Starlette answers a second send after a failed one with RuntimeError).
         async with send_lock:
-            await ws.send_text(dumps(doc, compact=True))
+            if closed.is_set() or ws.application_state != WebSocketState.CONNECTED:
+                return
+            try:
+                await ws.send_text(text)
+            except (WebSocketDisconnect, RuntimeError, OSError):
+                closed.set()
+                session.wake.set()
 
     async def renderer_task() -> None:
         while not closed.is_set():
@@ -456,13 +466,12 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
             except Exception as exc:  # the page's plot must never kill the pen
                 log.debug("wire trace failed: %s", exc)
                 return
-            if text is not None and ws.application_state == WebSocketState.CONNECTED:
-                async with send_lock:
-                    await ws.send_text(text)
+            if text is not None:
+                await send_text(text)
 
     tasks = [asyncio.create_task(renderer_task()), asyncio.create_task(wire_task())]
     try:
-        while True:
+        while not closed.is_set():
             message = await ws.receive()
             session.msg_ns = time.perf_counter_ns()
             if message["type"] == "websocket.disconnect":
