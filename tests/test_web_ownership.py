@@ -192,7 +192,14 @@ def test_simulated_outputs_are_each_pages_own():
             hello(two)
             ws_drive = stroke(two, 1)
             assert ws_drive["on"]
-        assert len(made) == 2 and len(made[0].applied) == 1 and len(made[1].applied) == 1
+        # Each page's drives went to its own output (the first one's may add its resting drive).
+        assert len(made) == 2 and len(made[0].applied) >= 1 and len(made[1].applied) >= 1
         assert made[0].stops == 0 and shared_out.applied == []
+        before = len(made[1].applied)
+        # A page that went leaves its wire to the next page (a reload finds it as it was).
+        with c.websocket_connect(WS) as three:
+            hello(three)
+            stroke(three, 1)
+        assert len(made) == 2 and len(made[1].applied) > before and made[0].stops == 0
     # The app's own simulated wire is per page too (tactilize serve passes the same).
     assert create_app(None, "paper", warm=False).state.tactilize.page_output_factory is not None

@@ -383,6 +383,9 @@ def create_app(
             try:
                 state.output.stop()
             finally:
+                from .ownership import close_outputs
+
+                close_outputs(state)  # the pages' own simulated wires
                 if close_output:
                     state.output.close()
 

@@ -16,7 +16,9 @@ strokes replaced the first page's drive, a participant's included.  Now
   nothing and answers off drives, and its ``stop`` and ``standby`` touch the
   device only while nobody strokes it (a hovering pen readies a free wire);
 - a simulated output is no device: every page gets its own (its own wire
-  model, traces and log), so concurrent participants each feel their own.
+  model, traces and log), so concurrent participants each feel their own; a
+  page that goes leaves its wire for the next page to connect (a reload finds it
+  as warm as it was), never to two pages at once.
 
 :func:`page_output` gives a page the output it uses; close it when the page goes.
 """
@@ -30,7 +32,7 @@ from typing import Any, Callable, Sequence
 
 from ..drive import Drive
 
-__all__ = ["PEN", "TRIAL", "IDLE_RELEASE_S", "OutputLease", "LeasedOutput", "page_output", "lease_of"]
+__all__ = ["PEN", "TRIAL", "IDLE_RELEASE_S", "OutputLease", "LeasedOutput", "page_output", "lease_of", "close_outputs"]
 
 #: Ranks of the pages that may hold an output: a trial outranks the pen page.
 PEN, TRIAL = 0, 1
@@ -212,10 +214,10 @@ class LeasedOutput:
 
 
 class _OwnOutput:
-    """A page's own simulated output: closed (its thread ended) when the page goes."""
+    """A page's own simulated output, handed back to its pool when the page goes."""
 
-    def __init__(self, output: Any) -> None:
-        self.output = output
+    def __init__(self, output: Any, pool: "_Pool") -> None:
+        self.output, self._pool = output, pool
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self.output, name)
@@ -224,8 +226,50 @@ class _OwnOutput:
         return {"type": "output", "state": "yours", "take_over": False}
 
     def close(self) -> None:
-        # Off the caller's thread: ending the wire's thread waits up to a tick.
-        threading.Thread(target=self.output.close, name="tactilize-close-output", daemon=True).start()
+        out, self.output = self.output, None
+        if out is not None:
+            self._pool.put(out)
+
+
+class _Pool:
+    """Simulated outputs no page uses now, kept for the next page (a reload finds
+    its wire as warm as it left it, as with one shared wire); never two pages at once."""
+
+    def __init__(self, factory: Callable[[], Any], keep: int = 4) -> None:
+        self.factory, self.keep = factory, keep
+        self._idle: list[Any] = []
+        self._lock = threading.Lock()
+
+    def get(self) -> Any:
+        with self._lock:
+            if self._idle:
+                return self._idle.pop()
+        return self.factory()
+
+    def put(self, out: Any) -> None:
+        with self._lock:
+            if len(self._idle) < self.keep:
+                self._idle.append(out)
+                return
+        _close_soon(out)
+
+    def close(self) -> None:
+        with self._lock:
+            idle, self._idle = self._idle, []
+        for out in idle:
+            out.close()
+
+
+def _close_soon(out: Any) -> None:
+    # Off the caller's thread: ending a simulated wire's thread waits up to a tick.
+    threading.Thread(target=out.close, name="tactilize-close-output", daemon=True).start()
+
+
+def close_outputs(state: Any) -> None:
+    """Close the outputs kept for later pages (at the server's shutdown)."""
+    pool = getattr(state, "page_output_pool", None)
+    if pool is not None:
+        pool.close()
 
 
 def lease_of(state: Any) -> OutputLease:
@@ -257,5 +301,8 @@ def page_output(state: Any, rank: int = PEN, notify: Callable[[dict[str, Any]], 
     """
     factory = getattr(state, "page_output_factory", None)
     if factory is not None:
-        return _OwnOutput(factory())
+        pool = getattr(state, "page_output_pool", None)
+        if pool is None:
+            pool = state.page_output_pool = _Pool(factory)
+        return _OwnOutput(pool.get(), pool)
     return LeasedOutput(state.output, lease_of(state), rank, notify)
