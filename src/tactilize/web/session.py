@@ -393,8 +393,16 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
     await loop.run_in_executor(None, state.warm)
     from .ownership import PEN, page_output
 
+    telling: set[asyncio.Task] = set()  # the loop keeps only weak references to tasks
+
+    def tell(doc: dict[str, Any]) -> None:
+        if not closed.is_set():
+            task = loop.create_task(send(doc))
+            telling.add(task)
+            task.add_done_callback(telling.discard)
+
     def told(doc: dict[str, Any]) -> None:  # from any thread: the lease's standing changed
-        loop.call_soon_threadsafe(lambda: None if closed.is_set() else loop.create_task(send(doc)))
+        loop.call_soon_threadsafe(tell, doc)
 
     closed = asyncio.Event()
     output = page_output(state, PEN, told)
