@@ -19,10 +19,10 @@ from tactilize.experiments.web import create_experiment_app
 API = "/experiment/api"
 
 
-def _client(tmp_path, protocol="assessment", token=None):
+def _client(tmp_path, protocol="assessment", token="lab-token"):
     db = tmp_path / "exp.sqlite3"
     app = create_experiment_app(protocol, str(db), admin_token=token)
-    return TestClient(app), db
+    return TestClient(app, base_url="http://127.0.0.1"), db
 
 
 def _rows(db, sql):
@@ -52,7 +52,7 @@ def test_scripted_participant_completes_the_assessment(tmp_path):
         assert png.status_code == 200 and png.content[:8] == b"\x89PNG\r\n\x1a\n"
 
         drives = {}
-        with client.websocket_connect(f"/experiment/ws/{token}") as ws:
+        with client.websocket_connect(f"ws://127.0.0.1/experiment/ws/{token}") as ws:
             for im in trial["images"]:
                 # 60 mm/s along x, 5 ms apart: the sigmoid's centre.
                 ws.send_text(json.dumps({"trial": 0, "image": im["id"],
@@ -78,7 +78,7 @@ def test_scripted_participant_completes_the_assessment(tmp_path):
         assert done["state"] == "done" and done["recorded"] == "recorded"
         assert done["progress"] == {"done": 1, "total": 1}
 
-        csv = client.get(f"{API}/admin/export.csv").text.strip().splitlines()
+        csv = client.get(f"{API}/admin/export.csv?token=lab-token").text.strip().splitlines()
         header = csv[0].split(",")
         for col in ("participant", "session", "trial", "condition", "image", "question", "rating",
                     "answered_at", "trial_started_at", "seed", "protocol_sha256", "tactilize_version"):
@@ -99,7 +99,7 @@ def test_bad_input_is_refused_and_leaves_the_data_intact(tmp_path):
         assert bad_id.status_code == 422 and "participant_id" == bad_id.json()["source"]
         assert client.post(f"{API}/sessions", content=b"{not json", headers={"content-type": "application/json"}
                            ).status_code == 400
-        unknown = client.post(f"{API}/resume", json={"participant_id": "P99"})
+        unknown = client.post(f"{API}/resume", json={"participant_id": "P99", "token": "lab-token"})
         assert unknown.status_code == 404 and "not registered" in unknown.json()["error"]
         assert client.get(f"{API}/sessions/nonsense").status_code == 404
 
@@ -141,7 +141,7 @@ def test_bad_input_is_refused_and_leaves_the_data_intact(tmp_path):
         assert change.status_code == 409 and "never overwritten" in change.json()["error"]
         # Strokes for a trial the session has not reached are refused (no page has shown it);
         # late ones for an answered trial are logged under it (tests/test_experiments_samples.py).
-        with client.websocket_connect(f"/experiment/ws/{token}") as ws:
+        with client.websocket_connect(f"ws://127.0.0.1/experiment/ws/{token}") as ws:
             ws.send_json({"trial": 3, "image": "image1", "batch": "b1", "samples": [[0, 1, 1, None], [5, 2, 1, None]]})
             err = ws.receive_json()
             assert err["type"] == "error" and err["current_trial"] == 1 and err["batch"] == "b1"
@@ -165,7 +165,10 @@ def test_breaks_and_resume_by_participant_id(tmp_path):
         # A break must be taken: answering through it is refused.
         assert client.post(f"{API}/sessions/{token}/answers", json={"trial": 4, "ratings": {"comfort": 2}}
                            ).status_code == 409
-        resumed = client.post(f"{API}/resume", json={"participant_id": "R1"}).json()
+        # An ID alone opens no session, on loopback neither (a rebinding page is "loopback");
+        # the experimenter's token does.
+        assert client.post(f"{API}/resume", json={"participant_id": "R1"}).status_code == 401
+        resumed = client.post(f"{API}/resume", json={"participant_id": "R1", "token": "lab-token"}).json()
         assert resumed["session"] == token and resumed["state"] == "break"
         st = client.post(f"{API}/sessions/{token}/break", json={"trial": 4}).json()
         assert st["state"] == "trial" and st["trial"]["index"] == 4
@@ -174,7 +177,7 @@ def test_breaks_and_resume_by_participant_id(tmp_path):
     assert order == load_protocol("h-law").condition_order(1)
 
 
-def test_experimenter_endpoints_need_the_token_when_set(tmp_path):
+def test_experimenter_endpoints_need_the_token_even_on_loopback(tmp_path):
     client, _ = _client(tmp_path, "alpha-law", token="s3cret")
     with client:
         assert client.get(f"{API}/admin/sessions").status_code == 401
@@ -185,9 +188,13 @@ def test_experimenter_endpoints_need_the_token_when_set(tmp_path):
         # The participant side needs none.
         assert client.get(f"{API}/protocol").status_code == 200
     (tmp_path / "open").mkdir()
-    open_client, _ = _client(tmp_path / "open", "alpha-law")  # no token set: a loopback lab machine
+    # No token given: one is made (a page on another site reaches loopback too).
+    open_client, _ = _client(tmp_path / "open", "alpha-law", token=None)
     with open_client:
-        assert open_client.get(f"{API}/admin/sessions").status_code == 200
+        assert open_client.get(f"{API}/admin/sessions").status_code == 401
+        made = open_client.app.state.experiment_flow.admin_token
+        assert len(made) >= 16
+        assert open_client.get(f"{API}/admin/sessions", headers={"X-Tactilize-Token": made}).status_code == 200
 
 
 def test_run_beyond_loopback_forces_and_prints_a_token(tmp_path, monkeypatch):
@@ -214,13 +221,13 @@ def test_run_beyond_loopback_forces_and_prints_a_token(tmp_path, monkeypatch):
     app = FastAPI()
     for router in captured["routers"]:
         app.include_router(router)
-    with TestClient(app) as client:
+    with TestClient(app, base_url="http://127.0.0.1") as client:
         assert client.get(f"{API}/admin/sessions").status_code == 401
         assert client.get(f"{API}/admin/sessions", headers={"X-Tactilize-Token": token}).status_code == 200
-    # On loopback no token is imposed.
+    # On loopback too: DNS rebinding makes any web site a loopback client.
     lines.clear()
     web.serve_flow("alpha-law", str(tmp_path / "t.sqlite3"), host="127.0.0.1", port=4321, echo=lines.append)
-    assert not any("token=" in line for line in lines)
+    assert any("token=" in line for line in lines)
 
 
 def test_an_empty_host_binds_every_interface_so_a_token_is_forced(tmp_path, monkeypatch):
@@ -272,7 +279,7 @@ def test_personal_calibration_profile_is_usable(tmp_path):
     from tactilize.mapping import Profile
 
     db = str(tmp_path / "cal.sqlite3")
-    client = TestClient(create_experiment_app("alpha-law", db))
+    client = TestClient(create_experiment_app("alpha-law", db), base_url="http://127.0.0.1")
     proto = load_protocol("alpha-law")
     # This person likes the steep sigmoid (k5 = 0.1) best, gentler and steeper less.
     liking = {0.02: 2, 0.05: 4, 0.1: 7, 0.2: 5}
@@ -336,7 +343,7 @@ def test_personal_calibration_fits_the_perceptual_profile(tmp_path):
     from tactilize.mapping import Profile
 
     db = str(tmp_path / "perc.sqlite3")
-    client = TestClient(create_experiment_app("perceptual-law", db))
+    client = TestClient(create_experiment_app("perceptual-law", db), base_url="http://127.0.0.1")
     proto = load_protocol("perceptual-law")
     # This person likes the textures a little more compressed than the preset (k = 0.7).
     liking = {0.6: 4, 0.7: 7, 0.836: 5, 0.95: 3, 1.1: 2}

@@ -319,7 +319,7 @@ def test_an_id_alone_does_not_resume_a_session_beyond_loopback(tmp_path):
     from tactilize.experiments.web import create_experiment_app
 
     app = create_experiment_app("alpha-law", str(tmp_path / "r.db"), admin_token="experimenter-secret")
-    with TestClient(app) as client:  # its client address, "testclient", is not loopback
+    with TestClient(app, base_url="http://127.0.0.1") as client:  # its client address, "testclient", is not loopback
         token = client.post("/experiment/api/sessions", json={"participant_id": "P01", "consent": True}).json()["session"]
         assert len(token) >= 24  # unguessable: 18 random bytes
         r = client.post("/experiment/api/resume", json={"participant_id": "P01"})

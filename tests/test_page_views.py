@@ -34,7 +34,7 @@ def grating_png(period_px: float, angle_deg: float = 0.0, shape=(300, 400)) -> b
 
 @pytest.fixture(scope="module")
 def client():
-    with TestClient(create_app(FakeOutput(), "paper", output_name="fake")) as c:
+    with TestClient(create_app(FakeOutput(), "paper", output_name="fake"), base_url="http://127.0.0.1") as c:
         yield c
 
 
@@ -129,7 +129,7 @@ def test_composite_map_looks_up_the_picture_under_the_point():
 
 def test_ws_composite_stroke_changes_the_spatial_frequency_at_the_boundary(client):
     ids = ["corduroy", "linen", "canvas", "dots", "wood", "sandpaper"]
-    with client.websocket_connect("/ws") as ws:
+    with client.websocket_connect("ws://127.0.0.1/ws") as ws:
         ws.send_text(json.dumps({"type": "hello", "mm_per_px": MM_PER_PX}))
         recv_type(ws, "ready")
         ws.send_text(json.dumps({"type": "composite", "ids": ids, "cols": 3}))
@@ -175,13 +175,13 @@ def test_ws_composite_stroke_changes_the_spatial_frequency_at_the_boundary(clien
     ],
 )
 def test_ws_composite_and_repeat_refusals(client, msg, err):
-    with client.websocket_connect("/ws") as ws:
+    with client.websocket_connect("ws://127.0.0.1/ws") as ws:
         ws.send_text(json.dumps(msg))
         assert err in recv_type(ws, "error")["message"]
 
 
 def test_ws_repeated_picture_is_driven_beyond_the_first_copy(client):
-    with client.websocket_connect("/ws") as ws:
+    with client.websocket_connect("ws://127.0.0.1/ws") as ws:
         ws.send_text(json.dumps({"type": "hello", "texture": "corduroy", "mm_per_px": MM_PER_PX}))
         recv_type(ws, "ready")
         ws.send_text(json.dumps({"type": "texture", "id": "corduroy", "repeat": [2, 1]}))

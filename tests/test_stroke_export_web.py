@@ -16,7 +16,7 @@ from tactilize.web import create_app
 
 @pytest.fixture(scope="module")
 def client():
-    with TestClient(create_app(_Recorder(), "paper", output_name="recorder", warm=False)) as c:
+    with TestClient(create_app(_Recorder(), "paper", output_name="recorder", warm=False), base_url="http://127.0.0.1") as c:
         yield c
 
 

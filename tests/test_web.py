@@ -55,7 +55,7 @@ def client(output):
         return {"ok": True}
 
     app = create_app(output, "paper", output_name="fake", extra_routers=[router])
-    with TestClient(app) as c:
+    with TestClient(app, base_url="http://127.0.0.1") as c:
         yield c
 
 
@@ -136,7 +136,7 @@ def test_upload_ok_and_usable(client):
     assert body["features"]["spatial_frequency_per_m"] == pytest.approx(200.0, rel=0.02)
     assert any(t["id"] == body["id"] for t in client.get("/api/textures").json())
     assert client.get(body["url"]).status_code == 200
-    with client.websocket_connect("/ws") as ws:
+    with client.websocket_connect("ws://127.0.0.1/ws") as ws:
         ready = hello(ws, body["id"])
         assert ready["texture_width_mm"] == pytest.approx(100.0)
 
@@ -243,7 +243,7 @@ def test_any_tactilize_error_a_route_raises_is_answered_not_a_500():
 
     app = FastAPI()
     app.include_router(router)  # a bare app: the routes answer errors themselves
-    with TestClient(app) as c:
+    with TestClient(app, base_url="http://127.0.0.1") as c:
         r = c.get("/refused")
         assert r.status_code == 409 and r.json() == {"error": "not today", "source": "thing", "hint": "tomorrow"}
         r = c.get("/bad")
@@ -254,7 +254,7 @@ def test_any_tactilize_error_a_route_raises_is_answered_not_a_500():
 
 
 def test_ws_stroke_speeds_and_lift(client, output):
-    with client.websocket_connect("/ws") as ws:
+    with client.websocket_connect("ws://127.0.0.1/ws") as ws:
         ready = hello(ws)
         assert ready["profile"] == "paper" and ready["limits"]["max_frequency_hz"] == 300.0
         freqs, speeds = [], []
@@ -275,7 +275,7 @@ def test_ws_stroke_speeds_and_lift(client, output):
 
 
 def test_ws_calibration_changes_speed(client):
-    with client.websocket_connect("/ws") as ws:
+    with client.websocket_connect("ws://127.0.0.1/ws") as ws:
         hello(ws)
         rows = stroke_rows(20.0)
         ws.send_text(json.dumps({"type": "samples", "samples": rows}))
@@ -289,7 +289,7 @@ def test_ws_calibration_changes_speed(client):
 
 
 def test_ws_profile_switch(client):
-    with client.websocket_connect("/ws") as ws:
+    with client.websocket_connect("ws://127.0.0.1/ws") as ws:
         hello(ws)
         ws.send_text(json.dumps({"type": "profile", "name": "physical"}))
         assert recv_type(ws, "state")["profile"] == "physical"
@@ -302,7 +302,7 @@ def test_ws_profile_switch(client):
 
 
 def test_ws_leaving_picture_stops(client, output):
-    with client.websocket_connect("/ws") as ws:
+    with client.websocket_connect("ws://127.0.0.1/ws") as ws:
         hello(ws)
         ws.send_text(json.dumps({"type": "samples", "samples": stroke_rows(20.0)}))
         assert recv_type(ws, "drive")["on"]
@@ -336,7 +336,7 @@ BAD_MESSAGES = [
 
 
 def test_ws_malformed_messages_get_errors_and_connection_lives(client):
-    with client.websocket_connect("/ws") as ws:
+    with client.websocket_connect("ws://127.0.0.1/ws") as ws:
         hello(ws)
         for text, expect in BAD_MESSAGES:
             ws.send_text(text)
@@ -356,7 +356,7 @@ def test_ws_malformed_messages_get_errors_and_connection_lives(client):
 
 
 def test_ws_samples_before_texture_are_refused(client):
-    with client.websocket_connect("/ws") as ws:
+    with client.websocket_connect("ws://127.0.0.1/ws") as ws:
         ws.send_text(json.dumps({"type": "samples", "samples": stroke_rows(20.0)}))
         assert "no texture selected" in ws.receive_json()["message"]
 
@@ -366,7 +366,7 @@ def test_ws_flood_is_bounded_and_latest_wins(client):
     state = app.state.tactilize
     dropped_before = state.counters.get("samples_dropped", 0)
     n_msgs, per = 400, 50
-    with client.websocket_connect("/ws") as ws:
+    with client.websocket_connect("ws://127.0.0.1/ws") as ws:
         hello(ws)
         t = 1000.0
         x = 10.0
@@ -417,7 +417,7 @@ def test_pending_queue_bound_directly(client):
 
 def test_resting_pen_falls_to_zero_speed(client, monkeypatch):
     monkeypatch.setattr(session_mod, "IDLE_S", 0.03)
-    with client.websocket_connect("/ws") as ws:
+    with client.websocket_connect("ws://127.0.0.1/ws") as ws:
         hello(ws)
         ws.send_text(json.dumps({"type": "samples", "samples": stroke_rows(30.0)}))
         moving = recv_type(ws, "drive")
@@ -430,8 +430,8 @@ def test_resting_pen_falls_to_zero_speed(client, monkeypatch):
 def test_disconnect_stops_output(output):
     out = FakeOutput()
     app = create_app(out, Profile.preset("paper"), warm=False)
-    with TestClient(app) as c:
-        with c.websocket_connect("/ws") as ws:
+    with TestClient(app, base_url="http://127.0.0.1") as c:
+        with c.websocket_connect("ws://127.0.0.1/ws") as ws:
             hello(ws)
             ws.send_text(json.dumps({"type": "samples", "samples": stroke_rows(20.0)}))
             recv_type(ws, "drive")
@@ -463,8 +463,8 @@ def test_output_errors_reach_the_page():
 
     # A device fault the output reports: the page is told, the connection lives.
     out = Flaky(OutputError("serial:/dev/ttyACM0", "controller not answering"))
-    with TestClient(create_app(out, "paper", warm=False)) as c:
-        with c.websocket_connect("/ws") as ws:
+    with TestClient(create_app(out, "paper", warm=False), base_url="http://127.0.0.1") as c:
+        with c.websocket_connect("ws://127.0.0.1/ws") as ws:
             hello(ws)
             ws.send_text(json.dumps({"type": "samples", "samples": stroke_rows(20.0)}))
             assert "controller not answering" in recv_type(ws, "error")["message"]
@@ -472,8 +472,8 @@ def test_output_errors_reach_the_page():
             assert recv_type(ws, "pong")["id"] == 1
     # A bug: the connection is closed (1011) and the output stopped, no hang.
     out = Flaky(RuntimeError("boom"))
-    with TestClient(create_app(out, "paper", warm=False)) as c:
-        with c.websocket_connect("/ws") as ws:
+    with TestClient(create_app(out, "paper", warm=False), base_url="http://127.0.0.1") as c:
+        with c.websocket_connect("ws://127.0.0.1/ws") as ws:
             hello(ws)
             ws.send_text(json.dumps({"type": "samples", "samples": stroke_rows(20.0)}))
             with pytest.raises(WebSocketDisconnect) as info:
@@ -489,7 +489,7 @@ def test_ws_hover_and_lift_hold_the_simulated_wire_in_standby():
 
     out = SimulatedOutput(start=False)
     app = create_app(out, "paper", output_name="simulated")
-    with TestClient(app) as c, c.websocket_connect("/ws") as ws:
+    with TestClient(app, base_url="http://127.0.0.1") as c, c.websocket_connect("ws://127.0.0.1/ws") as ws:
         hello(ws)
         states = lambda: [ctrl.state for ctrl in out.controllers]  # noqa: E731
         assert states() == ["off", "off"]
@@ -519,7 +519,7 @@ def test_the_warm_heap_is_frozen_out_of_the_collectors_sight(output):
     gc.unfreeze()
     assert gc.get_freeze_count() == 0
     try:
-        with TestClient(create_app(output, "paper", output_name="fake")):
+        with TestClient(create_app(output, "paper", output_name="fake"), base_url="http://127.0.0.1"):
             t0 = time.monotonic()
             while gc.get_freeze_count() == 0 and time.monotonic() - t0 < 60:
                 time.sleep(0.05)
@@ -527,7 +527,7 @@ def test_the_warm_heap_is_frozen_out_of_the_collectors_sight(output):
         assert frozen > 10_000  # the libraries and the built-in maps, at least
         # Without the warm-up nothing is frozen (an embedding application decides).
         gc.unfreeze()
-        with TestClient(create_app(output, "paper", output_name="fake", warm=False)):
+        with TestClient(create_app(output, "paper", output_name="fake", warm=False), base_url="http://127.0.0.1"):
             time.sleep(0.2)
             assert gc.get_freeze_count() == 0
     finally:

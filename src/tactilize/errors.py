@@ -9,6 +9,7 @@ print it as one line and exit with status 2.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 
 class TactilizeError(Exception):
@@ -138,3 +139,25 @@ def check_finite(
         head = f"{what} must" if what else "must"
         raise error(source, f"{head} be {kind}{bound}{' [' + unit + ']' if unit else ''}, got {value!r}")
     return v
+
+
+def path_fault(path: Any) -> str | None:
+    """Why ``path`` cannot be opened, in a few words, or None when it can be stat'ed.
+
+    The one place a missing file is told apart from a symbolic link loop or a
+    dangling link (``Path.exists`` calls all three "not there").
+    """
+    import errno
+    import os
+
+    try:
+        os.stat(path)
+        return None
+    except FileNotFoundError:
+        return "broken symbolic link (its target does not exist)" if os.path.islink(path) else "file not found"
+    except PermissionError:
+        return "permission denied"
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            return "symbolic link loop (the link points back to itself)"
+        return f"cannot open ({exc.strerror or exc})"

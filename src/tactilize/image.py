@@ -18,13 +18,16 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
-from .errors import ImageError
+from .errors import ImageError, path_fault
 
 __all__ = ["DEFAULT_DPI", "DEFAULT_MAX_PIXELS", "DRAFT_MIN_SIDE_PX", "METRES_PER_INCH", "TextureImage", "load_image"]
 
 METRES_PER_INCH = 0.0254
 #: a CSS pixel is 1/96 inch by definition: docs/references.md, section 5 (CSS pixel)
 DEFAULT_DPI = 96.0
+#: Plausible displayed pixel pitch [m]: 0.1 um (254 000 DPI, beyond any print) .. 1 m
+#: per pixel.  Outside it the frequencies overflow or divide by zero downstream.
+PITCH_RANGE_M = (1e-7, 1.0)
 #: 64 Mpx: a 8192 x 8192 texture still loads; a decompression bomb does not.
 #: As float32 that is 256 MB, the most one image may cost.
 DEFAULT_MAX_PIXELS = 64 * 1024 * 1024
@@ -253,6 +256,11 @@ def load_image(
         # and the picture keeps its displayed size with fewer, larger pixels.
         pitch = _display_pitch(full_width, file_dpi, dpi, width_mm) * full_width / width
         decode_scale = round(full_width / width)
+    lo, hi = PITCH_RANGE_M
+    if not lo <= pitch <= hi:
+        given = f"dpi {dpi:g}" if dpi is not None else f"width_mm {width_mm:g}" if width_mm is not None else "its DPI"
+        raise ImageError(name, f"{given} gives a pixel {pitch:.3g} m wide; a displayed pixel must be "
+                         f"{lo * 1e6:g} um .. {hi:g} m")
     if data.dtype == np.uint8:
         return TextureImage.from_levels(data, (pitch, pitch), name, decode_scale)
     return TextureImage(data, (pitch, pitch), name, decode_scale)
@@ -366,8 +374,9 @@ def _from_pillow(
         fp: Any = io.BytesIO(source)
     elif isinstance(source, (str, os.PathLike)):
         path = Path(source)
-        if not path.exists():
-            raise ImageError(name, "file not found")
+        fault = path_fault(path)
+        if fault is not None:
+            raise ImageError(name, fault)
         if path.is_dir():
             raise ImageError(name, "is a directory, not an image")
         if path.stat().st_size == 0:

@@ -9,7 +9,9 @@ task, never the batch.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import time
 from collections.abc import Iterator, Sequence
 from typing import Any
 
@@ -102,11 +104,45 @@ def run_serial(feed: Feeder, settings: AnalysisSettings) -> Iterator[list[dict[s
         yield rows
 
 
-def _init_worker() -> None:
-    """Process-pool initialiser: one core per process, and Ctrl-C is the parent's business."""
+def _die_with_parent(parent_pid: int) -> None:
+    """End this worker when the batch's process ends, however it ends.
+
+    A pool's workers wait for tasks on a pipe; a parent killed (SIGKILL, the OOM
+    killer) closed nothing they notice, so they lived on, each holding a core's
+    worth of memory.  Linux sends them SIGTERM when the parent goes
+    (``PR_SET_PDEATHSIG``); elsewhere a thread watches the parent's id.
+    """
+    import signal
+    import threading
+
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(1, signal.SIGTERM, 0, 0, 0) != 0:  # 1: PR_SET_PDEATHSIG
+            raise OSError(ctypes.get_errno(), "prctl")
+        if os.getppid() != parent_pid:  # gone before the request took effect
+            os._exit(1)
+        return
+    except (OSError, AttributeError):
+        pass
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="tactilize-parent-watch", daemon=True).start()
+
+
+def _init_worker(parent_pid: int | None = None) -> None:
+    """Process-pool initialiser: one core per process, Ctrl-C is the parent's business,
+    and the worker ends with its parent."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if parent_pid is not None:
+        _die_with_parent(parent_pid)
     try:
         # Several processes each starting a BLAS thread per core would fight over the cores.
         from threadpoolctl import threadpool_limits
@@ -129,7 +165,7 @@ def run_processes(feed: Feeder, settings: AnalysisSettings, workers: int) -> Ite
     warm_up()
 
     def new_pool() -> ProcessPoolExecutor:
-        return ProcessPoolExecutor(max_workers=workers, initializer=_init_worker)
+        return ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(os.getpid(),))
 
     pool = new_pool()
     chunk_of: dict[Any, list[CatalogItem]] = {}
@@ -175,11 +211,45 @@ def run_dask(feed: Feeder, settings: AnalysisSettings, scheduler: Any, timeout_s
         raise CatalogError("--scheduler", "needs dask[distributed] (pip install 'tactilize[batch]')") from None
 
     own = not isinstance(scheduler, Client)
+    with _dask_quiet(own):
+        yield from _run_dask(feed, settings, scheduler, timeout_s, own)
+
+
+@contextlib.contextmanager
+def _dask_quiet(own: bool) -> Iterator[None]:
+    """While the batch's own client runs, Dask's logs stay out of the terminal:
+    a lost scheduler is reported once, as one line, by the CatalogError."""
+    import logging
+
+    if not own:  # someone else's client: their logging is theirs
+        yield
+        return
+    # Dask's configuration gives its loggers their own levels: each is silenced.
+    names = ["distributed", *(n for n in logging.root.manager.loggerDict if n.startswith("distributed."))]
+    saved = {n: logging.getLogger(n).level for n in names}
+    for n in names:
+        logging.getLogger(n).setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        for n, level in saved.items():
+            logging.getLogger(n).setLevel(level)
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(f"{exc.__class__.__name__}: {exc}".split())
+
+
+def _run_dask(feed: Feeder, settings: AnalysisSettings, scheduler: Any, timeout_s: float,
+              own: bool) -> Iterator[list[dict[str, Any]]]:
+    from distributed import Client, as_completed
+    from distributed.scheduler import KilledWorker
+
     if own:
         try:
             client = Client(str(scheduler), timeout=f"{timeout_s}s", set_as_default=False)
-        except (OSError, TimeoutError) as exc:
-            raise CatalogError(str(scheduler), f"cannot reach the Dask scheduler ({exc.__class__.__name__}: {exc})") from None
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise CatalogError(str(scheduler), f"cannot reach the Dask scheduler ({_one_line(exc)})") from None
     else:
         client = scheduler
     try:
@@ -202,9 +272,11 @@ def run_dask(feed: Feeder, settings: AnalysisSettings, scheduler: Any, timeout_s
                 # Dask already retried the task on other workers; each of them died.
                 rows = _error_rows(chunk, settings, _WORKER_DIED)
             except Exception as exc:  # analyse_chunk never raises: this is the cluster
+                lost = "scheduler-connection-lost" in str(exc) or exc.__class__.__name__ == "CommClosedError"
                 raise CatalogError(
                     str(scheduler) if own else "<dask client>",
-                    f"the Dask cluster failed ({exc.__class__.__name__}: {exc}); the rows finished so far are kept, rerun to resume",
+                    ("lost the Dask scheduler" if lost else f"the Dask cluster failed ({_one_line(exc)})")
+                    + "; the rows finished so far are kept, rerun to resume",
                 ) from None
             feed.observe(rows)
             nxt = feed.next()
@@ -214,4 +286,5 @@ def run_dask(feed: Feeder, settings: AnalysisSettings, scheduler: Any, timeout_s
             fut.release()
     finally:
         if own:
-            client.close()
+            with contextlib.suppress(Exception):  # a dead scheduler cannot be told goodbye
+                client.close(timeout=timeout_s)

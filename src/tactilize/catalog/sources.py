@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..errors import CatalogError
+from ..errors import CatalogError, path_fault
 
 __all__ = ["IMAGE_SUFFIXES", "CatalogItem", "discover"]
 
@@ -102,6 +102,9 @@ def discover(source: str | os.PathLike) -> list[CatalogItem]:
         if not items:
             raise CatalogError(text, "the pattern matches no files")
     else:
+        fault = path_fault(text)
+        if fault not in (None, "file not found"):  # a link loop is not a missing file
+            raise CatalogError(text, fault)
         raise CatalogError(text, "not found: give a folder, a glob, or a manifest (.csv, .jsonl)")
     items.sort(key=lambda it: it.id)
     return items

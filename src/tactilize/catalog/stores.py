@@ -8,6 +8,7 @@ crash loses at most the rows not yet written.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -103,6 +104,12 @@ class ParquetStore:
     def open(self, fingerprint: dict[str, Any]) -> None:
         if self.path.exists() and not self.path.is_dir():
             raise CatalogError(str(self.path), "exists and is not a directory (a Parquet catalog is a folder of parts)")
+        try:
+            self._open(fingerprint)
+        except OSError as exc:
+            raise CatalogError(str(self.path), f"cannot write the catalog here ({_os_fault(exc)})") from None
+
+    def _open(self, fingerprint: dict[str, Any]) -> None:
         self.path.mkdir(parents=True, exist_ok=True)
         meta = self.path / META_FILE
         if meta.exists():
@@ -126,13 +133,23 @@ class ParquetStore:
 
     def write(self, rows: list[dict[str, Any]]) -> None:
         import pyarrow as pa
-        import pyarrow.parquet as pq
 
         # Column lists, not from_pylist: the latter costs ~1 ms a row in this process,
         # which the workers need.
         table = pa.Table.from_pydict({n: [r.get(n) for r in rows] for n in self.schema.names}, schema=self.schema)
         # Dot-prefixed temporaries are ignored by Parquet readers.
         tmp = self.path / f".{PART_PREFIX}{os.getpid()}-{self._next:05d}.parquet.tmp"
+        try:
+            self._write_part(table, tmp)
+        except OSError as exc:  # a full or read-only disk: what is written stays, the run stops
+            with contextlib.suppress(OSError):
+                tmp.unlink(missing_ok=True)
+            raise CatalogError(str(self.path), f"cannot write a part of the catalog ({_os_fault(exc)}); the parts "
+                               "written so far are kept, free space or fix the folder and rerun to resume") from None
+
+    def _write_part(self, table: Any, tmp: Path) -> None:
+        import pyarrow.parquet as pq
+
         pq.write_table(table, tmp)
         try:
             while True:
@@ -155,6 +172,11 @@ class ParquetStore:
 
     def close(self) -> None:
         pass
+
+
+def _os_fault(exc: OSError) -> str:
+    """An OSError in words, without a traceback's worth of path (the message names the folder)."""
+    return exc.strerror or str(exc) or exc.__class__.__name__
 
 
 def _part_number(p: Path) -> int:

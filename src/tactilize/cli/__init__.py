@@ -265,7 +265,10 @@ def batch(
 @click.option("--profile", "profile_name", default=None, help="Preset name or TOML file [default: surface].")
 @click.option("--open/--no-open", "open_browser", default=None, help="Open the page in a browser [default: when a display exists].")
 @click.option("--catalog", "catalog_path", default=None, help="Also serve this catalog (Parquet folder or SQLAlchemy URL) at /api/catalog.")
-def serve(host: str, port: int, output_spec: str, profile_name: str | None, open_browser: bool | None, catalog_path: str | None) -> None:
+@click.option("--max-sockets", type=click.IntRange(1, 10_000), default=32, show_default=True,
+              help="Pages (WebSockets) connected at once, at most; one more is refused with 503.")
+def serve(host: str, port: int, output_spec: str, profile_name: str | None, open_browser: bool | None, catalog_path: str | None,
+          max_sockets: int) -> None:
     """Serve the tactile pen page: textures, pen stroke, live drive, simulated wire."""
     from ..web.serve import serve as run
 
@@ -274,7 +277,8 @@ def serve(host: str, port: int, output_spec: str, profile_name: str | None, open
         from ..catalog.api import catalog_router
 
         routers.append(catalog_router(catalog_path))  # a bad catalog fails here, before the socket opens
-    run(host, port, output_spec, profile_name, open_browser, extra_routers=routers, echo=click.echo, warn=lambda s: click.echo(s, err=True))
+    run(host, port, output_spec, profile_name, open_browser, extra_routers=routers, echo=click.echo,
+        warn=lambda s: click.echo(s, err=True), max_sockets=max_sockets)
 
 
 # ----------------------------------------------------------------- simulate / envelope / export

@@ -50,7 +50,7 @@ def protocols_cmd(as_json: bool) -> None:
 @click.option("--db", "db_url", default=None, help=DB_HELP)
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address to bind (beyond loopback a token is required).")
 @click.option("--port", default=8765, show_default=True, type=int)
-@click.option("--token", default=None, help="Experimenter token (generated when binding beyond loopback).")
+@click.option("--token", default=None, help="Experimenter token (generated and printed when not given).")
 @click.option("--output", "output_spec", default="simulated", show_default=True, help="simulated | serial:PORT | audio[:DEVICE]")
 def run_cmd(protocols: tuple[str, ...], db_url: str | None, host: str, port: int, token: str | None,
             output_spec: str) -> None:

@@ -6,8 +6,9 @@
 
     GET  api/protocol                         title, description, questions (no conditions: blind)
     POST api/sessions        {participant_id, consent, demographics} -> state   (409: ID taken)
-    POST api/resume          {participant_id}                  -> state   (404: unknown ID;
-                             beyond loopback only with the experimenter token)
+    POST api/resume          {participant_id, token?}          -> state   (404: unknown ID;
+                             only with the experimenter token: an ID is guessable,
+                             the page resumes by its session token)
     GET  api/sessions/{s}                                       -> state
     POST api/sessions/{s}/calibration {card_width_px|mm_per_px, felt}
     POST api/sessions/{s}/break       {trial}
@@ -16,9 +17,11 @@
     WS   ws/{s}          pen samples in, drives out, acks after the commit (see .strokes)
 
 Experimenter routes (``api/admin/...``: sessions, export.csv, export.json,
-analysis) need the admin token whenever one is set, and :func:`serve_flow`
-sets one whenever the server is bound beyond loopback.  Pass it as
-``Authorization: Bearer <token>``, ``X-Tactilize-Token`` or ``?token=``.
+analysis) need the admin token, on loopback too (a page on another site can
+reach loopback through DNS rebinding); :func:`serve_flow` and
+:func:`create_experiment_app` make one when none is given, and a flow without
+one keeps them closed.  Pass it as ``Authorization: Bearer <token>``,
+``X-Tactilize-Token`` or ``?token=``.
 
 Every route is a plain function run in FastAPI's thread pool, because the store
 is synchronous; the answer route returns only after the commit.  A refusal is
@@ -40,6 +43,7 @@ from starlette.concurrency import run_in_threadpool
 
 from ..web.encode import jsonable
 from ..web.http import ErrorAnsweringRoute, is_loopback
+from ..web.ownership import TRIAL, page_output
 from .flow import Flow, FlowError
 
 __all__ = ["experiment_router", "create_experiment_app", "serve_flow", "is_loopback", "PREFIX"]
@@ -71,10 +75,11 @@ def experiment_router(flow: Flow) -> APIRouter:
     """The routes of one protocol's flow, under ``/experiment`` (include as it is)."""
     router = APIRouter(prefix=PREFIX, route_class=ErrorAnsweringRoute)
 
-    def require_admin(request: Request) -> None:
+    def require_admin(request: Request, given: Any = None) -> None:
         if not flow.admin_token:
-            return
-        given = request.headers.get("x-tactilize-token") or request.query_params.get("token") or ""
+            raise FlowError("token", "the experimenter routes are closed: this server has no experimenter token", 403)
+        if not isinstance(given, str):
+            given = request.headers.get("x-tactilize-token") or request.query_params.get("token") or ""
         auth = request.headers.get("authorization", "")
         if auth.lower().startswith("bearer "):
             given = auth[7:].strip()
@@ -118,12 +123,11 @@ def experiment_router(flow: Flow) -> APIRouter:
     @router.post("/api/resume")
     async def resume(request: Request) -> Response:
         body = await _json_object(request)
-        client = request.client.host if request.client else ""
-        if not is_loopback(client) and flow.admin_token:
-            # An ID is short and guessable; beyond loopback it alone must not open
-            # someone's session.  The page resumes by its unguessable session token;
-            # resuming by ID needs the experimenter (their token).
-            require_admin(request)
+        # An ID is short and guessable, and a page on another site reaches even
+        # loopback (DNS rebinding): an ID alone must not open someone's session.
+        # The page resumes by its unguessable session token; resuming by ID needs
+        # the experimenter (their token, in the body or as for the admin routes).
+        require_admin(request, body.get("token"))
         return JSONResponse(await run_in_threadpool(flow.resume, body.get("participant_id")))
 
     @router.get("/api/sessions/{token}")
@@ -153,24 +157,35 @@ def experiment_router(flow: Flow) -> APIRouter:
     @router.get("/api/images/{image_id}.png")
     def image(image_id: str, protocol: str | None = None) -> Response:
         # A visit (several protocols) names the protocol: image ids may repeat across them.
+        if protocol and not hasattr(flow, "flows"):  # one protocol: the name must be its own
+            if protocol != flow.protocol.name:
+                raise FlowError("protocol", f"no protocol {protocol!r} here (this server runs {flow.protocol.name!r})", 404)
+            protocol = None
         png = flow.image_png(image_id, protocol) if protocol else flow.image_png(image_id)
         return Response(png, media_type="image/png", headers={"Cache-Control": "max-age=3600"})
 
     @router.websocket("/ws/{token}")
     async def pen(ws: WebSocket, token: str) -> None:
         await ws.accept()
-        # Inside ``tactilize serve``'s app the pen's actuators are its output.
+        # Inside ``tactilize serve``'s app the pen's actuators are its output: a
+        # trial holds a device before any pen page; a simulated wire is its own.
         server_state = getattr(ws.app.state, "tactilize", None)
-        output = getattr(server_state, "output", None)
+        output = None if server_state is None else page_output(server_state, TRIAL)
         try:
             handler = await run_in_threadpool(flow.stroke_handler, token, output)
         except FlowError as exc:
+            if output is not None:
+                output.close()
             await ws.send_json({"type": "error", **exc.to_dict()})
             await ws.close(code=4404)
             return
         from .strokes import pump
 
-        await pump(ws, handler)
+        try:
+            await pump(ws, handler)
+        finally:
+            if output is not None:
+                output.close()
 
     # ------------------------------------------------------------ experimenter API
 
@@ -206,7 +221,8 @@ def experiment_router(flow: Flow) -> APIRouter:
     return router
 
 
-def create_experiment_app(protocol, db_url: str | None = None, admin_token: str | None = None) -> FastAPI:
+def create_experiment_app(protocol, db_url: str | None = None, admin_token: str | None = None,
+                          hosts: Any = None) -> FastAPI:
     """A standalone app serving one protocol's flow under ``/experiment``.
 
     Parameters
@@ -216,16 +232,23 @@ def create_experiment_app(protocol, db_url: str | None = None, admin_token: str 
     db_url : str, optional
         SQLAlchemy URL or SQLite file path; the default data-directory file if None.
     admin_token : str, optional
-        Required by the experimenter routes when set.
+        Required by the experimenter routes (and a resume by ID); a random one
+        (``app.state.experiment_flow.admin_token``) when not given.
+    hosts : iterable of str, optional
+        Host names the app answers to (:func:`tactilize.web.guard.accepted_hosts`);
+        the loopback names by default.
     """
     from .protocols import Protocol, load_protocol
     from .store import Store
 
     if not isinstance(protocol, Protocol):
         protocol = load_protocol(protocol)
-    flow = Flow(protocol, Store(db_url), admin_token=admin_token)
+    flow = Flow(protocol, Store(db_url), admin_token=admin_token or secrets.token_urlsafe(16))
     app = FastAPI(title=f"tactilize experiment: {protocol.name}", docs_url=None, redoc_url=None)
     app.state.experiment_flow = flow
+    from ..web.guard import install
+
+    install(app, hosts)
     app.include_router(experiment_router(flow))
 
     @app.get("/", include_in_schema=False)
@@ -243,9 +266,9 @@ def serve_flow(protocol, db_url: str | None, host: str = "127.0.0.1", port: int 
     ``protocol`` may be a list: one visit runs them in sequence (:mod:`.visit`).
 
     The participant pages live at ``/experiment/``, beside the pen page, and the
-    condition's drives go to the same actuator output (``--output``).  Beyond
-    loopback an experimenter token is mandatory: one is generated and printed
-    when none is given, so the data are never open to the network.
+    condition's drives go to the same actuator output (``--output``).  An
+    experimenter token is mandatory, on loopback too: one is generated and
+    printed when none is given, so the data are never open to another page.
     """
     import re
     import sys
@@ -256,7 +279,7 @@ def serve_flow(protocol, db_url: str | None, host: str = "127.0.0.1", port: int 
     protocols = [p if isinstance(p, Protocol) else load_protocol(p)
                  for p in (protocol if isinstance(protocol, (list, tuple)) else [protocol])]
     protocol = protocols[0]
-    if not is_loopback(host) and not admin_token:
+    if not admin_token:
         admin_token = secrets.token_urlsafe(16)
     store = Store(db_url)
     flow = Flow(protocol, store, admin_token=admin_token)
@@ -283,7 +306,9 @@ def serve_flow(protocol, db_url: str | None, host: str = "127.0.0.1", port: int 
     except ImportError:  # a build without the pen app: serve the flow alone
         import uvicorn
 
-        app = create_experiment_app(protocol, db_url, admin_token)
+        from ..web.guard import accepted_hosts
+
+        app = create_experiment_app(protocol, db_url, admin_token, hosts=accepted_hosts(host))
         relay(f"serving at http://{host}:{port}/")
         uvicorn.run(app, host=host, port=port, log_level="warning")
         return

@@ -15,6 +15,9 @@ Modules
 :mod:`.http`     what the pen app and the experiments share: the error
                  answer, the loopback rule
 :mod:`.encode`   the one JSON encoder (the pages and the CLI)
+:mod:`.guard`    Host and Origin checks, the socket cap
+:mod:`.ownership` one physical output, many pages
+:mod:`.limits`   bounded uploads and stroke exports
 
 ``create_app`` and ``ServerState`` load the web framework on first use, so
 :mod:`.rows` and :mod:`.encode` stay cheap to import.

@@ -177,6 +177,14 @@ class ServerState:
         self.latency_ns: "collections.deque[int]" = collections.deque(maxlen=20_000)
         self.counters: dict[str, int] = collections.Counter()
         self.sessions = 0
+        #: makes one output per page (a simulated wire), or None: the pages take
+        #: turns on ``output`` (web/ownership.py)
+        self.page_output_factory: Callable[[], Any] | None = None
+        from .limits import EXPORTS_ADMITTED, EXPORTS_RUNNING, UPLOADS_ADMITTED, UPLOADS_RUNNING, WorkGate
+
+        #: heavy requests, bounded (web/limits.py)
+        self.upload_gate = WorkGate("upload", UPLOADS_ADMITTED, UPLOADS_RUNNING)
+        self.export_gate = WorkGate("stroke export", EXPORTS_ADMITTED, EXPORTS_RUNNING)
         from ..data import builtin_textures
 
         for t in builtin_textures():
@@ -299,6 +307,12 @@ def _default_output() -> tuple[Any, str]:
         return _Recorder(), "recorder"
 
 
+def _simulated() -> Any:
+    from ..actuators.factory import open_output
+
+    return open_output("simulated")
+
+
 def _settle_heap() -> None:
     """Keep the garbage collector's full passes off the pen's path.
 
@@ -322,6 +336,9 @@ def create_app(
     extra_routers: Iterable[APIRouter] = (),
     warm: bool = True,
     close_output: bool | None = None,
+    hosts: Iterable[str] | None = None,
+    max_sockets: int | None = None,
+    page_outputs: Callable[[], Any] | None = None,
 ) -> FastAPI:
     """Build the tactile pen application.
 
@@ -342,6 +359,18 @@ def create_app(
         Generate the built-in pictures at startup (in a thread, not blocking requests).
     close_output : bool, optional
         Close the output at shutdown; by default only when the app opened it.
+    hosts : iterable of str, optional
+        The host names the app answers to (:func:`.guard.accepted_hosts` of the
+        bind address); the loopback names by default.  Requests and sockets naming
+        another host, and sockets or state-changing requests from another site's
+        page, are refused (:mod:`.guard`).
+    max_sockets : int, optional
+        WebSockets open at once, at most (:data:`.guard.DEFAULT_MAX_SOCKETS`).
+    page_outputs : callable, optional
+        Makes one output per page (a simulated wire: each page feels its own).
+        Without it ``output`` is one device the pages take turns on
+        (:mod:`.ownership`).  By default per page when the app opens the
+        simulated wire itself.
 
     Returns
     -------
@@ -354,7 +383,10 @@ def create_app(
     if output is None:
         output, default_name = _default_output()
         output_name = output_name or default_name
+        if page_outputs is None and default_name == "simulated":
+            page_outputs = _simulated
     state = ServerState(output, profile, m_per_px, output_name or "")
+    state.page_output_factory = page_outputs
     if close_output is None:
         close_output = owned
 
@@ -375,11 +407,17 @@ def create_app(
             try:
                 state.output.stop()
             finally:
+                from .ownership import close_outputs
+
+                close_outputs(state)  # the pages' own simulated wires
                 if close_output:
                     state.output.close()
 
     app = FastAPI(title="tactilize", lifespan=lifespan, docs_url="/api/docs", redoc_url=None)
     app.state.tactilize = state
+    from . import guard
+
+    guard.install(app, hosts, guard.DEFAULT_MAX_SOCKETS if max_sockets is None else max_sockets)
 
     @app.get("/", include_in_schema=False)
     async def index() -> FileResponse:
@@ -469,8 +507,18 @@ def _api_router() -> APIRouter:
 
     @r.post("/textures")
     async def upload(request: Request) -> Any:
-        """Multipart form: ``file`` (the picture), optional ``width_mm`` or ``dpi``."""
+        """Multipart form: ``file`` (the picture), optional ``width_mm`` or ``dpi``;
+        503 while :data:`.limits.UPLOADS_ADMITTED` others are inside (before the body is read)."""
         s = st(request)
+        try:
+            async with s.upload_gate.admit():
+                return await _upload(s, request)
+        except RequestError as exc:
+            if exc.status == 503:
+                s.counters["uploads_busy"] += 1
+            raise
+
+    async def _upload(s: ServerState, request: Request) -> Any:
         too_large = f"file too large (limit {MAX_UPLOAD_BYTES // (1024 * 1024)} MB)"
         # The body is bounded *before* the multipart parser sees it: a parser
         # left alone would spool any size to disk before the handler could refuse.
@@ -508,7 +556,7 @@ def _api_router() -> APIRouter:
         if not data:
             raise RequestError(src, f"{src}: empty file", 422)
         try:
-            entry = await asyncio.get_running_loop().run_in_executor(None, s.add_upload, data, src, w_mm, dpi)
+            entry = await s.upload_gate.run(s.add_upload, data, src, w_mm, dpi)
         except ImageError as exc:
             s.counters["uploads_refused"] += 1
             raise RequestError(src, f"{src}: {exc.fault}", 415 if "not an image" in exc.fault else 422) from None

@@ -73,6 +73,8 @@ def serve(
     echo: Callable[[str], None] = print,
     warn: Callable[[str], None] = lambda s: print(s, file=sys.stderr),
     log_level: str = "warning",
+    extra_hosts: Iterable[str] = (),
+    max_sockets: int | None = None,
 ) -> None:
     """Serve the tactile pen page until interrupted.
 
@@ -91,12 +93,18 @@ def serve(
         Open the page in a browser; by default only when a display exists.
     extra_routers : iterable of APIRouter
         Mounted into the app.
+    extra_hosts : iterable of str
+        Names or addresses the page may also be reached at, besides loopback and
+        ``host`` (:func:`.guard.accepted_hosts`: the one set every check uses).
+    max_sockets : int, optional
+        WebSockets open at once, at most (:data:`.guard.DEFAULT_MAX_SOCKETS`).
     """
     import uvicorn
 
     from ..actuators.factory import open_output
     from ..mapping import Profile
     from .app import create_app
+    from .guard import DEFAULT_MAX_SOCKETS, accepted_hosts
 
     prof = Profile.resolve(DEFAULT_PROFILE if profile is None else profile)  # bad profiles fail before anything opens
     sock = bind_socket(host, port)
@@ -116,7 +124,11 @@ def serve(
         sock.close()
         raise
     try:
-        app = create_app(out, prof, output_name=output, extra_routers=extra_routers, close_output=True)
+        max_sockets = DEFAULT_MAX_SOCKETS if max_sockets is None else max_sockets
+        # A simulated wire is no device: every page gets its own (web/ownership.py).
+        per_page = (lambda: open_output(output)) if output.strip().lower() == "simulated" else None
+        app = create_app(out, prof, output_name=output, extra_routers=extra_routers, close_output=True,
+                         hosts=accepted_hosts(host, extra_hosts), max_sockets=max_sockets, page_outputs=per_page)
         bound_host, bound_port = sock.getsockname()[:2]
         shown = f"[{bound_host}]" if ":" in bound_host else bound_host
         url = f"http://{shown}:{bound_port}/"
@@ -135,6 +147,9 @@ def serve(
             ws_ping_interval=20.0,
             ws_ping_timeout=20.0,
             lifespan="on",
+            # Every connection beyond this gets a 503 from uvicorn itself: the
+            # sockets the guard admits, and room for the page's HTTP requests.
+            limit_concurrency=max_sockets + 64,
         )
         server = uvicorn.Server(config)
         # The simulated wire runs on a thread; with CPython's default 5 ms GIL

@@ -33,6 +33,9 @@ Page to server
     The page sends it at most a few times a second.
 ``{"type": "ping", "id": X}``
     Answered with ``{"type": "pong", "id": X}`` (round-trip measurements).
+``{"type": "take_over"}``
+    Drive the physical output although another page holds it (:mod:`.ownership`);
+    answered with an ``output`` message.
 
 Server to page
 --------------
@@ -56,6 +59,10 @@ Server to page
     the gap after a drive, when the pen is busy).
 ``{"type": "error", "message": TEXT}``
     A malformed message was ignored; the connection stays open.
+``{"type": "output", "state": "yours"|"in_use"|"free", "by": WHO, "take_over": BOOL}``
+    This page's standing on a physical output shared by several pages
+    (:mod:`.ownership`): sent when it changes, and when a stroke could not be
+    played because another page holds the output.
 
 Floods
 ------
@@ -119,17 +126,20 @@ class PenSession:
     ----------
     state : ServerState
         Shared server state (output, profiles, textures, statistics).
+    output : Output, optional
+        What this page drives (:func:`.ownership.page_output`); the server's output by default.
     """
 
-    def __init__(self, state: Any) -> None:
+    def __init__(self, state: Any, output: Any = None) -> None:
         self.state = state
+        self.output = state.output if output is None else output
         self.m_per_px = state.m_per_px
         self.texture_id: str | None = None
         #: (ids, cols, CompositeMap) while a composite surface is shown
         self.composite: tuple[list[str], int, Any] | None = None
         #: (cols, rows) of a repeated picture, or None
         self.repeat: tuple[int, int] | None = None
-        self.renderer = PenRenderer(_NoPicture(), state.profile, state.output)
+        self.renderer = PenRenderer(_NoPicture(), state.profile, self.output)
         self.pending: deque[tuple] = deque()
         self.pending_lift = False
         self.seq: Any = None
@@ -176,11 +186,15 @@ class PenSession:
             return None
         if kind == "ping":
             return {"type": "pong", "id": msg.get("id"), "server_time_s": time.time()}
+        if kind == "take_over":
+            take = getattr(self.output, "take_over", None)
+            return take() if take is not None else {"type": "output", "state": "yours", "take_over": False}
         if kind in ("hello", "texture", "calibrate", "profile"):
             return self._settings(kind, msg)
         if kind == "composite":
             return self._composite(msg)
-        raise _Bad(f"unknown message type {kind!r} (known: samples, lift, hello, texture, composite, calibrate, profile, ping)")
+        raise _Bad(f"unknown message type {kind!r} (known: samples, lift, hello, texture, composite, calibrate, profile, ping, "
+                   "take_over)")
 
     def _composite(self, msg: dict[str, Any]) -> dict[str, Any]:
         from ..composite import CompositeMap
@@ -392,20 +406,44 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
     # Choosing a texture looks its map up synchronously; make sure the built-in
     # maps exist (normally done at startup) without blocking the event loop.
     await loop.run_in_executor(None, state.warm)
-    session = PenSession(state)
+    from .ownership import PEN, page_output
+
+    telling: set[asyncio.Task] = set()  # the loop keeps only weak references to tasks
+
+    def tell(doc: dict[str, Any]) -> None:
+        if not closed.is_set():
+            task = loop.create_task(send(doc))
+            telling.add(task)
+            task.add_done_callback(telling.discard)
+
+    def told(doc: dict[str, Any]) -> None:  # from any thread: the lease's standing changed
+        loop.call_soon_threadsafe(tell, doc)
+
+    closed = asyncio.Event()
+    output = page_output(state, PEN, told)
+    session = PenSession(state, output)
     state.sessions += 1
     send_lock = asyncio.Lock()
-    closed = asyncio.Event()
     # Outputs that do background work in Python (the simulated wire) do it
     # between batches when told that one has just been sent.
-    after_batch = state.output.after_batch
+    after_batch = output.after_batch
     drive_sent = asyncio.Event()
 
     async def send(doc: dict[str, Any]) -> None:
-        if ws.application_state != WebSocketState.CONNECTED:
-            return
+        await send_text(dumps(doc, compact=True))
+
+    async def send_text(text: str) -> None:
+        # The page may go at any moment, between the check and the send too: a
+        # send that fails because it went is the end of the session, not an error
+        # (Starlette answers a second send after a failed one with RuntimeError).
         async with send_lock:
-            await ws.send_text(dumps(doc, compact=True))
+            if closed.is_set() or ws.application_state != WebSocketState.CONNECTED:
+                return
+            try:
+                await ws.send_text(text)
+            except (WebSocketDisconnect, RuntimeError, OSError):
+                closed.set()
+                session.wake.set()
 
     async def renderer_task() -> None:
         while not closed.is_set():
@@ -429,7 +467,7 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
             session.schedule_idle(loop)
 
     async def wire_task() -> None:
-        source = _wire_source(state.output)
+        source = _wire_source(output)
         if source is None:
             return
         while not closed.is_set():
@@ -451,13 +489,12 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
             except Exception as exc:  # the page's plot must never kill the pen
                 log.debug("wire trace failed: %s", exc)
                 return
-            if text is not None and ws.application_state == WebSocketState.CONNECTED:
-                async with send_lock:
-                    await ws.send_text(text)
+            if text is not None:
+                await send_text(text)
 
     tasks = [asyncio.create_task(renderer_task()), asyncio.create_task(wire_task())]
     try:
-        while True:
+        while not closed.is_set():
             message = await ws.receive()
             session.msg_ns = time.perf_counter_ns()
             if message["type"] == "websocket.disconnect":
@@ -493,6 +530,7 @@ async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
         # Stop the actuators first, synchronously: awaiting anything here may be
         # cut short by a cancellation when the connection is torn down.
         session.close()
+        output.close()
         state.sessions -= 1
         closed.set()
         session.wake.set()

@@ -5,7 +5,9 @@ Routes (mounted by :func:`tactilize.web.app.create_app`)
 ``GET  /api/export/formats``   the export formats (the one registry, :data:`tactilize.export.FORMATS`)
 ``POST /api/export/stroke``    JSON ``{"texture": ID, "format": NAME, "samples": [[t_s, x_mm, y_mm, pressure?], ...],
                                "profile": NAME?, "drive": "profile"|"wire"?}``; answers the file
-                               (``Content-Disposition: attachment``), or 422 with one line naming the fault.
+                               (``Content-Disposition: attachment``), or 422 with one line naming the fault;
+                               413 beyond :data:`.limits.MAX_EXPORT_BODY_BYTES`, 503 while
+                               :data:`.limits.EXPORTS_ADMITTED` others are inside.
 
 The stroke runs through the same path as ``tactilize export --stroke``
 (:func:`tactilize.export.run_stroke`): the server's tracker, the texture's
@@ -15,7 +17,7 @@ server's own output is not disturbed).
 
 from __future__ import annotations
 
-import asyncio
+import json
 from typing import Any
 
 from fastapi import APIRouter, Request
@@ -23,6 +25,7 @@ from fastapi.responses import Response
 
 from ..errors import RequestError
 from .http import ErrorAnsweringRoute
+from .limits import MAX_EXPORT_BODY_BYTES, read_body
 
 __all__ = ["stroke_export_router", "MAX_STROKE_SAMPLES"]
 
@@ -69,14 +72,20 @@ def stroke_export_router() -> APIRouter:
 
     @r.post("/stroke")
     async def export_stroke(request: Request) -> Response:
-        try:
-            body = await request.json()
-        except Exception:
-            raise RequestError("body", "send the stroke as a JSON object", 400) from None
-        if not isinstance(body, dict):
-            raise RequestError("body", "send the stroke as a JSON object", 400)
         state = request.app.state.tactilize
-        data, spec, name = await asyncio.get_running_loop().run_in_executor(None, _export, state, body)
+        # Bounded before parsing: at most EXPORTS_ADMITTED inside (else 503), a
+        # body of at most MAX_EXPORT_BODY_BYTES (else 413), one rendered at a time.
+        async with state.export_gate.admit():
+            raw = await read_body(request, MAX_EXPORT_BODY_BYTES, "stroke",
+                                  f"stroke too large (limit {MAX_EXPORT_BODY_BYTES // (1024 * 1024)} MB of JSON, "
+                                  f"{MAX_STROKE_SAMPLES} samples)")
+            try:
+                body = json.loads(raw)
+            except (ValueError, RecursionError):
+                raise RequestError("body", "send the stroke as a JSON object", 400) from None
+            if not isinstance(body, dict):
+                raise RequestError("body", "send the stroke as a JSON object", 400)
+            data, spec, name = await state.export_gate.run(_export, state, body)
         return Response(data, media_type=spec.media_type, headers={"Content-Disposition": f'attachment; filename="{name}"'})
 
     return r

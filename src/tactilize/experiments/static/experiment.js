@@ -154,7 +154,10 @@ $("not-me").addEventListener("click", () => {
 });
 
 $("resume").addEventListener("click", () => guarded(async () => {
-  render(await call("POST", "resume", { participant_id: $("participant-id").value.trim() }));
+  // By ID only with the experimenter's token (this page opened with ?token=...):
+  // an ID is guessable; the page itself resumes by its session token.
+  const token = new URLSearchParams(location.search).get("token") || undefined;
+  render(await call("POST", "resume", { participant_id: $("participant-id").value.trim(), token }));
 }));
 
 // ---------------------------------------------------------------- calibration

@@ -9,6 +9,7 @@ import { showSpectrum } from "./spectrum.js";
 import { AudioPulses } from "./audio.js";
 import * as calibration from "./calibrate.js";
 import * as strokeExport from "./stroke-export.js";
+import { onOutputMessage } from "./output-lease.js";
 
 const $ = (sel) => document.querySelector(sel);
 // A readout is written only when its text changes: every write is a style,
@@ -67,6 +68,7 @@ function connect() {
     }
     else if (msg.type === "ready" || msg.type === "state") onSettings(msg);
     else if (msg.type === "error") showError(msg.message);
+    else if (msg.type === "output") onOutputMessage(msg, send);
   };
   ws.onclose = () => {
     setStatus("closed", "disconnected, retrying…");

@@ -1,0 +1,97 @@
+"""Bounded work for strangers: how much of the machine one request may take.
+
+A picture upload or a stroke export costs hundreds of megabytes and seconds of
+a core; the server is on a laptop.  Each kind of heavy request passes a
+:class:`WorkGate`: at most ``admitted`` requests of that kind are inside the
+server at once (their bodies read, waiting or working) and one more is refused
+with 503 before its body is read; of those admitted, ``running`` work at once.
+Bodies are read with :func:`read_body`, which refuses one longer than its cap
+with 413 before it is all in memory.  docs/serve.md ("Bounds") lists the
+figures; docs/safety.md says which test pins each.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from contextlib import asynccontextmanager
+from typing import Any, AsyncIterator, Callable
+
+from ..errors import RequestError
+
+__all__ = ["WorkGate", "read_body", "UPLOADS_ADMITTED", "UPLOADS_RUNNING", "EXPORTS_ADMITTED", "EXPORTS_RUNNING",
+           "MAX_EXPORT_BODY_BYTES"]
+
+#: Uploads inside the server at once (one analysing, one waiting); one more gets 503.
+UPLOADS_ADMITTED = 2
+#: Uploads analysed at once: a 16 Mpx picture needs about 260 MB while it is analysed.
+UPLOADS_RUNNING = 1
+#: Stroke exports inside the server at once; one more gets 503.
+EXPORTS_ADMITTED = 2
+#: Stroke exports rendered at once (a minute of wire simulation takes seconds of a core).
+EXPORTS_RUNNING = 1
+#: Longest stroke-export body [bytes]: 60 000 samples as JSON rows fit in about 6 MB.
+MAX_EXPORT_BODY_BYTES = 8 * 1024 * 1024
+
+
+class WorkGate:
+    """At most ``admitted`` requests of one kind inside, ``running`` of them working.
+
+    Parameters
+    ----------
+    what : str
+        The kind, as the refusal names it ("upload", "stroke export").
+    admitted, running : int
+        See the module docstring; ``1 <= running <= admitted``.
+    """
+
+    def __init__(self, what: str, admitted: int, running: int) -> None:
+        if not 1 <= running <= admitted:
+            raise ValueError(f"need 1 <= running <= admitted, got running={running}, admitted={admitted}")
+        self.what, self.admitted, self.running = what, int(admitted), int(running)
+        self.inside = 0
+        self.refused = 0
+        self._work: asyncio.Semaphore | None = None  # made on the loop that uses it
+
+    @asynccontextmanager
+    async def admit(self) -> AsyncIterator["WorkGate"]:
+        """Enter, or raise :class:`~tactilize.errors.RequestError` (503) when full."""
+        if self.inside >= self.admitted:
+            self.refused += 1
+            raise RequestError(self.what, f"the server is busy with {self.inside} other {self.what}s "
+                               f"(limit {self.admitted}); try again in a moment", 503)
+        self.inside += 1
+        try:
+            yield self
+        finally:
+            self.inside -= 1
+
+    async def run(self, fn: Callable[..., Any], *args: Any) -> Any:
+        """``fn(*args)`` in a worker thread, once one of the ``running`` places is free."""
+        if self._work is None:
+            self._work = asyncio.Semaphore(self.running)
+        async with self._work:
+            return await asyncio.get_running_loop().run_in_executor(None, fn, *args)
+
+
+async def read_body(request: Any, limit_bytes: int, what: str, message: str | None = None) -> bytes:
+    """The request body, refused with 413 once longer than ``limit_bytes``
+    (by its Content-Length before reading, else as soon as it is exceeded).
+
+    Raises
+    ------
+    RequestError
+        413 too long, 400 a Content-Length that is not a number.
+    """
+    too_long = message or f"{what} too large (limit {limit_bytes // (1024 * 1024)} MB)"
+    try:
+        declared = int(request.headers.get("content-length", "0"))
+    except ValueError:
+        raise RequestError("Content-Length", "bad Content-Length header", 400) from None
+    if declared > limit_bytes:
+        raise RequestError(what, too_long, 413)
+    body = bytearray()
+    async for chunk in request.stream():
+        body += chunk
+        if len(body) > limit_bytes:
+            raise RequestError(what, too_long, 413)
+    return bytes(body)
