@@ -53,10 +53,10 @@ def _until(ws, kind):
 @pytest.mark.timeout(180)  # a server that never acknowledges would keep the page waiting
 def test_a_batch_arriving_after_the_answer_is_stored_under_its_trial(tmp_path):
     db = str(tmp_path / "late.sqlite3")
-    with TestClient(create_experiment_app("alpha-law", db)) as client:
+    with TestClient(create_experiment_app("alpha-law", db), base_url="http://127.0.0.1") as client:
         token, trial = _session(client)
         image = trial["images"][0]["id"]
-        with client.websocket_connect(f"/experiment/ws/{token}") as ws:
+        with client.websocket_connect(f"ws://127.0.0.1/experiment/ws/{token}") as ws:
             ws.send_json(_batch(0, image, "p-1"))
             kinds = [m["type"] for m in _until(ws, "ack")]
             assert "drive" in kinds
@@ -76,10 +76,10 @@ def test_a_batch_arriving_after_the_answer_is_stored_under_its_trial(tmp_path):
 @pytest.mark.timeout(180)  # a server that never acknowledges would keep the page waiting
 def test_a_resent_batch_is_stored_once(tmp_path):
     db = str(tmp_path / "resent.sqlite3")
-    with TestClient(create_experiment_app("alpha-law", db)) as client:
+    with TestClient(create_experiment_app("alpha-law", db), base_url="http://127.0.0.1") as client:
         token, trial = _session(client)
         image = trial["images"][0]["id"]
-        with client.websocket_connect(f"/experiment/ws/{token}") as ws:
+        with client.websocket_connect(f"ws://127.0.0.1/experiment/ws/{token}") as ws:
             first = _batch(0, image, "p-7")
             ws.send_json(first)
             assert _until(ws, "ack")[-1]["stored"] == "stored"
@@ -89,7 +89,7 @@ def test_a_resent_batch_is_stored_once(tmp_path):
             assert _until(ws, "ack")[-1]["stored"] == "duplicate"
             assert _until(ws, "ack")[-1]["stored"] == "duplicate"
         # Over a new connection too (a reconnect after a server restart).
-        with client.websocket_connect(f"/experiment/ws/{token}") as ws:
+        with client.websocket_connect(f"ws://127.0.0.1/experiment/ws/{token}") as ws:
             ws.send_json(first)
             assert _until(ws, "ack")[-1]["stored"] == "duplicate"
     assert _rows(db, "select count(*) from stroke_samples") == [(5,)]
@@ -98,9 +98,9 @@ def test_a_resent_batch_is_stored_once(tmp_path):
 
 def test_the_unique_key_not_only_a_check_keeps_a_batch_single(tmp_path):
     db = str(tmp_path / "unique.sqlite3")
-    with TestClient(create_experiment_app("alpha-law", db)) as client:
+    with TestClient(create_experiment_app("alpha-law", db), base_url="http://127.0.0.1") as client:
         token, trial = _session(client)
-        with client.websocket_connect(f"/experiment/ws/{token}") as ws:
+        with client.websocket_connect(f"ws://127.0.0.1/experiment/ws/{token}") as ws:
             ws.send_json(_batch(0, trial["images"][0]["id"], "p-1"))
             _until(ws, "ack")
     store = Store(db)
@@ -147,9 +147,9 @@ def test_the_ack_waits_for_the_commit_and_the_drive_does_not(tmp_path):
             assert release.wait(60)
 
     event.listen(store.engine, "commit", hold_commit)
-    with TestClient(app) as client:
+    with TestClient(app, base_url="http://127.0.0.1") as client:
         token, trial = _session(client)
-        with client.websocket_connect(f"/experiment/ws/{token}") as ws:
+        with client.websocket_connect(f"ws://127.0.0.1/experiment/ws/{token}") as ws:
             ws.send_json(_batch(0, trial["images"][0]["id"], "p-1"))
             drive = ws.receive_json()
             assert drive["type"] == "drive" and drive["batch"] == "p-1"  # the drive came back before the commit
@@ -167,7 +167,7 @@ def test_samples_still_being_written_count_for_the_every_image_rule(tmp_path):
     db = str(tmp_path / "barrier.sqlite3")
     app = create_experiment_app("assessment", db)
     flow = app.state.experiment_flow
-    with TestClient(app) as client:
+    with TestClient(app, base_url="http://127.0.0.1") as client:
         token, trial = _session(client)
         handler = flow.stroke_handler(token)
         entered, release = threading.Event(), threading.Event()

@@ -153,8 +153,8 @@ def test_page_session_sends_events_and_their_drive():
 
     out = SimulatedOutput(start=False)
     mm_per_px = 25.4 / 96
-    with TestClient(create_app(out, "surface", output_name="simulated", warm=False, close_output=True)) as client:
-        with client.websocket_connect("/ws") as ws:
+    with TestClient(create_app(out, "surface", output_name="simulated", warm=False, close_output=True), base_url="http://127.0.0.1") as client:
+        with client.websocket_connect("ws://127.0.0.1/ws") as ws:
             ws.send_text(json.dumps({"type": "hello", "texture": "sandpaper"}))
             ready = next(m for m in iter(ws.receive_json, None) if m["type"] == "ready")
             assert ready["profile"] == "surface" and ready["rendering"] == "surface"
