@@ -24,7 +24,7 @@ from tactilize.actuators.sma import build_envelope
 
 ROOT = Path(__file__).resolve().parents[1]
 HERE = Path(__file__).resolve().parent / "micropython"
-FIRMWARE = ("controller.py", "tactile_frames.py", "tactile_wire.py")
+FIRMWARE = ("controller.py", "tactile_channel.py", "tactile_frames.py", "tactile_heat.py", "tactile_wire.py")
 WASM_PACKAGE = "@micropython/micropython-webassembly-pyscript"
 
 

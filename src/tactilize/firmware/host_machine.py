@@ -411,3 +411,18 @@ class WDT:
                     _record("reset", pin_id, mode="gpio", value=0)
                 resets.append(time.perf_counter())
                 return
+
+
+#: what disable_irq holds on the host: the timers' threads and the main loop
+#: share the firmware's heat estimate, as IRQs and the main loop do on a board
+_irq = threading.RLock()
+WDT_RESET = 3
+
+
+def disable_irq() -> bool:
+    _irq.acquire()
+    return True
+
+
+def enable_irq(state: bool = True) -> None:
+    _irq.release()

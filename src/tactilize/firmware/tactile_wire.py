@@ -140,26 +140,29 @@ class WireLimits:
         k = current_a * self.spread / ((1.0 - CAL_TOLERANCE) * self.i_min)
         return self.p_max * k * k if k < 1 else self.p_max
 
-    def rise_k(self, f_hz, width_s, bias, p_w):
+    def rise_k(self, f_hz, width_s, bias, p_w, j=0.0):
+        """The bound on the rise [K]; a train jittered by j periods may bring
+        its pulses j periods closer than even ones, which adds at most j E / C
+        (docs/references.md, section 2 (jittered trains))."""
         e = width_s * p_w
-        return (f_hz * e + bias * p_w) / self.h + e / self.c
+        return (f_hz * e + bias * p_w) / self.h + (1.0 + j) * e / self.c
 
-    def allowed(self, f_hz, width_s, bias, p_w):
-        return self.rise_k(f_hz, width_s, bias, p_w) <= self.budget * (1 + 1e-9)
+    def allowed(self, f_hz, width_s, bias, p_w, j=0.0):
+        return self.rise_k(f_hz, width_s, bias, p_w, j) <= self.budget * (1 + 1e-9)
 
     def heat_allowed(self, f_hz, pulse_j, bias_w):
         """The same bound for heat given directly: per pulse [J] and bias [W]."""
         return (f_hz * pulse_j + bias_w) / self.h + pulse_j / self.c <= self.budget * (1 + 1e-9)
 
-    def max_width_s(self, f_hz, bias, p_w):
+    def max_width_s(self, f_hz, bias, p_w, j=0.0):
         room = self.budget - bias * p_w / self.h
         if room <= 0 or f_hz <= 0:
             return 0.0
-        return room / (f_hz / self.h + 1.0 / self.c) / p_w
+        return room / (f_hz / self.h + (1.0 + j) / self.c) / p_w
 
-    def max_bias(self, f_hz, width_s, p_w):
+    def max_bias(self, f_hz, width_s, p_w, j=0.0):
         e = width_s * p_w
-        room = self.budget - e / self.c
+        room = self.budget - (1.0 + j) * e / self.c
         if room <= 0:
             return 0.0
         b = (room * self.h - f_hz * e) / p_w

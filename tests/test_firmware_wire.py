@@ -1,0 +1,194 @@
+"""The wire on the board, judged by the wire model: re-sent and changed SETs,
+the running heat estimate, the whole-hertz PWM, jittered trains, a faulty sense
+path.  The firmware runs on a virtual-time board (tests/_virtual_board.py), so
+every frame lands at an exact simulated instant and nothing waits on the clock.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from pathlib import Path
+
+import pytest
+from hypothesis import settings, target
+from hypothesis import strategies as st
+from hypothesis.stateful import RuleBasedStateMachine, initialize, rule
+
+from tactilize.actuators import protocol as P
+from tactilize.actuators.sma import Circuit, WireSpec, build_envelope, circuit_names
+from tactilize.firmware import tactile_wire as W
+from tactilize.firmware.board import board_config_text
+from tactilize.firmware.emulator import load_firmware
+
+from _virtual_board import install, peak_on_wire
+
+fw = load_firmware()
+SPEC = WireSpec.resolve(None)
+MAX_C = SPEC.max_temperature_c
+PIN0, PIN1 = fw.CHANNEL_PINS
+BIAS0, BIAS1 = fw.BIAS_PINS
+
+
+class Board:
+    """The firmware on a virtual board, with its store in ``tmp``."""
+
+    def __init__(self, monkeypatch, tmp, circuit="aa-resistor"):
+        self.vm = install(fw, monkeypatch)
+        (tmp / W.CONFIG_FILE).write_text(board_config_text(None, circuit))
+        self.sent: list[bytes] = []
+        self.ctl = fw.Controller(self.sent.append, store=str(tmp) + "/")
+        self.circuit = circuit
+        self.seq = 0
+
+    def send(self, command, payload=b""):
+        self.seq += 1
+        self.ctl.feed(P.encode_frame(self.seq, command, payload))
+
+    def set(self, channel, f_hz, w_s, amp=1.0, regularity=None):
+        self.send(P.Command.SET, P.encode_set_channel(channel, f_hz, w_s, amp, regularity))
+
+    def until(self, t_s):
+        self.vm.run_until(int(round(t_s * 1e6)), self.ctl.tick, fw.POLL_MS * 1000)
+
+    def replies(self):
+        frames = P.FrameDecoder().feed(b"".join(self.sent))
+        self.sent.clear()
+        return frames
+
+    def peak_c(self, channel=0):
+        self.vm.finish()
+        pins = ((PIN0, BIAS0), (PIN1, BIAS1))[channel]
+        durs, levels = self.vm.channel_levels(*pins, self.vm.now_us)
+        return peak_on_wire(durs, levels, self.circuit)
+
+    def pulse_count(self, channel=0):
+        self.vm.finish()
+        pin = fw.CHANNEL_PINS[channel]
+        soft = sum(1 for _, level in self.vm.edges.get(pin, []) if level)
+        return soft + sum(1 for _, w in self.vm.pulses.get(pin, []) if w > 0)
+
+
+# ------------------------------------------------------------------ re-sent SET frames
+
+
+def _resent(board, f_hz, w_s, every_s, seconds, regularity=None, channel=0):
+    t = 0.0
+    while t < seconds:
+        board.set(channel, f_hz, w_s, 1.0, regularity)
+        t += every_s
+        board.until(t)
+
+
+@pytest.mark.parametrize("every_s, regularity", [(0.05, 0.2), (0.02, 0.2), (0.05, None)])
+def test_a_resent_set_does_not_multiply_the_pulse_rate(monkeypatch, tmp_path, every_s, regularity):
+    """The issue's case: 2 Hz / 5 ms (irregular: checked bound 52.7 C) re-sent every
+    50 ms fired a pulse per frame, 20 pulses/s and 147 C on the wire model."""
+    board = Board(monkeypatch, tmp_path)
+    _resent(board, 2.0, 5e-3, every_s, 3.0, regularity)
+    assert all(f.command == P.Command.ACK for f in board.replies())
+    n = board.pulse_count()
+    assert 5 <= n <= 7, n  # 2 pulses/s for 3 s
+    assert board.peak_c() <= MAX_C
+
+
+@pytest.mark.parametrize("f_hz", [1.0, 5.0, 12.0, 19.0])
+def test_a_slow_train_fires_under_the_renderers_resends(monkeypatch, tmp_path, f_hz):
+    """Trains below 20 Hz were restarted by every SET: at the renderer's 0.1 s
+    refresh they never fired (a silent texture)."""
+    board = Board(monkeypatch, tmp_path)
+    _resent(board, f_hz, 1e-3, 0.1, 3.0)
+    n = board.pulse_count()
+    assert abs(n - 3.0 * f_hz) <= 1.5, n
+
+
+# ------------------------------------------------------------------ any frames, any timing
+
+
+class FrameSequences(RuleBasedStateMachine):
+    """Frames at chosen instants and cadences (resends, silences, changes between
+    even and irregular, slow and fast trains, holds, pairs, stops) on a board
+    whose sense path reads what the circuit gives the wire (or nothing); after
+    it all, the wire model run on what the pins did stays under the maximum."""
+
+    def __init__(self):
+        super().__init__()
+        self.mp = pytest.MonkeyPatch()
+        self.tmp = Path(tempfile.mkdtemp())
+        self.board = None
+        self.t = 0.0
+        self.last: dict[int, bytes] = {}
+
+    @initialize(circuit=st.sampled_from(circuit_names()), phase=st.one_of(st.none(), st.floats(0.0, 1.0)),
+                sag=st.floats(0.5, 1.0))
+    def start(self, circuit, phase, sag):
+        nominal = Circuit.resolve(circuit, SPEC)
+        self.circ = nominal.replace(supply_v=nominal.supply_v * sag)
+        self.board = Board(self.mp, self.tmp, circuit)
+        r_m, r_a = SPEC.resistance_martensite_ohm, SPEC.resistance_austenite_ohm
+        amps = 0.0 if phase is None else self.circ.current_at(r_m + phase * (r_a - r_m))
+        vm = self.board.vm
+        vm.adc[fw.SENSE_ADC_PINS[0]] = vm.adc[fw.SENSE_ADC_PINS[1]] = min(65535, amps / W.DEFAULT_AMPS_PER_COUNT)
+        vm.adc[fw.RAIL_ADC_PIN] = amps * (0.6 + W.DEFAULT_PATH_OHM[0]) / W.RAIL_VOLTS_PER_COUNT
+
+    def _go(self, dt):
+        self.t += dt
+        self.board.until(self.t)
+
+    @rule(channel=st.integers(0, 1), f=st.floats(1.0, 300.0), w=st.floats(10e-6, 5e-3),
+          amp=st.sampled_from([0.3, 1.0]), regularity=st.one_of(st.none(), st.floats(0.0, 0.99)))
+    def set(self, channel, f, w, amp, regularity):
+        payload = P.encode_set_channel(channel, f, w, amp, regularity)
+        self.last[channel] = payload
+        self.board.send(P.Command.SET, payload)
+
+    @rule(channel=st.integers(0, 1), every=st.sampled_from([0.005, 0.02, 0.05, 0.1, 0.2]),
+          seconds=st.floats(0.05, 1.5))
+    def resend(self, channel, every, seconds):
+        payload = self.last.get(channel)
+        end = self.t + seconds
+        while self.t < end:
+            if payload is not None:
+                self.board.send(P.Command.SET, payload)
+            else:
+                self.board.send(P.Command.HEARTBEAT)
+            self._go(every)
+
+    @rule(seconds=st.floats(0.0, 1.0), heartbeats=st.booleans())
+    def wait(self, seconds, heartbeats):
+        end = self.t + seconds
+        while self.t < end:
+            if heartbeats:
+                self.board.send(P.Command.HEARTBEAT)
+            self._go(min(0.05, end - self.t + 1e-6))
+
+    @rule(channel=st.integers(0, 1), e=st.floats(0.0, 2e-3), b=st.floats(0.0, 0.5), r=st.floats(0.0, 1.0))
+    def hold(self, channel, e, b, r):
+        self.board.send(P.Command.HOLD, P.encode_hold(channel, e, b, r))
+
+    @rule(f=st.floats(1.0, 300.0), w=st.floats(10e-6, 5e-3), soa=st.floats(0.0, 0.2))
+    def pair(self, f, w, soa):
+        self.board.send(P.Command.PAIR, P.encode_pair(soa, (f, w, 1.0), (f, w, 1.0)))
+
+    @rule()
+    def stop(self):
+        self.board.send(P.Command.STOP)
+
+    def teardown(self):
+        try:
+            if self.board is not None:
+                self._go(0.3)  # the last pulses land and the watchdog ends it
+                for channel in (0, 1):
+                    self.board.vm.finish()
+                    pins = ((PIN0, BIAS0), (PIN1, BIAS1))[channel]
+                    durs, levels = self.board.vm.channel_levels(*pins, self.board.vm.now_us)
+                    peak = peak_on_wire(durs, levels, self.circ)
+                    target(peak, label=f"peak of wire {channel} [C]")  # search toward the hottest runs
+                    assert peak <= MAX_C, (channel, peak)
+        finally:
+            self.mp.undo()
+            shutil.rmtree(self.tmp, ignore_errors=True)
+
+
+FrameSequences.TestCase.settings = settings(max_examples=60, stateful_step_count=12, deadline=None)
+test_no_frames_at_any_timing_overheat_the_wire = FrameSequences.TestCase
