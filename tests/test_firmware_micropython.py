@@ -128,7 +128,7 @@ def test_micropython_answers_the_protocol():
     assert P.decode_nak(got[2].payload)[0] == P.NakReason.BAD_CHECKSUM
     assert P.decode_nak(got[3].payload)[0] == P.NakReason.UNKNOWN_COMMAND
     status = P.decode_status(got[4].payload)
-    assert status.version == 2 and status.channels[0] == P.ChannelStatus(True, 120.0, 300e-6, 1.0)
+    assert status.version == P.PROTOCOL_VERSION == 3 and status.channels[0] == P.ChannelStatus(True, 120.0, 300e-6, 1.0)
     assert P.decode_sense(got[5].payload).channels[0].count == 0
     assert got[6].command == P.Command.ACK
     # the PWM calls a real RP2040 would see: 120 Hz, 300 us, then off

@@ -259,3 +259,80 @@ def test_a_pwm_train_is_checked_at_the_whole_hertz_it_runs(monkeypatch, tmp_path
     assert P.decode_nak(got[0].payload) == (P.NakReason.REFUSED_LIMIT, P.Refused.ENERGY)
     assert got[1].command == P.Command.ACK
     assert board.ctl.channels[0].frequency_mhz == 21000
+
+
+# ------------------------------------------------------------------ a faulty sense path
+
+
+def _sensed(board, gain, r_wire=0.6, channel=0):
+    """The sense path reads ``gain`` times the current the circuit gives a wire of
+    ``r_wire`` [ohm]; the rail reads true."""
+    from tactilize.actuators.sma import Circuit
+    i = Circuit.resolve(board.circuit, SPEC).current_at(r_wire)
+    board.vm.adc[fw.SENSE_ADC_PINS[channel]] = gain * i / W.DEFAULT_AMPS_PER_COUNT
+    board.vm.adc[fw.RAIL_ADC_PIN] = i * (r_wire + W.DEFAULT_PATH_OHM[channel]) / W.RAIL_VOLTS_PER_COUNT
+
+
+def _measure_then(board, f_hz, w_s, seconds=0.5):
+    t = 0.0
+    board.set(0, 40.0, 0.3e-3)  # a small train: the board measures during it
+    while t < seconds:
+        board.send(P.Command.HEARTBEAT)
+        t += 0.05
+        board.until(t)
+    board.replies()
+    board.set(0, f_hz, w_s)
+    board.send(P.Command.SENSE)
+    while t < seconds + 1.0:
+        board.send(P.Command.HEARTBEAT)
+        t += 0.05
+        board.until(t)
+    return board.replies()
+
+
+def test_a_sense_amplifier_reading_40_percent_is_a_fault(monkeypatch, tmp_path):
+    """A gain-20 part where the gain-50 one belongs reads 40 %: 'a 10 ohm wire', a
+    looser limit, and SET 40 Hz / 5 ms was acknowledged (264 C on the wire model).
+    Now the reading is a fault: the worst-case bound refuses it, and the ACK and
+    SENSE reply say so."""
+    board = Board(monkeypatch, tmp_path)
+    _sensed(board, 0.4)
+    got = _measure_then(board, 40.0, 5e-3)
+    assert P.decode_nak(got[0].payload) == (P.NakReason.REFUSED_LIMIT, P.Refused.ENERGY)
+    report = P.decode_sense(got[1].payload)
+    assert report.faults == (True, False)
+    assert report.channels[0].resistance_ohm > 5  # what it would have believed
+    assert got[-1].command == P.Command.ACK and got[-1].payload[1] & P.FLAG_SENSE_FAULT
+    assert board.peak_c() <= MAX_C
+
+
+def test_a_true_sense_path_is_no_fault_and_loosens_nothing_wrongly(monkeypatch, tmp_path):
+    board = Board(monkeypatch, tmp_path)
+    _sensed(board, 1.0)
+    got = _measure_then(board, 40.0, 5e-3)
+    assert P.decode_nak(got[0].payload) == (P.NakReason.REFUSED_LIMIT, P.Refused.ENERGY)  # too hot anyway
+    report = P.decode_sense(got[1].payload)
+    assert report.faults == (False, False) and report.channels[0].count > 0
+    assert report.channels[0].resistance_ohm == pytest.approx(0.6, abs=0.01)
+    assert not got[-1].payload[1] & P.FLAG_SENSE_FAULT
+
+
+@pytest.mark.parametrize("rail_gain", [0.5, 1.6])
+def test_a_current_the_rail_cannot_drive_is_a_fault(monkeypatch, tmp_path, rail_gain):
+    board = Board(monkeypatch, tmp_path)
+    _sensed(board, 1.0)
+    board.vm.adc[fw.RAIL_ADC_PIN] = board.vm.adc[fw.RAIL_ADC_PIN] * rail_gain
+    got = _measure_then(board, 40.0, 0.3e-3)
+    assert P.decode_sense(got[1].payload).faults == (True, False)
+
+
+def test_a_calibration_out_of_range_is_a_fault(monkeypatch, tmp_path):
+    cal = [(W.DEFAULT_AMPS_PER_COUNT * 2.5, 5.25), (W.DEFAULT_AMPS_PER_COUNT, 5.25)]
+    (tmp_path / W.CAL_FILE).write_text(W.calibration_text(cal))
+    board = Board(monkeypatch, tmp_path)
+    board.send(P.Command.STATUS)
+    board.send(P.Command.HEARTBEAT)
+    got = board.replies()
+    status = P.decode_status(got[0].payload)
+    assert status.version == 3 and status.sense_fault
+    assert got[1].payload[1] & P.FLAG_SENSE_FAULT

@@ -18,6 +18,8 @@ all declared here with what an output that lacks them answers
 ``traces(seconds)``        recent traces for the page, or None (no simulation)
 ``connected``              the device answers (True)
 ``events``                 what happened to the connection, as (time, kind, detail)
+``fault``                  why the output cannot be trusted now (a faulty sense
+                           path, a stopped simulation), one line, or None
 =========================  ===================================================
 """
 
@@ -85,6 +87,8 @@ class OutputBase:
     connected: bool = True
     #: (time [s], kind, detail) of what happened to the connection
     events: Sequence[tuple[float, str, str]] = ()
+    #: one line saying why the output cannot be trusted now, or None
+    fault: str | None = None
 
     def standby(self) -> None:
         """Texture off, actuators held ready for the next touch (the pen lifted or

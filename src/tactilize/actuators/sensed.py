@@ -71,6 +71,8 @@ class SensedLoop:
             last, self._seen_s[i] = self._seen_s[i], now_s
             if s.count == self._counts[i] or s.resistance_ohm <= 0 or s.current_a <= 0:
                 continue
+            if report.faults is not None and report.faults[i]:
+                continue  # the board flags this reading: it describes no wire
             self._counts[i] = s.count
             dt = now_s - last if last is not None else 0.0
             ctrl.observe(s.resistance_ohm, s.current_a, max(dt, 1e-4), now_s)

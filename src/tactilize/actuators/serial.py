@@ -18,6 +18,12 @@ answers, and then keeps it alive:
   polls the path until it can be reopened, and re-applies the current drives.
   It does the same when a heartbeat ACK says the watchdog fired anyway (a host
   stalled for more than 200 ms).
+- a board of protocol version 3 flags a faulty sense path in its ACKs and SENSE
+  replies (it then limits that wire with the circuit's worst case): the host
+  keeps which channels (:attr:`~SerialOutput.sense_faults`), says so in
+  :attr:`~SerialOutput.fault` and a ``sense-fault`` event, and does not feed the
+  faulty readings to its own loop.  A version 2 board cannot say:
+  ``sense_faults`` is then None.
 
 Threads: a reader (decodes replies, matches them to requests by sequence
 number) and a keeper (heartbeats, reconnection).  Callers' threads only write
@@ -94,7 +100,8 @@ class SerialOutput(OutputBase):
         A connected controller silent for this long is treated as lost [s].
     on_event : callable, optional
         ``on_event(kind, detail)`` for ``connected``, ``lost``, ``reconnected``,
-        ``watchdog``, ``reapply-failed`` and ``hold-refused`` events (called from a worker thread).
+        ``watchdog``, ``reapply-failed``, ``hold-refused``, ``sense-fault`` and ``sense-ok``
+        events (called from a worker thread).
     closed_loop : bool
         Ask the board for its self-sensing measurements with every heartbeat,
         close the :class:`WireController` loop on them and send the heat it
@@ -154,6 +161,9 @@ class SerialOutput(OutputBase):
         self.reconnects = 0
         #: the controller's last STATUS reply (limits, firmware version)
         self.controller_status: P.ControllerStatus | None = None
+        #: per channel, whether the board flags its sense path faulty; None while
+        #: unknown (a version 2 board cannot say)
+        self.sense_faults: tuple[bool, ...] | None = None
 
         self._seq = itertools.count(1)
         self._write_lock = threading.RLock()
@@ -188,6 +198,20 @@ class SerialOutput(OutputBase):
     def connected(self) -> bool:
         """True while the controller answers on the port."""
         return self._connected.is_set()
+
+    @property
+    def fault(self) -> str | None:
+        """One line when the board flags a sense path faulty, else None."""
+        faults = self.sense_faults
+        if not faults or not any(faults):
+            return None
+        which = ", ".join(str(i) for i, bad in enumerate(faults) if bad)
+        return f"sense fault on channel {which}: the controller limits it with the circuit's worst case"
+
+    def _sense_faults(self, faults: tuple[bool, ...]) -> None:
+        old, self.sense_faults = self.sense_faults, tuple(faults)
+        if any(faults) != any(old or ()):
+            self._event("sense-fault" if any(faults) else "sense-ok", self.fault or "sense paths read true again")
 
     def wait_connected(self, timeout_s: float) -> bool:
         """Block until connected (or the timeout [s] passes); True when connected."""
@@ -407,6 +431,8 @@ class SerialOutput(OutputBase):
                     self.port, "no tactile controller answers (is the controller firmware running on it?)"
                 ) from last
         self.controller_status = status
+        if status.version >= 3:
+            self._sense_faults((status.sense_fault,) * self.channels)
         # Frequency and width limits are exact in wire units (a clamped value
         # encodes to the limit itself); the duty is a product of two rounded
         # integers, so it stays 10 ppm inside to survive the rounding.
@@ -487,11 +513,20 @@ class SerialOutput(OutputBase):
             # (the host stalled); put the drives back.
             if any(not d.is_off for d in self._desired):
                 self._reapply.set()
-        if frame.command == P.Command.SENSE_REPLY and self.loop is not None:
+        version = self.controller_status.version if self.controller_status is not None else 0
+        if frame.command == P.Command.ACK and len(frame.payload) >= 2 and version >= 3:
+            flagged = bool(frame.payload[1] & P.FLAG_SENSE_FAULT)
+            if flagged != any(self.sense_faults or ()):
+                self._sense_faults((flagged,) * self.channels)  # which channel: the SENSE reply says
+        if frame.command == P.Command.SENSE_REPLY:
             try:
-                self.loop.observe(P.decode_sense(frame.payload), time.monotonic())
+                report = P.decode_sense(frame.payload)
             except Exception:  # struct.error: a reply of another firmware version
-                pass
+                report = None
+            if report is not None and report.faults is not None:
+                self._sense_faults(report.faults)
+            if report is not None and self.loop is not None:
+                self.loop.observe(report, time.monotonic())
         with self._pending_lock:
             waiter = self._pending.get(frame.seq)
         if waiter is not None:

@@ -40,7 +40,9 @@ START, MAX_PAYLOAD, FRAME_TIMEOUT_MS = F.START, F.MAX_PAYLOAD, F.FRAME_TIMEOUT_M
 crc16, encode_frame, Decoder = F.crc16, F.encode_frame, F.Decoder
 _ticks_ms, _ticks_diff, _ticks_us, _sleep_us = F._ticks_ms, F._ticks_diff, F._ticks_us, F._sleep_us
 
-VERSION = 2
+# 3: the sense-fault flag (ACK and STATUS flags bit 1, a per-channel byte after
+# SENSE_REPLY's fields); a host reads the version from STATUS (docs/firmware.md).
+VERSION = 3
 
 # ---------------------------------------------------------------- hardware map
 # GPIO driving the gate of each channel's MOSFET (through ~100 ohm, with a
@@ -107,11 +109,14 @@ REFUSED_DUTY = 3
 REFUSED_CHANNEL = 4
 REFUSED_ENERGY = 5
 FLAG_WATCHDOG_TRIPPED = 0x01
+FLAG_SENSE_FAULT = 0x02
 SET_FORMAT = ">BIIH"
 STATUS_FORMAT = ">BBIII" + "BIIH" * 2 + "IIIIIH"
 HOLD_FORMAT = ">BIII"  # channel, pulse heat [nJ], bias heat [uW], target resistance [uohm]
 PAIR_FORMAT = ">I" + "IIH" * 2  # onset offset of channel 1 [us], then (mHz, ns, amplitude) per channel
-SENSE_FORMAT = ">H" + "IIHIH" * 2  # rail [mV]; per channel R [uohm], I [uA], bias q16, width [ns], count
+# rail [mV]; per channel R [uohm], I [uA], bias q16, width [ns], count; then the
+# channels whose sense path is faulty (bit i: channel i)
+SENSE_FORMAT = ">H" + "IIHIH" * 2 + "B"
 
 # The hardware watchdog once run() started it (fed also after each retune wait).
 _wdt = C.WDT
@@ -138,7 +143,7 @@ class Controller:
         hot = machine.reset_cause() == getattr(machine, "WDT_RESET", 3) if hasattr(machine, "reset_cause") else False
         self.channels = []
         for i, p in enumerate(pins):
-            sense = W.Sense(machine.ADC(SENSE_ADC_PINS[i % 2]), rail, cal[i][0], cal[i][1])
+            sense = W.Sense(machine.ADC(SENSE_ADC_PINS[i % 2]), rail, cal[i][0], cal[i][1], self.config)
             bias_pin = bias_pins[i] if bias_pins is not None and i < len(bias_pins) else None
             heat = H.HeatEstimate(self.config, _ticks_diff, hot)
             ch = Channel(i, p, bias_pin, sense, W.Hold(self.limits, self.config), heat)
@@ -217,9 +222,22 @@ class Controller:
     def _reply(self, seq, cmd, payload=b""):
         self.write(encode_frame(seq, cmd, payload))
 
-    def _ack(self, seq, cmd):
+    def flags(self):
         flags = FLAG_WATCHDOG_TRIPPED if self.watchdog_tripped else 0
-        self._reply(seq, CMD_ACK, bytes((cmd, flags)))
+        if self.sense_faults():
+            flags |= FLAG_SENSE_FAULT
+        return flags
+
+    def sense_faults(self):
+        """Bit i set: channel i's sense path is faulty (its limits use the worst case)."""
+        bits = 0
+        for ch in self.channels:
+            if ch.sense.fault:
+                bits |= 1 << ch.index
+        return bits
+
+    def _ack(self, seq, cmd):
+        self._reply(seq, CMD_ACK, bytes((cmd, self.flags())))
 
     def _nak(self, seq, reason, detail=REFUSED_NONE):
         self._reply(seq, CMD_NAK, bytes((reason, detail)))
@@ -400,7 +418,7 @@ class Controller:
     def status_payload(self):
         fields = [
             VERSION,
-            FLAG_WATCHDOG_TRIPPED if self.watchdog_tripped else 0,
+            self.flags(),
             _ticks_diff(_ticks_ms(), self.start_ms) & 0xFFFFFFFF,
             self.frames_ok,
             self.frames_bad,
@@ -425,7 +443,7 @@ class Controller:
                 fields += [int(s.resistance_ohm * 1e6), int(s.current_a * 1e6), ch.bias_q16, ch.width_ns, s.count]
             else:
                 fields += [0, 0, 0, 0, 0]
-        return struct.pack(SENSE_FORMAT, min(rail, 0xFFFF), *fields)
+        return struct.pack(SENSE_FORMAT, min(rail, 0xFFFF), *(fields + [self.sense_faults() & 0xFF]))
 
 
 def run(read, controller, wdt=None):

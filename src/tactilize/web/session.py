@@ -42,9 +42,11 @@ Server to page
     After each batch (or lift): per channel the applied drive (frequency [Hz],
     width [s] and [ms], duty ratio, amplitude, the limits that clamped), the
     speed [m/s] and [mm/s], direction [deg, y up], whether the pen is down and
-    over the picture.  ``seq`` echoes the newest batch it covers; ``resting``
-    is true for the drive the server sends by itself when the pen is down but
-    no samples came for :data:`IDLE_S` (a resting pen: speed 0).
+    over the picture; ``output_fault``: one line when the output cannot be
+    trusted now (a faulty sense path, a stopped simulation), else null.
+    ``seq`` echoes the newest batch it covers; ``resting`` is true for the
+    drive the server sends by itself when the pen is down but no samples came
+    for :data:`IDLE_S` (a resting pen: speed 0).
 ``{"type": "wire", "t_s": [...], "displacement_um": [[...], [...]], "state": [...]}``
     The simulated wires' displacement per channel since the previous message
     (simulated time [s], displacement [um]) and each wire's controller state now
@@ -342,6 +344,9 @@ class PenSession:
         d["type"] = "drive"
         d["seq"] = self.seq
         d["resting"] = False
+        # Why the output cannot be trusted now (a faulty sense path, a stopped
+        # simulation): the page shows it beside the wire's state.
+        d["output_fault"] = getattr(self.renderer.output, "fault", None)
         return d
 
     def schedule_idle(self, loop: asyncio.AbstractEventLoop) -> None:
