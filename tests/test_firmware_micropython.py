@@ -212,3 +212,28 @@ def test_micropython_and_the_host_emulator_answer_alike(tmp_path):
         P.Refused.FREQUENCY, P.Refused.FREQUENCY, P.Refused.PULSE_WIDTH, P.Refused.PULSE_WIDTH, P.Refused.DUTY,
         P.Refused.ENERGY, P.Refused.CHANNEL,
     ]
+
+
+def test_micropython_runs_the_heat_gate_and_ignores_a_resent_set():
+    """The timed train and its heat gate under MicroPython: a resent SET makes no
+    new timer; a due pulse fires (pin high, then low); on a wire the estimate says
+    is at its budget, the next due pulse is left out."""
+    irregular = P.encode_frame(1, P.Command.SET, P.encode_set_channel(0, 5.0, 1e-3, 1.0, 0.3))
+    tail = """
+ch = ctl.channels[0]
+timers = [e for e in machine.log if e[0] == "Timer"]
+before = len(machine.log)
+ch.timer.callback(ch.timer)
+fired = [e for e in machine.log[before:] if e[0] == "value"]
+ch.heat.add(time.ticks_us(), ch.heat.budget * ch.heat.c)
+before = len(machine.log)
+ch.timer.callback(ch.timer)
+gated = [e for e in machine.log[before:] if e[0] == "value"]
+dump(timers=len(timers), fired=fired, gated=gated, rise=ch.heat.rise_k, budget=ch.heat.budget)
+"""
+    r = run_frames([irregular, irregular, irregular], tail)
+    assert [f.command for f in replies(r)] == [P.Command.ACK] * 3
+    assert r["timers"] == 1
+    assert r["fired"] == [["value", 16, 1], ["value", 16, 0]]
+    assert r["gated"] == []
+    assert r["rise"] >= r["budget"] * 0.99

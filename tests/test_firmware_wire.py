@@ -7,6 +7,7 @@ every frame lands at an exact simulated instant and nothing waits on the clock.
 from __future__ import annotations
 
 import shutil
+import struct
 import tempfile
 from pathlib import Path
 
@@ -282,7 +283,7 @@ def _measure_then(board, f_hz, w_s, seconds=0.5):
         board.until(t)
     board.replies()
     board.set(0, f_hz, w_s)
-    board.send(P.Command.SENSE)
+    board.send(P.Command.SENSE, P.SENSE_V3)
     while t < seconds + 1.0:
         board.send(P.Command.HEARTBEAT)
         t += 0.05
@@ -324,6 +325,15 @@ def test_a_current_the_rail_cannot_drive_is_a_fault(monkeypatch, tmp_path, rail_
     board.vm.adc[fw.RAIL_ADC_PIN] = board.vm.adc[fw.RAIL_ADC_PIN] * rail_gain
     got = _measure_then(board, 40.0, 0.3e-3)
     assert P.decode_sense(got[1].payload).faults == (True, False)
+
+
+def test_an_older_hosts_sense_gets_the_reply_it_knows(monkeypatch, tmp_path):
+    board = Board(monkeypatch, tmp_path)
+    board.send(P.Command.SENSE)
+    board.send(P.Command.SENSE, P.SENSE_V3)
+    old, new = board.replies()
+    assert len(old.payload) == struct.calcsize(P.SENSE_FORMAT_V2) and P.decode_sense(old.payload).faults is None
+    assert P.decode_sense(new.payload).faults == (False, False)
 
 
 def test_a_calibration_out_of_range_is_a_fault(monkeypatch, tmp_path):

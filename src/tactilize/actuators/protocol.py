@@ -32,7 +32,9 @@ STATUS    0x04  no payload: the controller answers with a STATUS_REPLY.
 HOLD      0x05  channel u8, pulse heat u32 [nJ], bias heat u32 [uW], target
                 resistance u32 [uohm]: the heat the board keeps between host
                 messages (pulse width and bias from its measured I^2 R).
-SENSE     0x06  no payload: the controller answers with a SENSE_REPLY.
+SENSE     0x06  no payload, or (version 3) the host's version u8: the controller
+                answers with a SENSE_REPLY (with the faulty channels when asked
+                with version 3).
 PAIR      0x07  onset offset u32 [us], then frequency, width, amplitude of
                 channels 0 and 1: channel 1 starts that long after channel 0.
 ========  ====  ==========================================================
@@ -52,10 +54,12 @@ Every command is idempotent, so the host may resend a frame whose ACK got lost:
 a SET (or PAIR) equal to the one running changes nothing on the board.
 
 Versions (STATUS_REPLY's first byte): 2, and 3, which adds the sense-fault flag
-(bit 1 of the ACK and STATUS flags) and one byte after SENSE_REPLY's fields,
-bit ``i`` set when channel ``i``'s sense path is faulty.  The host learns the
-version from the STATUS reply of its handshake; :func:`decode_sense` reads both
-lengths, and a version 2 board reports no faults (``faults`` is None).
+(bit 1 of the ACK and STATUS flags) and, when a SENSE carries the host's version
+(:data:`SENSE_V3`), one byte after SENSE_REPLY's fields, bit ``i`` set when
+channel ``i``'s sense path is faulty; an empty SENSE gets the version 2 reply, so
+older hosts keep working with newer boards.  The host learns the board's version
+from the STATUS reply of its handshake and asks with its version only then;
+:func:`decode_sense` reads both lengths (``faults`` is None for version 2).
 Wire units are integers (millihertz, nanoseconds) because the firmware works in
 integers; :func:`encode_set_channel` converts from SI.
 
@@ -103,10 +107,13 @@ __all__ = [
     "FLAG_WATCHDOG_TRIPPED",
     "FLAG_SENSE_FAULT",
     "PROTOCOL_VERSION",
+    "SENSE_V3",
 ]
 
 #: the protocol version this host speaks (it also understands version 2 boards)
 PROTOCOL_VERSION = 3
+#: SENSE payload of a version 3 host: the reply then carries the faulty channels
+SENSE_V3 = bytes((3,))
 
 START = 0xA5
 #: largest payload a frame may carry [bytes]; keeps a corrupted length byte from

@@ -546,12 +546,14 @@ class SerialOutput(OutputBase):
             self._lost(ser, f"controller silent for more than {self.unresponsive_s:g} s")
             return
         seq = next(self._seq) & 0xFF
+        version = self.controller_status.version if self.controller_status is not None else 0
         try:
             # Not waited for: any reply refreshes _last_rx_s, and a stalled
             # controller is caught by the silence check above.
             self._write(P.encode_frame(seq, P.Command.HEARTBEAT))
-            if self.loop is not None:
-                self._write(P.encode_frame(next(self._seq) & 0xFF, P.Command.SENSE))
+            if self.loop is not None or version >= 3:
+                ask = P.SENSE_V3 if version >= 3 else b""  # a version 2 board knows only the empty SENSE
+                self._write(P.encode_frame(next(self._seq) & 0xFF, P.Command.SENSE, ask))
         except _PortLost:
             return
         if self.loop is not None:

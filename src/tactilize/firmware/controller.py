@@ -40,8 +40,9 @@ START, MAX_PAYLOAD, FRAME_TIMEOUT_MS = F.START, F.MAX_PAYLOAD, F.FRAME_TIMEOUT_M
 crc16, encode_frame, Decoder = F.crc16, F.encode_frame, F.Decoder
 _ticks_ms, _ticks_diff, _ticks_us, _sleep_us = F._ticks_ms, F._ticks_diff, F._ticks_us, F._sleep_us
 
-# 3: the sense-fault flag (ACK and STATUS flags bit 1, a per-channel byte after
-# SENSE_REPLY's fields); a host reads the version from STATUS (docs/firmware.md).
+# 3: the sense-fault flag (ACK and STATUS flags bit 1; a per-channel byte after
+# SENSE_REPLY's fields when the SENSE carries the host's version, 3); a host reads
+# the version from STATUS (docs/firmware.md).
 VERSION = 3
 
 # ---------------------------------------------------------------- hardware map
@@ -114,9 +115,9 @@ SET_FORMAT = ">BIIH"
 STATUS_FORMAT = ">BBIII" + "BIIH" * 2 + "IIIIIH"
 HOLD_FORMAT = ">BIII"  # channel, pulse heat [nJ], bias heat [uW], target resistance [uohm]
 PAIR_FORMAT = ">I" + "IIH" * 2  # onset offset of channel 1 [us], then (mHz, ns, amplitude) per channel
-# rail [mV]; per channel R [uohm], I [uA], bias q16, width [ns], count; then the
-# channels whose sense path is faulty (bit i: channel i)
-SENSE_FORMAT = ">H" + "IIHIH" * 2 + "B"
+# rail [mV]; per channel R [uohm], I [uA], bias q16, width [ns], count; then, for
+# a host that asked with version 3, the channels whose sense path is faulty (bit i)
+SENSE_FORMAT = ">H" + "IIHIH" * 2
 
 # The hardware watchdog once run() started it (fed also after each retune wait).
 _wdt = C.WDT
@@ -263,9 +264,11 @@ class Controller:
         if cmd == CMD_STATUS:
             return self._reply(seq, CMD_STATUS_REPLY, self.status_payload())
         if cmd == CMD_SENSE:
-            if payload:
+            # A host of version 3 asks with its version and gets the faults too;
+            # an older host's empty SENSE gets the reply it knows.
+            if len(payload) > 1:
                 return self._nak(seq, NAK_BAD_PAYLOAD)
-            return self._reply(seq, CMD_SENSE_REPLY, self.sense_payload())
+            return self._reply(seq, CMD_SENSE_REPLY, self.sense_payload(len(payload) == 1 and payload[0] >= 3))
         if cmd == CMD_HOLD:
             return self._hold_cmd(seq, payload)
         if cmd == CMD_PAIR:
@@ -432,7 +435,7 @@ class Controller:
         fields += [MIN_FREQUENCY_MHZ, MAX_FREQUENCY_MHZ, MIN_WIDTH_NS, MAX_WIDTH_NS, MAX_DUTY_PPM, WATCHDOG_MS]
         return struct.pack(STATUS_FORMAT, *fields)
 
-    def sense_payload(self):
+    def sense_payload(self, faults=True):
         rail = 0
         fields = []
         for i in range(2):
@@ -443,7 +446,9 @@ class Controller:
                 fields += [int(s.resistance_ohm * 1e6), int(s.current_a * 1e6), ch.bias_q16, ch.width_ns, s.count]
             else:
                 fields += [0, 0, 0, 0, 0]
-        return struct.pack(SENSE_FORMAT, min(rail, 0xFFFF), *(fields + [self.sense_faults() & 0xFF]))
+        if faults:
+            return struct.pack(SENSE_FORMAT + "B", min(rail, 0xFFFF), *(fields + [self.sense_faults() & 0xFF]))
+        return struct.pack(SENSE_FORMAT, min(rail, 0xFFFF), *fields)
 
 
 def run(read, controller, wdt=None):

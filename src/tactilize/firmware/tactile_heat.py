@@ -4,8 +4,7 @@
 # A per-frame check bounds a train in its periodic state, but not the way into
 # it: a big pulse right after a hot train lands on a hot wire.  So the board
 # keeps, per wire, the lumped heat balance of the host's wire model without its
-# latent heat (docs/references.md, section 2 (safety envelope) and section 8
-# (board heat estimate)):
+# latent heat (docs/references.md, section 8 (board heat estimate)):
 #
 #     C d(rise)/dt = P_cont - h A rise,      rise += E / C at each pulse,
 #
@@ -13,9 +12,9 @@
 # standby bias and any PWM train as a mean heat [W], and E the heat of each
 # timed pulse [J] at the bound on the heat while on.  Every pulse is admitted
 # only while rise + E / C stays within the budget the stored config allows.
-# The latent heat only lowers the peaks this estimate bounds: heating through
-# the transformation absorbs it, and what cooling gave back is absorbed again
-# before the wire passes A_f, below every budget's top.
+# The latent heat cannot raise a peak above it: once the wire passes A_f all the
+# heat its cooling gave back has been absorbed again, and below A_f it is under
+# every budget's top (the same reference).
 #
 # Units: SI floats (K, J, W, s) and the board's microsecond ticks.
 # MicroPython-compatible code only.
