@@ -18,12 +18,9 @@ answers, and then keeps it alive:
   polls the path until it can be reopened, and re-applies the current drives.
   It does the same when a heartbeat ACK says the watchdog fired anyway (a host
   stalled for more than 200 ms).
-- a board of protocol version 3 flags a faulty sense path in its ACKs and SENSE
-  replies (it then limits that wire with the circuit's worst case): the host
-  keeps which channels (:attr:`~SerialOutput.sense_faults`), says so in
-  :attr:`~SerialOutput.fault` and a ``sense-fault`` event, and does not feed the
-  faulty readings to its own loop.  A version 2 board cannot say:
-  ``sense_faults`` is then None.
+- a version 3 board flags a faulty sense path (its wire then limited with the
+  circuit's worst case): :attr:`~SerialOutput.sense_faults` (None from version 2),
+  :attr:`~SerialOutput.fault`, a ``sense-fault`` event; the loop skips the reading.
 
 Threads: a reader (decodes replies, matches them to requests by sequence
 number) and a keeper (heartbeats, reconnection).  Callers' threads only write
