@@ -36,8 +36,11 @@ BIAS0, BIAS1 = fw.BIAS_PINS
 class Board:
     """The firmware on a virtual board, with its store in ``tmp``."""
 
-    def __init__(self, monkeypatch, tmp, circuit="aa-resistor"):
+    def __init__(self, monkeypatch, tmp, circuit="aa-resistor", after_watchdog_reset=False):
         self.vm = install(fw, monkeypatch)
+        if after_watchdog_reset:
+            self.vm.WDT_RESET = 3
+            self.vm.reset_cause = lambda: 3
         (tmp / W.CONFIG_FILE).write_text(board_config_text(None, circuit))
         self.sent: list[bytes] = []
         self.ctl = fw.Controller(self.sent.append, store=str(tmp) + "/")
@@ -109,6 +112,26 @@ def test_a_slow_train_fires_under_the_renderers_resends(monkeypatch, tmp_path, f
         board.until(t)
     n = board.pulse_count()
     assert abs(n - 3.0 * f_hz) <= 1.5 + 3.0 * f_hz * wobble, n
+
+
+def test_after_a_watchdog_reset_the_board_treats_the_wire_as_hot(monkeypatch, tmp_path):
+    """A hung VM reset by the hardware watchdog may leave a hot wire: the estimate
+    starts at the budget, and the first pulses wait until it has cooled enough."""
+    cold = Board(monkeypatch, tmp_path)
+    assert cold.ctl.channels[0].heat.rise_k == 0.0
+    board = Board(monkeypatch, tmp_path, after_watchdog_reset=True)
+    heat = board.ctl.channels[0].heat
+    assert heat.rise_k == heat.budget
+    board.set(0, 10.0, 1e-3)
+    t = 0.0
+    while t < 0.5:
+        board.send(P.Command.HEARTBEAT)
+        t += 0.05
+        board.until(t)
+    rises = [t for t, level in board.vm.edges[PIN0] if level]
+    # 1 ms at the circuit's worst is 2.2 K: the budget must have fallen that much (21 ms)
+    assert rises and rises[0] >= 0.02e6
+    assert len(rises) >= 3
 
 
 # ------------------------------------------------------------------ any frames, any timing

@@ -3,7 +3,7 @@ firmware runs unchanged on the host.
 
 The emulator puts this module into ``sys.modules["machine"]`` before it imports
 ``controller.py``.  It implements just what the firmware uses (``Pin``, ``PWM``,
-``Timer``, ``WDT``, ``freq``) with the RP2040's semantics, and it records every
+``Timer``, ``WDT``, ``freq``, ``reset_cause``, ``disable_irq``) with the RP2040's semantics, and it records every
 change a real board would show on its pins, so tests and the emulator can see
 what the outputs do rather than what the firmware claims:
 
