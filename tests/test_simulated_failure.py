@@ -43,3 +43,17 @@ def test_a_running_simulation_is_connected_without_a_fault():
     out.advance(0.05)
     assert out.connected and out.fault is None and out.state()[0]["state"] != "failed"
     out.close()
+
+
+def test_the_pages_wire_legend_says_failed_once_the_thread_stopped():
+    from tactilize.web.session import _wire_source
+
+    out = SimulatedOutput(tick_s=0.005)
+    try:
+        pull = _wire_source(out)
+        out.apply([Drive(600_000.0, 1e-6), Drive.off()])
+        assert _wait(lambda: not out.connected)
+        msg = pull()
+        assert msg is not None and msg["state"] == ["failed", "failed"]
+    finally:
+        out.close()

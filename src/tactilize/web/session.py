@@ -515,6 +515,9 @@ def _wire_source(output: Any):
         tr = fn(span_s)
         t = tr.get("time_s") or []
         chans = tr.get("channels") or []
+        if getattr(output, "fault", None) and not getattr(output, "connected", True):
+            # A stopped simulation makes no new points: its legend must not keep its last state.
+            return {"type": "wire", "t_s": [], "displacement_um": [[] for _ in chans], "state": ["failed"] * len(chans)}
         if not t or not chans:
             return None
         first = 0
