@@ -202,7 +202,7 @@ class VirtualMachine:
                 on.append((float(rise), float(t - rise)))
                 rise = None
         on.sort()
-        bias = sorted(self.bias.get(bias_pin, []))
+        bias = sorted(self.bias.get(bias_pin, []), key=lambda e: e[0])  # stable: the last write at an instant wins
         # Break points: pulse edges and bias changes.
         points = {0.0, float(end_us)}
         for s, w in on:

@@ -167,9 +167,14 @@ class FrameSequences(RuleBasedStateMachine):
         self.t += dt
         self.board.until(self.t)
 
-    @rule(channel=st.integers(0, 1), f=st.floats(1.0, 300.0), w=st.floats(10e-6, 5e-3),
+    @rule(channel=st.integers(0, 1), f=st.floats(1.0, 300.0),
+          w=st.one_of(st.floats(10e-6, 5e-3), st.floats(0.5, 1.0).map(lambda x: -x)),
           amp=st.sampled_from([0.3, 1.0]), regularity=st.one_of(st.none(), st.floats(0.0, 0.99)))
     def set(self, channel, f, w, amp, regularity):
+        if w < 0:  # a share of the largest width the board's bound allows: the edge, where it matters
+            limits = self.board.ctl.limits
+            j = 0.0 if regularity is None else 0.6 * (1.0 - regularity)
+            w = min(5e-3, max(10e-6, -w * limits.max_width_s(f, 0.0, limits.p_max, j)))
         payload = P.encode_set_channel(channel, f, w, amp, regularity)
         self.last[channel] = payload
         self.board.send(P.Command.SET, payload)
@@ -186,7 +191,7 @@ class FrameSequences(RuleBasedStateMachine):
                 self.board.send(P.Command.HEARTBEAT)
             self._go(every)
 
-    @rule(seconds=st.floats(0.0, 1.0), heartbeats=st.booleans())
+    @rule(seconds=st.floats(0.0, 3.0), heartbeats=st.booleans())
     def wait(self, seconds, heartbeats):
         end = self.t + seconds
         while self.t < end:
@@ -194,8 +199,11 @@ class FrameSequences(RuleBasedStateMachine):
                 self.board.send(P.Command.HEARTBEAT)
             self._go(min(0.05, end - self.t + 1e-6))
 
-    @rule(channel=st.integers(0, 1), e=st.floats(0.0, 2e-3), b=st.floats(0.0, 0.5), r=st.floats(0.0, 1.0))
-    def hold(self, channel, e, b, r):
+    @rule(channel=st.integers(0, 1), e=st.floats(0.0, 2e-3), b=st.one_of(st.floats(0.0, 0.5), st.floats(0.5, 1.0)),
+          r=st.floats(0.0, 1.0), share=st.booleans())
+    def hold(self, channel, e, b, r, share):
+        if share:  # a bias near what the board's bound allows (the wire at its budget)
+            b = min(b, 1.0) * self.board.ctl.limits.budget * self.board.ctl.limits.h
         self.board.send(P.Command.HOLD, P.encode_hold(channel, e, b, r))
 
     @rule(f=st.floats(1.0, 300.0), w=st.floats(10e-6, 5e-3), soa=st.floats(0.0, 0.2))
@@ -375,3 +383,29 @@ def test_a_calibration_out_of_range_is_a_fault(monkeypatch, tmp_path):
     status = P.decode_status(got[0].payload)
     assert status.version == 3 and status.sense_fault
     assert got[1].payload[1] & P.FLAG_SENSE_FAULT
+
+
+def test_a_big_pulse_after_a_hot_bias_waits_for_the_wire_to_cool(monkeypatch, tmp_path):
+    """Each frame within its bound, but not the way from one to the next: a hold
+    whose bias keeps the wire at its budget, then an irregular 1 Hz train of the
+    largest pulses its bound allows (aa-direct: 32 K each).  The first landed on
+    the hot wire at once (110.1 C on the wire model, with or without the resend
+    fix); the board's heat estimate holds it until the wire has cooled."""
+    board = Board(monkeypatch, tmp_path, "aa-direct")
+    limits = board.ctl.limits
+    board.send(P.Command.HOLD, P.encode_hold(0, 0.0, 0.999 * limits.budget * limits.h, 0.0))
+    t = 0.0
+    for _ in range(60):  # 3 s: the bias brings the wire to its budget
+        board.send(P.Command.HEARTBEAT)
+        t += 0.05
+        board.until(t)
+    j = 0.6 * (1 - 0.5)  # an irregular train: its first pulse is due at once
+    energy = limits.budget / (1.0 / limits.h + (1 + j) / limits.c)  # the bound at 1 Hz, no bias
+    board.set(0, 1.0, 0.999 * energy / limits.p_max, 1.0, 0.5)
+    for _ in range(30):
+        board.send(P.Command.HEARTBEAT)
+        t += 0.05
+        board.until(t)
+    assert all(f.command == P.Command.ACK for f in board.replies())
+    assert board.pulse_count() >= 1
+    assert board.peak_c() <= MAX_C
