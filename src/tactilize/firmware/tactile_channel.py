@@ -249,11 +249,12 @@ class Channel:
             self.pin = machine.Pin(self.pin_id, machine.Pin.OUT, value=0)
 
     def _arm(self):
-        # Pulse k: (k + j u_k) periods after the anchor.
+        # Pulse k: (k + j u_k) periods after the train's start; the anchor moves
+        # on by a period per pulse (ticks_add takes at most 2^29 us at a time).
         u = self.rng.next() if self.jitter_j > 0 else 0.0
         if self.k == 0:
             u = max(u, 0.0) * self.lead
-        due = F._ticks_add(self.anchor_us, int((self.k + self.jitter_j * u) * self.period_us))
+        due = F._ticks_add(self.anchor_us, int(self.jitter_j * u * self.period_us))
         delay = max(1, F._ticks_diff(due, F._ticks_us()))
         gen = self.gen
         self.timer = machine.Timer(mode=machine.Timer.ONE_SHOT, freq=1000000.0 / delay,
@@ -264,6 +265,7 @@ class Channel:
             return
         self._fire()
         self.k += 1
+        self.anchor_us = F._ticks_add(self.anchor_us, self.period_us)
         self._arm()
 
     def _fire(self):
