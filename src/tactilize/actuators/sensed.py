@@ -23,7 +23,7 @@ from ..drive import Drive
 from . import protocol as P
 from .sma import SafetyEnvelope, WireController
 
-__all__ = ["SensedLoop"]
+__all__ = ["SensedLoop", "fault_text"]
 
 #: A HOLD is resent when its heat or target moves by more than this fraction.
 RESEND_FRACTION = 0.05
@@ -100,6 +100,14 @@ class SensedLoop:
                 self._sent[i] = hold
                 out.append((i, *hold))
         return out
+
+
+def fault_text(faults: Sequence[bool] | None) -> str | None:
+    """One line naming the channels whose sense path the board flags faulty, or None."""
+    if not faults or not any(faults):
+        return None
+    which = ", ".join(str(i) for i, bad in enumerate(faults) if bad)
+    return f"sense fault on channel {which}: the controller limits it with the circuit's worst case"
 
 
 def _moved(old: tuple[float, ...] | None, new: tuple[float, ...]) -> bool:

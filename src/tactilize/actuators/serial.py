@@ -43,7 +43,7 @@ from ..drive import Drive
 from ..mapping import ActuatorLimits
 from . import protocol as P
 from .base import OutputBase
-from .sensed import SensedLoop
+from .sensed import SensedLoop, fault_text
 from .sma import Circuit, SafetyEnvelope, WireController, WireSpec, default_envelope
 
 __all__ = ["SerialOutput"]
@@ -199,11 +199,7 @@ class SerialOutput(OutputBase):
     @property
     def fault(self) -> str | None:
         """One line when the board flags a sense path faulty, else None."""
-        faults = self.sense_faults
-        if not faults or not any(faults):
-            return None
-        which = ", ".join(str(i) for i, bad in enumerate(faults) if bad)
-        return f"sense fault on channel {which}: the controller limits it with the circuit's worst case"
+        return fault_text(self.sense_faults)
 
     def _sense_faults(self, faults: tuple[bool, ...]) -> None:
         old, self.sense_faults = self.sense_faults, tuple(faults)
