@@ -409,3 +409,23 @@ def test_a_big_pulse_after_a_hot_bias_waits_for_the_wire_to_cool(monkeypatch, tm
     assert all(f.command == P.Command.ACK for f in board.replies())
     assert board.pulse_count() >= 1
     assert board.peak_c() <= MAX_C
+
+
+def test_a_late_timer_catches_up_without_a_burst(monkeypatch, tmp_path):
+    """Retuning a PWM slice busy-waits an old period, and the other channel's
+    timers wait with it: its irregular train then catches up with no two pulses
+    closer than 0.4 period (on the emulator under load, late pulses came 1.2 ms
+    apart), and keeps its mean rate."""
+    board = Board(monkeypatch, tmp_path)
+    board.set(1, 50.0, 0.5e-3, 1.0, 0.0)
+    t, k = 0.0, 0
+    while t < 4.0:
+        board.set(0, (30.0, 31.0)[k % 2], 1e-3)  # each retune busy-waits one old period (33 ms)
+        board.send(P.Command.HEARTBEAT)
+        t, k = t + 0.06, k + 1
+        board.until(t)
+    starts = [s for s, level in board.vm.edges[PIN1] if level]
+    gaps = [b - a for a, b in zip(starts, starts[1:])]
+    assert min(gaps) >= 0.4 * 20_000 - 1, min(gaps)
+    assert len(starts) == pytest.approx(200, abs=6)
+    assert board.peak_c(1) <= MAX_C

@@ -251,11 +251,24 @@ class Channel:
     def _arm(self):
         # Pulse k: (k + j u_k) periods after the train's start; the anchor moves
         # on by a period per pulse (ticks_add takes at most 2^29 us at a time).
+        now = F._ticks_us()
+        P = self.period_us
+        if self.k > 0:
+            # A timer that fired late (a busy board) catches up, but with no two
+            # pulses closer than max(0.4, 0.9 - j) periods (never closer than the
+            # jitter itself brings neighbours), and skips what it missed by more
+            # than two periods rather than running a burst.
+            while F._ticks_diff(now, self.anchor_us) > 2 * P:
+                self.anchor_us = F._ticks_add(self.anchor_us, P)
         u = self.rng.next() if self.jitter_j > 0 else 0.0
         if self.k == 0:
             u = max(u, 0.0) * self.lead
-        due = F._ticks_add(self.anchor_us, int(self.jitter_j * u * self.period_us))
-        delay = max(1, F._ticks_diff(due, F._ticks_us()))
+        due = F._ticks_add(self.anchor_us, int(self.jitter_j * u * P))
+        if self.k > 0 and self.last_start_us is not None:
+            earliest = F._ticks_add(self.last_start_us, int(max(0.4, 0.9 - self.jitter_j) * P))
+            if F._ticks_diff(due, earliest) < 0:
+                due = earliest
+        delay = max(1, F._ticks_diff(due, now))
         gen = self.gen
         self.timer = machine.Timer(mode=machine.Timer.ONE_SHOT, freq=1000000.0 / delay,
                                    callback=lambda t: self._due(gen))
