@@ -277,10 +277,12 @@ def test_firmware_decoder_agrees_with_host_decoder(frames, garbage, where):
 
 # ------------------------------------------------------------ MicroPython compatibility
 
-MICROPYTHON_MODULES = {"struct", "sys", "time", "machine", "select", "micropython", "tactile_frames", "tactile_wire", "tactilize.firmware"}
+MICROPYTHON_MODULES = {"struct", "sys", "time", "math", "machine", "select", "micropython", "tactile_channel", "tactile_frames",
+                       "tactile_heat", "tactile_wire", "tactilize.firmware"}
 
 
-@pytest.mark.parametrize("name", ["controller.py", "tactile_frames.py", "tactile_wire.py"])
+@pytest.mark.parametrize("name", ["controller.py", "tactile_channel.py", "tactile_frames.py", "tactile_heat.py",
+                                  "tactile_wire.py"])
 def test_controller_source_uses_only_micropython_features(name):
     source = resources.files("tactilize.firmware").joinpath(name).read_text("utf-8")
     tree = ast.parse(source)

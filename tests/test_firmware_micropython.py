@@ -24,7 +24,7 @@ from tactilize.actuators.sma import build_envelope
 
 ROOT = Path(__file__).resolve().parents[1]
 HERE = Path(__file__).resolve().parent / "micropython"
-FIRMWARE = ("controller.py", "tactile_frames.py", "tactile_wire.py")
+FIRMWARE = ("controller.py", "tactile_channel.py", "tactile_frames.py", "tactile_heat.py", "tactile_wire.py")
 WASM_PACKAGE = "@micropython/micropython-webassembly-pyscript"
 
 
@@ -128,7 +128,7 @@ def test_micropython_answers_the_protocol():
     assert P.decode_nak(got[2].payload)[0] == P.NakReason.BAD_CHECKSUM
     assert P.decode_nak(got[3].payload)[0] == P.NakReason.UNKNOWN_COMMAND
     status = P.decode_status(got[4].payload)
-    assert status.version == 2 and status.channels[0] == P.ChannelStatus(True, 120.0, 300e-6, 1.0)
+    assert status.version == P.PROTOCOL_VERSION == 3 and status.channels[0] == P.ChannelStatus(True, 120.0, 300e-6, 1.0)
     assert P.decode_sense(got[5].payload).channels[0].count == 0
     assert got[6].command == P.Command.ACK
     # the PWM calls a real RP2040 would see: 120 Hz, 300 us, then off
@@ -212,3 +212,28 @@ def test_micropython_and_the_host_emulator_answer_alike(tmp_path):
         P.Refused.FREQUENCY, P.Refused.FREQUENCY, P.Refused.PULSE_WIDTH, P.Refused.PULSE_WIDTH, P.Refused.DUTY,
         P.Refused.ENERGY, P.Refused.CHANNEL,
     ]
+
+
+def test_micropython_runs_the_heat_gate_and_ignores_a_resent_set():
+    """The timed train and its heat gate under MicroPython: a resent SET makes no
+    new timer; a due pulse fires (pin high, then low); on a wire the estimate says
+    is at its budget, the next due pulse is left out."""
+    irregular = P.encode_frame(1, P.Command.SET, P.encode_set_channel(0, 5.0, 1e-3, 1.0, 0.3))
+    tail = """
+ch = ctl.channels[0]
+timers = [e for e in machine.log if e[0] == "Timer"]
+before = len(machine.log)
+ch.timer.callback(ch.timer)
+fired = [e for e in machine.log[before:] if e[0] == "value"]
+ch.heat.add(time.ticks_us(), ch.heat.budget * ch.heat.c)
+before = len(machine.log)
+ch.timer.callback(ch.timer)
+gated = [e for e in machine.log[before:] if e[0] == "value"]
+dump(timers=len(timers), fired=fired, gated=gated, rise=ch.heat.rise_k, budget=ch.heat.budget)
+"""
+    r = run_frames([irregular, irregular, irregular], tail)
+    assert [f.command for f in replies(r)] == [P.Command.ACK] * 3
+    assert r["timers"] == 1
+    assert r["fired"] == [["value", 16, 1], ["value", 16, 0]]
+    assert r["gated"] == []
+    assert r["rise"] >= r["budget"] * 0.99

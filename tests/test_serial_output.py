@@ -354,3 +354,32 @@ def test_open_loop_serial_output_sends_no_holds(emu):
         out.apply([Drive(80.0, 3e-4)])
         time.sleep(0.2)
         assert not emu.controller.channels[0].hold.active
+
+
+def test_a_faulty_sense_path_is_shown_by_the_host(emu):
+    """The board (protocol 3) flags a sense amplifier reading 40 % of the current:
+    the host keeps which channel and says so in ``fault`` and a ``sense-fault`` event."""
+    from tactilize.actuators.sma import Circuit, WireSpec
+    from tactilize.firmware import tactile_wire as W
+
+    i = Circuit.resolve("aa-resistor", WireSpec.resolve(None)).current_at(0.6)
+    host_machine.ADC.sources[fw.SENSE_ADC_PINS[0]] = 0.4 * i / W.DEFAULT_AMPS_PER_COUNT
+    host_machine.ADC.sources[fw.RAIL_ADC_PIN] = i * (0.6 + W.DEFAULT_PATH_OHM[0]) / W.RAIL_VOLTS_PER_COUNT
+    with SerialOutput(emu.device) as out:
+        assert out.controller_status.version == P.PROTOCOL_VERSION
+        assert out.fault is None and out.sense_faults == (False, False)
+        out.apply([Drive(60.0, 300e-6), Drive.off()])
+        assert wait_for(lambda: out.sense_faults == (True, False))
+        assert "channel 0" in out.fault
+        assert any(kind == "sense-fault" for _, kind, _ in out.events)
+        assert out.loop.report is not None and out.loop.report.faults == (True, False)
+
+
+def test_a_version_2_sense_reply_still_decodes():
+    import struct
+
+    v2 = struct.pack(P.SENSE_FORMAT_V2, 2500, 600000, 480000, 0, 300000, 3, 0, 0, 0, 0, 0)
+    report = P.decode_sense(v2)
+    assert report.faults is None and report.channels[0].resistance_ohm == pytest.approx(0.6)
+    v3 = struct.pack(P.SENSE_FORMAT, 2500, 600000, 480000, 0, 300000, 3, 0, 0, 0, 0, 0, 0b10)
+    assert P.decode_sense(v3).faults == (False, True)

@@ -8,6 +8,21 @@ adc_values = {}
 feeds = [0]
 
 
+WDT_RESET = 3
+
+
+def disable_irq():
+    return 1
+
+
+def enable_irq(state=1):
+    pass
+
+
+def reset_cause():
+    return 1
+
+
 class Pin:
     IN = 0
     OUT = 1

@@ -21,6 +21,8 @@ all declared here with what an output that lacks them answers
 ``plays_events``           plays pulse events (``play_events(channels, now_s,
                            equivalent)``, docs/surfaces.md); False: the
                            default ``play_events`` applies the equivalent drives
+``fault``                  why the output cannot be trusted now (a faulty sense
+                           path, a stopped simulation), one line, or None
 =========================  ===================================================
 """
 
@@ -96,6 +98,8 @@ class OutputBase:
         not yet fired; an output that cannot play events applies ``equivalent``, the steady
         drive of the window (docs/surfaces.md)."""
         return self.apply(equivalent)
+    #: one line saying why the output cannot be trusted now, or None
+    fault: str | None = None
 
     def standby(self) -> None:
         """Texture off, actuators held ready for the next touch (the pen lifted or

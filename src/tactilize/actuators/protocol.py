@@ -32,7 +32,9 @@ STATUS    0x04  no payload: the controller answers with a STATUS_REPLY.
 HOLD      0x05  channel u8, pulse heat u32 [nJ], bias heat u32 [uW], target
                 resistance u32 [uohm]: the heat the board keeps between host
                 messages (pulse width and bias from its measured I^2 R).
-SENSE     0x06  no payload: the controller answers with a SENSE_REPLY.
+SENSE     0x06  no payload, or (version 3) the host's version u8: the controller
+                answers with a SENSE_REPLY (with the faulty channels when asked
+                with version 3).
 PAIR      0x07  onset offset u32 [us], then frequency, width, amplitude of
                 channels 0 and 1: channel 1 starts that long after channel 0.
 ========  ====  ==========================================================
@@ -41,13 +43,23 @@ Replies, controller to host (``SEQ`` echoes the sequence number of the frame
 they answer, so the host can match replies to requests):
 
 ============  ====  ====================================================
-ACK           0x80  command u8 (the command acknowledged)
+ACK           0x80  command u8 (the command acknowledged), flags u8 (see
+                    :data:`FLAG_WATCHDOG_TRIPPED`, :data:`FLAG_SENSE_FAULT`)
 NAK           0x81  reason u8, detail u8 (see :class:`NakReason`, :class:`Refused`)
 STATUS_REPLY  0x82  see :data:`STATUS_FORMAT` and :class:`ControllerStatus`
 SENSE_REPLY   0x83  see :data:`SENSE_FORMAT` and :class:`SenseReport`
 ============  ====  ====================================================
 
-Every command is idempotent, so the host may resend a frame whose ACK got lost.
+Every command is idempotent, so the host may resend a frame whose ACK got lost:
+a SET (or PAIR) equal to the one running changes nothing on the board.
+
+Versions (STATUS_REPLY's first byte): 2, and 3, which adds the sense-fault flag
+(bit 1 of the ACK and STATUS flags) and, when a SENSE carries the host's version
+(:data:`SENSE_V3`), one byte after SENSE_REPLY's fields, bit ``i`` set when
+channel ``i``'s sense path is faulty; an empty SENSE gets the version 2 reply, so
+older hosts keep working with newer boards.  The host learns the board's version
+from the STATUS reply of its handshake and asks with its version only then;
+:func:`decode_sense` reads both lengths (``faults`` is None for version 2).
 Wire units are integers (millihertz, nanoseconds) because the firmware works in
 integers; :func:`encode_set_channel` converts from SI.
 
@@ -92,7 +104,16 @@ __all__ = [
     "SenseReport",
     "decode_sense",
     "AMPLITUDE_FULL_SCALE",
+    "FLAG_WATCHDOG_TRIPPED",
+    "FLAG_SENSE_FAULT",
+    "PROTOCOL_VERSION",
+    "SENSE_V3",
 ]
+
+#: the protocol version this host speaks (it also understands version 2 boards)
+PROTOCOL_VERSION = 3
+#: SENSE payload of a version 3 host: the reply then carries the faulty channels
+SENSE_V3 = bytes((3,))
 
 START = 0xA5
 #: largest payload a frame may carry [bytes]; keeps a corrupted length byte from
@@ -384,6 +405,9 @@ def decode_nak(payload: bytes) -> tuple[NakReason | int, Refused | int]:
 STATUS_FORMAT = ">BBIII" + "BIIH" * 2 + "IIIIIH"
 #: flags bit: every output is off because the watchdog fired (cleared by a SET)
 FLAG_WATCHDOG_TRIPPED = 0x01
+#: flags bit (version 3): a channel's sense path is faulty; the board limits its
+#: wire with the circuit's worst case until a measurement passes its checks
+FLAG_SENSE_FAULT = 0x02
 
 
 @dataclass(frozen=True)
@@ -433,6 +457,7 @@ class ControllerStatus:
     max_pulse_width_s: float
     max_duty_ratio: float
     watchdog_s: float
+    sense_fault: bool = False
 
 
 def decode_status(payload: bytes) -> ControllerStatus:
@@ -455,6 +480,7 @@ def decode_status(payload: bytes) -> ControllerStatus:
         max_pulse_width_s=v[16] / 1e9,
         max_duty_ratio=v[17] / 1e6,
         watchdog_s=v[18] / 1e3,
+        sense_fault=bool(v[1] & FLAG_SENSE_FAULT),
     )
 
 
@@ -462,7 +488,7 @@ def encode_status(status: ControllerStatus) -> bytes:
     """Inverse of :func:`decode_status` (for tests and host-side fakes)."""
     fields: list[int] = [
         status.version,
-        FLAG_WATCHDOG_TRIPPED if status.watchdog_tripped else 0,
+        (FLAG_WATCHDOG_TRIPPED if status.watchdog_tripped else 0) | (FLAG_SENSE_FAULT if status.sense_fault else 0),
         _u32(status.uptime_s * 1e3, "uptime_s"),
         status.frames_ok & 0xFFFFFFFF,
         status.frames_bad & 0xFFFFFFFF,
@@ -489,9 +515,12 @@ def encode_status(status: ControllerStatus) -> bytes:
 
 _HOLD_FORMAT = ">BIII"
 _PAIR_FORMAT = ">I" + "IIH" * 2
-#: SENSE_REPLY payload: rail [mV] u16, then per channel resistance [uohm] u32,
-#: current [uA] u32, bias level u16 (65536 = 1), pulse width [ns] u32, count u16
-SENSE_FORMAT = ">H" + "IIHIH" * 2
+#: SENSE_REPLY payload of a version 2 board: rail [mV] u16, then per channel
+#: resistance [uohm] u32, current [uA] u32, bias level u16 (65536 = 1), pulse
+#: width [ns] u32, count u16
+SENSE_FORMAT_V2 = ">H" + "IIHIH" * 2
+#: version 3: the same, then the faulty channels u8 (bit i: channel i)
+SENSE_FORMAT = SENSE_FORMAT_V2 + "B"
 
 
 def encode_hold(channel: int, pulse_energy_j: float, bias_w: float, target_ohm: float) -> bytes:
@@ -524,17 +553,21 @@ class ChannelSense:
 
 @dataclass(frozen=True)
 class SenseReport:
-    """A SENSE_REPLY: the supply rail [V] and each channel's measurement."""
+    """A SENSE_REPLY: the supply rail [V], each channel's measurement, and which
+    channels' sense paths are faulty (None from a version 2 board, which cannot say)."""
 
     rail_v: float
     channels: tuple[ChannelSense, ...]
+    faults: tuple[bool, ...] | None = None
 
 
 def decode_sense(payload: bytes) -> SenseReport:
-    """A :class:`SenseReport` from a SENSE_REPLY payload."""
-    v = struct.unpack(SENSE_FORMAT, payload)
+    """A :class:`SenseReport` from a SENSE_REPLY payload of either version."""
+    v2 = struct.calcsize(SENSE_FORMAT_V2)
+    v = struct.unpack(SENSE_FORMAT_V2, payload[:v2]) if len(payload) == v2 else struct.unpack(SENSE_FORMAT, payload)
     chans = tuple(
         ChannelSense(v[1 + 5 * i] / 1e6, v[2 + 5 * i] / 1e6, v[3 + 5 * i] / 65536, v[4 + 5 * i] / 1e9, v[5 + 5 * i])
         for i in range(2)
     )
-    return SenseReport(v[0] / 1e3, chans)
+    faults = None if len(v) == 11 else tuple(bool(v[11] >> i & 1) for i in range(2))
+    return SenseReport(v[0] / 1e3, chans, faults)

@@ -23,7 +23,7 @@ from ..drive import Drive
 from . import protocol as P
 from .sma import SafetyEnvelope, WireController
 
-__all__ = ["SensedLoop"]
+__all__ = ["SensedLoop", "fault_text"]
 
 #: A HOLD is resent when its heat or target moves by more than this fraction.
 RESEND_FRACTION = 0.05
@@ -71,6 +71,8 @@ class SensedLoop:
             last, self._seen_s[i] = self._seen_s[i], now_s
             if s.count == self._counts[i] or s.resistance_ohm <= 0 or s.current_a <= 0:
                 continue
+            if report.faults is not None and report.faults[i]:
+                continue  # the board flags this reading: it describes no wire
             self._counts[i] = s.count
             dt = now_s - last if last is not None else 0.0
             ctrl.observe(s.resistance_ohm, s.current_a, max(dt, 1e-4), now_s)
@@ -98,6 +100,14 @@ class SensedLoop:
                 self._sent[i] = hold
                 out.append((i, *hold))
         return out
+
+
+def fault_text(faults: Sequence[bool] | None) -> str | None:
+    """One line naming the channels whose sense path the board flags faulty, or None."""
+    if not faults or not any(faults):
+        return None
+    which = ", ".join(str(i) for i, bad in enumerate(faults) if bad)
+    return f"sense fault on channel {which}: the controller limits it with the circuit's worst case"
 
 
 def _moved(old: tuple[float, ...] | None, new: tuple[float, ...]) -> bool:

@@ -18,6 +18,9 @@ answers, and then keeps it alive:
   polls the path until it can be reopened, and re-applies the current drives.
   It does the same when a heartbeat ACK says the watchdog fired anyway (a host
   stalled for more than 200 ms).
+- a version 3 board flags a faulty sense path (its wire then limited with the
+  circuit's worst case): :attr:`~SerialOutput.sense_faults` (None from version 2),
+  :attr:`~SerialOutput.fault`, a ``sense-fault`` event; the loop skips the reading.
 
 Threads: a reader (decodes replies, matches them to requests by sequence
 number) and a keeper (heartbeats, reconnection).  Callers' threads only write
@@ -40,7 +43,7 @@ from ..drive import Drive
 from ..mapping import ActuatorLimits
 from . import protocol as P
 from .base import OutputBase
-from .sensed import SensedLoop
+from .sensed import SensedLoop, fault_text
 from .sma import Circuit, SafetyEnvelope, WireController, WireSpec, default_envelope
 
 __all__ = ["SerialOutput"]
@@ -94,7 +97,8 @@ class SerialOutput(OutputBase):
         A connected controller silent for this long is treated as lost [s].
     on_event : callable, optional
         ``on_event(kind, detail)`` for ``connected``, ``lost``, ``reconnected``,
-        ``watchdog``, ``reapply-failed`` and ``hold-refused`` events (called from a worker thread).
+        ``watchdog``, ``reapply-failed``, ``hold-refused``, ``sense-fault`` and ``sense-ok``
+        events (called from a worker thread).
     closed_loop : bool
         Ask the board for its self-sensing measurements with every heartbeat,
         close the :class:`WireController` loop on them and send the heat it
@@ -154,6 +158,9 @@ class SerialOutput(OutputBase):
         self.reconnects = 0
         #: the controller's last STATUS reply (limits, firmware version)
         self.controller_status: P.ControllerStatus | None = None
+        #: per channel, whether the board flags its sense path faulty; None while
+        #: unknown (a version 2 board cannot say)
+        self.sense_faults: tuple[bool, ...] | None = None
 
         self._seq = itertools.count(1)
         self._write_lock = threading.RLock()
@@ -188,6 +195,16 @@ class SerialOutput(OutputBase):
     def connected(self) -> bool:
         """True while the controller answers on the port."""
         return self._connected.is_set()
+
+    @property
+    def fault(self) -> str | None:
+        """One line when the board flags a sense path faulty, else None."""
+        return fault_text(self.sense_faults)
+
+    def _sense_faults(self, faults: tuple[bool, ...]) -> None:
+        old, self.sense_faults = self.sense_faults, tuple(faults)
+        if any(faults) != any(old or ()):
+            self._event("sense-fault" if any(faults) else "sense-ok", self.fault or "sense paths read true again")
 
     def wait_connected(self, timeout_s: float) -> bool:
         """Block until connected (or the timeout [s] passes); True when connected."""
@@ -407,6 +424,8 @@ class SerialOutput(OutputBase):
                     self.port, "no tactile controller answers (is the controller firmware running on it?)"
                 ) from last
         self.controller_status = status
+        if status.version >= 3:
+            self._sense_faults((status.sense_fault,) * self.channels)
         # Frequency and width limits are exact in wire units (a clamped value
         # encodes to the limit itself); the duty is a product of two rounded
         # integers, so it stays 10 ppm inside to survive the rounding.
@@ -487,11 +506,20 @@ class SerialOutput(OutputBase):
             # (the host stalled); put the drives back.
             if any(not d.is_off for d in self._desired):
                 self._reapply.set()
-        if frame.command == P.Command.SENSE_REPLY and self.loop is not None:
+        version = self.controller_status.version if self.controller_status is not None else 0
+        if frame.command == P.Command.ACK and len(frame.payload) >= 2 and version >= 3:
+            flagged = bool(frame.payload[1] & P.FLAG_SENSE_FAULT)
+            if flagged != any(self.sense_faults or ()):
+                self._sense_faults((flagged,) * self.channels)  # which channel: the SENSE reply says
+        if frame.command == P.Command.SENSE_REPLY:
             try:
-                self.loop.observe(P.decode_sense(frame.payload), time.monotonic())
+                report = P.decode_sense(frame.payload)
             except Exception:  # struct.error: a reply of another firmware version
-                pass
+                report = None
+            if report is not None and report.faults is not None:
+                self._sense_faults(report.faults)
+            if report is not None and self.loop is not None:
+                self.loop.observe(report, time.monotonic())
         with self._pending_lock:
             waiter = self._pending.get(frame.seq)
         if waiter is not None:
@@ -511,12 +539,14 @@ class SerialOutput(OutputBase):
             self._lost(ser, f"controller silent for more than {self.unresponsive_s:g} s")
             return
         seq = next(self._seq) & 0xFF
+        version = self.controller_status.version if self.controller_status is not None else 0
         try:
             # Not waited for: any reply refreshes _last_rx_s, and a stalled
             # controller is caught by the silence check above.
             self._write(P.encode_frame(seq, P.Command.HEARTBEAT))
-            if self.loop is not None:
-                self._write(P.encode_frame(next(self._seq) & 0xFF, P.Command.SENSE))
+            if self.loop is not None or version >= 3:
+                ask = P.SENSE_V3 if version >= 3 else b""  # a version 2 board knows only the empty SENSE
+                self._write(P.encode_frame(next(self._seq) & 0xFF, P.Command.SENSE, ask))
         except _PortLost:
             return
         if self.loop is not None:

@@ -22,6 +22,11 @@ replaces each channel's events not yet fired; the controller holds the operating
 point on the equivalent drive, and each event becomes one pulse whose heat is its
 strength's place in the felt band at its own interval, bounded by the channel's
 running heat estimate (:class:`~tactilize.actuators.sma.heat.RunningHeat`).
+
+Should the thread ever stop on an error, the output goes safe and says so: every
+controller stops, :attr:`~SimulatedOutput.connected` turns False,
+:attr:`~SimulatedOutput.fault` and :meth:`~SimulatedOutput.state` name the
+failure, and :meth:`~SimulatedOutput.apply` refuses with it.
 """
 
 from __future__ import annotations
@@ -173,6 +178,7 @@ class SimulatedOutput(OutputBase):
         self._running = False
         self._thread: threading.Thread | None = None
         self._closed = False
+        self._failure: str | None = None
         if start:
             self.start()
 
@@ -193,6 +199,8 @@ class SimulatedOutput(OutputBase):
         """
         if self._closed:
             raise OutputError("<simulated>", "output is closed")
+        if self._failure is not None:
+            raise OutputError("<simulated>", self._failure)
         drives = self._check(channels)
         applied = []
         with self._lock:
@@ -312,8 +320,29 @@ class SimulatedOutput(OutputBase):
         if self._thread is not None:
             return
         self._running = True
-        self._thread = threading.Thread(target=self._loop, name="tactilize-simulated-wire", daemon=True)
+        self._thread = threading.Thread(target=self._guarded_loop, name="tactilize-simulated-wire", daemon=True)
         self._thread.start()
+
+    @property
+    def connected(self) -> bool:
+        """False once the simulation stopped on an error (:attr:`fault` says why)."""
+        return self._failure is None
+
+    @property
+    def fault(self) -> str | None:
+        """Why the simulation stopped, or None while it runs."""
+        return self._failure
+
+    def _guarded_loop(self) -> None:
+        try:
+            self._loop()
+        except Exception as exc:  # whatever stopped the model, the output must not claim to run
+            with self._lock:
+                self._failure = f"the simulated wire stopped ({exc.__class__.__name__}: {exc}); its output is off"
+                for ch in self._chans:
+                    ch.ctrl.stop()
+                self._drives = [Drive.off()] * self.channels
+            self._running = False
 
     def after_batch(self) -> None:
         """Tell the simulation thread that a time-critical step just ended.
@@ -531,7 +560,7 @@ class SimulatedOutput(OutputBase):
         with self._lock:
             return [
                 {
-                    "state": ch.ctrl.state,
+                    "state": ch.ctrl.state if self._failure is None else "failed",
                     "temperature_c": ch.model.temperature_c,
                     "martensite_fraction": ch.model.martensite_fraction,
                     "displacement_um": ch.model.displacement_m * 1e6,

@@ -16,17 +16,23 @@
 # This file keeps its own copy of the frame codec (MicroPython has no enum or
 # dataclasses); the tests run the host's protocol.py against it, so the two
 # cannot drift.  The wire's physics on the board (energy limits, self-sensing,
-# the hold between host messages) is in tactile_wire.py, copied next to it.
+# the hold between host messages) is in tactile_wire.py, each channel's pulses in
+# tactile_channel.py and the running heat estimate that gates them in
+# tactile_heat.py, all copied next to it.
 
 import struct
 
 import machine
 
 try:
+    import tactile_channel as C
     import tactile_frames as F
+    import tactile_heat as H
     import tactile_wire as W
 except ImportError:  # on the host, inside the package
+    from tactilize.firmware import tactile_channel as C
     from tactilize.firmware import tactile_frames as F
+    from tactilize.firmware import tactile_heat as H
     from tactilize.firmware import tactile_wire as W
 
 # The codec and the clock (tactile_frames.py), under the names this file uses.
@@ -34,7 +40,10 @@ START, MAX_PAYLOAD, FRAME_TIMEOUT_MS = F.START, F.MAX_PAYLOAD, F.FRAME_TIMEOUT_M
 crc16, encode_frame, Decoder = F.crc16, F.encode_frame, F.Decoder
 _ticks_ms, _ticks_diff, _ticks_us, _sleep_us = F._ticks_ms, F._ticks_diff, F._ticks_us, F._sleep_us
 
-VERSION = 2
+# 3: the sense-fault flag (ACK and STATUS flags bit 1; a per-channel byte after
+# SENSE_REPLY's fields when the SENSE carries the host's version, 3); a host reads
+# the version from STATUS (docs/firmware.md).
+VERSION = 3
 
 # ---------------------------------------------------------------- hardware map
 # GPIO driving the gate of each channel's MOSFET (through ~100 ohm, with a
@@ -45,7 +54,7 @@ CHANNEL_PINS = (16, 18)
 # GPIO of each channel's standby bias: a 20 kHz PWM on a slice of its own (GP20:
 # slice 2, GP22: slice 3), OR-ed with the pulse pin into the gate (docs/hardware.md).
 BIAS_PINS = (20, 22)
-BIAS_HZ = 20000
+BIAS_HZ = C.BIAS_HZ
 # ADC inputs: each channel's current-sense amplifier, and the wire rail's divider.
 SENSE_ADC_PINS = (26, 27)
 RAIL_ADC_PIN = 28
@@ -75,10 +84,8 @@ WDT_TIMEOUT_MS = 100
 HOLD_MS = 10
 # How long the main loop waits for input before checking the watchdog [ms].
 POLL_MS = 5
-# Below this frequency the RP2040 PWM cannot make the period from an integer Hz
-# setting accurately (MicroPython's PWM.freq takes integers; 0.5 Hz rounding is
-# 2.5 % at 20 Hz), so slower trains use a soft timer and a busy-waited pulse.
-PWM_MIN_FREQUENCY_MHZ = 20000
+PWM_MIN_FREQUENCY_MHZ = C.PWM_MIN_FREQUENCY_MHZ
+Channel = C.Channel
 
 # ---------------------------------------------------------------- protocol
 CMD_SET = 0x01
@@ -103,168 +110,17 @@ REFUSED_DUTY = 3
 REFUSED_CHANNEL = 4
 REFUSED_ENERGY = 5
 FLAG_WATCHDOG_TRIPPED = 0x01
+FLAG_SENSE_FAULT = 0x02
 SET_FORMAT = ">BIIH"
 STATUS_FORMAT = ">BBIII" + "BIIH" * 2 + "IIIIIH"
 HOLD_FORMAT = ">BIII"  # channel, pulse heat [nJ], bias heat [uW], target resistance [uohm]
 PAIR_FORMAT = ">I" + "IIH" * 2  # onset offset of channel 1 [us], then (mHz, ns, amplitude) per channel
-SENSE_FORMAT = ">H" + "IIHIH" * 2  # rail [mV]; per channel R [uohm], I [uA], bias q16, width [ns], count
+# rail [mV]; per channel R [uohm], I [uA], bias q16, width [ns], count; then, for
+# a host that asked with version 3, the channels whose sense path is faulty (bit i)
+SENSE_FORMAT = ">H" + "IIHIH" * 2
 
 # The hardware watchdog once run() started it (fed also after each retune wait).
-_wdt = [None]
-
-
-class Channel:
-    """One actuator output: a PWM slice for fast trains, a soft timer for slow
-    ones, a second slice for the standby bias, and the sense path."""
-
-    def __init__(self, index, pin_id, bias_pin_id=None, sense=None, hold=None):
-        self.index = index
-        self.pin_id = pin_id
-        self.pin = machine.Pin(pin_id, machine.Pin.OUT, value=0)
-        self.pwm = None
-        self.timer = None
-        self.frequency_mhz = 0
-        self.width_ns = 0
-        self.amplitude_q16 = 0
-        self.bias_pin_id = bias_pin_id
-        self.bias_pwm = None
-        self.bias_q16 = 0
-        self.sense = sense
-        self.hold = hold
-        self.jitter_j = 0.0
-        self.rng = W.Jitter(0x2545F491 + index)
-
-    @property
-    def on(self):
-        return self.frequency_mhz > 0
-
-    @property
-    def live(self):
-        return self.frequency_mhz > 0 or self.bias_q16 > 0
-
-    def off(self):
-        self._stop_train()
-        # Take the pin back and hold the gate low (after a PWM slice or a timer alike).
-        self.pin = machine.Pin(self.pin_id, machine.Pin.OUT, value=0)
-        self.jitter_j = 0.0
-        self.frequency_mhz = 0
-        self.width_ns = 0
-        self.amplitude_q16 = 0
-        self.set_bias(0)
-        if self.hold is not None:
-            self.hold.clear()
-
-    def set_bias(self, q16):
-        """Standby bias: the switch chopped at BIAS_HZ, conducting q16 / 65536 of the time."""
-        if self.bias_pin_id is None:
-            return
-        if q16 <= 0:
-            if self.bias_pwm is not None:
-                self.bias_pwm.duty_u16(0)
-                self.bias_pwm.deinit()
-                self.bias_pwm = None
-                machine.Pin(self.bias_pin_id, machine.Pin.OUT, value=0)
-            self.bias_q16 = 0
-            return
-        if self.bias_pwm is None:
-            self.bias_pwm = machine.PWM(machine.Pin(self.bias_pin_id))
-            self.bias_pwm.duty_u16(0)
-            self.bias_pwm.freq(BIAS_HZ)
-        q16 = min(q16, 65535)
-        self.bias_pwm.duty_u16(q16)
-        self.bias_q16 = q16
-
-    def set(self, frequency_mhz, width_ns, amplitude_q16, regularity_q16=W.REGULARITY_EVEN):
-        """Start (or retune) the pulse train; the caller has checked the limits.
-        Returns the frequency actually produced [mHz]."""
-        period_us = 1000000000 // frequency_mhz
-        self.jitter_j = W.jitter_depth(regularity_q16, period_us, width_ns // 1000)
-        if self.jitter_j > 0:
-            # An irregular texture: every pulse placed by a one-shot timer on the
-            # even grid plus its jitter (a PWM slice can only repeat one period).
-            self._stop_train()
-            self.width_ns, self.period_us, self.k, self.anchor_us = width_ns, period_us, 0, _ticks_us()
-            self.frequency_mhz = frequency_mhz  # before the first pulse, due at once, checks it
-            self._arm()
-            applied_mhz = frequency_mhz
-        elif frequency_mhz >= PWM_MIN_FREQUENCY_MHZ:
-            if self.timer is not None:
-                self.timer.deinit()
-                self.timer = None
-            hz = (frequency_mhz + 500) // 1000
-            if self.pwm is None:
-                # A fresh slice: its output is low until the first wrap latches these.
-                self.pwm = machine.PWM(self.pin)
-                self.pwm.duty_ns(0)
-                self.pwm.freq(hz)
-            elif self.pwm.freq() != hz:
-                # The RP2040 applies a new divider at once but TOP and compare at
-                # the wrap (docs/references.md, section 8 (PWM retune)): a pulse in
-                # flight would stretch.  So: compare 0, wait one old period (a wrap
-                # latches the 0 and the last pulse ends), then the new divider and
-                # TOP, and the new compare latches with TOP at the next wrap.
-                old_us = 1000000 // self.pwm.freq()
-                self.pwm.duty_ns(0)
-                _sleep_us(old_us + 50)
-                if _wdt[0] is not None:
-                    _wdt[0].feed()  # a train of retunes in one pass must not reset the chip
-                self.pwm.freq(hz)
-            # Same divider and TOP: the compare alone latches at the wrap.
-            self.pwm.duty_ns(width_ns)
-            applied_mhz = hz * 1000
-        else:
-            if self.pwm is not None:
-                self.pwm.duty_ns(0)
-                self.pwm.deinit()
-                self.pwm = None
-                self.pin = machine.Pin(self.pin_id, machine.Pin.OUT, value=0)
-            if self.timer is not None:
-                self.timer.deinit()
-            period_ms = (1000000 + frequency_mhz // 2) // frequency_mhz
-            self.width_ns = width_ns
-            self.timer = machine.Timer(mode=machine.Timer.PERIODIC, period=period_ms, callback=self._pulse)
-            applied_mhz = (1000000000 + period_ms * 500) // (period_ms * 1000)
-        self.frequency_mhz = applied_mhz
-        self.width_ns = width_ns
-        self.amplitude_q16 = amplitude_q16
-        return applied_mhz
-
-    def _stop_train(self):
-        if self.timer is not None:
-            self.timer.deinit()
-            self.timer = None
-        if self.pwm is not None:
-            self.pwm.duty_ns(0)
-            self.pwm.deinit()
-            self.pwm = None
-            self.pin = machine.Pin(self.pin_id, machine.Pin.OUT, value=0)
-
-    def _arm(self):
-        # Pulse k: (k + j u_k) periods after the anchor; the first now (a touch is felt at once).
-        u = self.rng.next() if self.k else 0.0
-        due = self.anchor_us + int((self.k + self.jitter_j * u) * self.period_us)
-        delay = max(1, _ticks_diff(due, _ticks_us()))
-        self.timer = machine.Timer(mode=machine.Timer.ONE_SHOT, freq=1000000.0 / delay, callback=self._jittered)
-
-    def _jittered(self, timer):
-        if self.jitter_j <= 0 or self.frequency_mhz == 0:
-            return
-        self._pulse(timer)
-        self.k += 1
-        self._arm()
-
-    def _pulse(self, timer):
-        # Soft-IRQ context on the board: the pulse is busy-waited so its width is
-        # exact to a microsecond even though the timer's edge may jitter; the
-        # sense path is read in the middle of it.
-        pin = self.pin
-        pin.value(1)
-        us = self.width_ns // 1000
-        _sleep_us(us // 2)
-        if self.sense is not None:
-            self.sense.sample(_ticks_ms())
-        _sleep_us(us - us // 2)
-        pin.value(0)
+_wdt = C.WDT
 
 
 class Controller:
@@ -284,11 +140,16 @@ class Controller:
         self.store = store
         cal = W.load_calibration(W.read_text(store + W.CAL_FILE), len(pins))
         rail = machine.ADC(RAIL_ADC_PIN)
+        # After a watchdog reset the wire may still be as hot as the board let it be.
+        hot = machine.reset_cause() == getattr(machine, "WDT_RESET", 3) if hasattr(machine, "reset_cause") else False
         self.channels = []
         for i, p in enumerate(pins):
-            sense = W.Sense(machine.ADC(SENSE_ADC_PINS[i % 2]), rail, cal[i][0], cal[i][1])
+            sense = W.Sense(machine.ADC(SENSE_ADC_PINS[i % 2]), rail, cal[i][0], cal[i][1], self.config)
             bias_pin = bias_pins[i] if bias_pins is not None and i < len(bias_pins) else None
-            self.channels.append(Channel(i, p, bias_pin, sense, W.Hold(self.limits, self.config)))
+            heat = H.HeatEstimate(self.config, _ticks_diff, hot)
+            ch = Channel(i, p, bias_pin, sense, W.Hold(self.limits, self.config), heat)
+            ch.p_w = self.limits.p_max
+            self.channels.append(ch)
         try:
             self.led = machine.Pin(LED_PIN, machine.Pin.OUT, value=0)
         except (ValueError, TypeError):
@@ -316,10 +177,12 @@ class Controller:
             if any(ch.live for ch in self.channels) or self.pair_timer is not None:
                 self.all_off("watchdog")
                 self.watchdog_tripped = True
+        now_us = _ticks_us()
         for ch in self.channels:
             if ch.live:
                 for _ in range(8):
                     ch.sense.sample(now)
+            ch.service(now_us, self.limits.power(ch.sense.current_bound_a(now, _ticks_diff)))
         dt_ms = _ticks_diff(now, self.hold_ms)
         if dt_ms >= HOLD_MS:
             self.hold_ms = now
@@ -346,22 +209,36 @@ class Controller:
                 return
             w_ns = min(w_ns, MAX_WIDTH_NS)
             if abs(w_ns - ch.width_ns) * 50 > ch.width_ns:  # more than 2 %
-                ch.set(ch.frequency_mhz, w_ns, ch.amplitude_q16)
+                ch.set_width(w_ns)
                 self._changed(ch, "hold")
         ch.set_bias(int(bias * 65536))
 
-    def _fits(self, ch, f_mhz, w_ns, bias):
-        """The energy limits (tactile_wire.WireLimits) with the channel's heat while on."""
+    def _fits(self, ch, f_mhz, w_ns, bias, j=0.0):
+        """The energy limits (tactile_wire.WireLimits) with the channel's heat while
+        on, for a train of jitter depth j [periods]."""
         p = self.limits.power(ch.sense.current_bound_a(_ticks_ms(), _ticks_diff))
-        return self.limits.allowed(f_mhz / 1000.0, w_ns / 1e9, bias, p)
+        return self.limits.allowed(f_mhz / 1000.0, w_ns / 1e9, bias, p, j)
 
     # -- frames
     def _reply(self, seq, cmd, payload=b""):
         self.write(encode_frame(seq, cmd, payload))
 
-    def _ack(self, seq, cmd):
+    def flags(self):
         flags = FLAG_WATCHDOG_TRIPPED if self.watchdog_tripped else 0
-        self._reply(seq, CMD_ACK, bytes((cmd, flags)))
+        if self.sense_faults():
+            flags |= FLAG_SENSE_FAULT
+        return flags
+
+    def sense_faults(self):
+        """Bit i set: channel i's sense path is faulty (its limits use the worst case)."""
+        bits = 0
+        for ch in self.channels:
+            if ch.sense.fault:
+                bits |= 1 << ch.index
+        return bits
+
+    def _ack(self, seq, cmd):
+        self._reply(seq, CMD_ACK, bytes((cmd, self.flags())))
 
     def _nak(self, seq, reason, detail=REFUSED_NONE):
         self._reply(seq, CMD_NAK, bytes((reason, detail)))
@@ -387,9 +264,11 @@ class Controller:
         if cmd == CMD_STATUS:
             return self._reply(seq, CMD_STATUS_REPLY, self.status_payload())
         if cmd == CMD_SENSE:
-            if payload:
+            # A host of version 3 asks with its version and gets the faults too;
+            # an older host's empty SENSE gets the reply it knows.
+            if len(payload) > 1:
                 return self._nak(seq, NAK_BAD_PAYLOAD)
-            return self._reply(seq, CMD_SENSE_REPLY, self.sense_payload())
+            return self._reply(seq, CMD_SENSE_REPLY, self.sense_payload(len(payload) == 1 and payload[0] >= 3))
         if cmd == CMD_HOLD:
             return self._hold_cmd(seq, payload)
         if cmd == CMD_PAIR:
@@ -409,22 +288,27 @@ class Controller:
         ch = self.channels[index]
         if index == 1:
             self._cancel_pair()
-        refused = self._refused(ch, f_mhz, w_ns, amp)
+        refused = self._refused(ch, f_mhz, w_ns, amp, reg)
         if refused:
             # Refused: the channel keeps its previous (valid) drive.
             return self._nak(seq, NAK_REFUSED_LIMIT, refused)
-        self._apply(ch, f_mhz, w_ns, amp, reg)
+        # The host resends freely: the same drive again changes nothing.
+        if ch.request != (f_mhz, w_ns, amp, reg):
+            self._apply(ch, f_mhz, w_ns, amp, reg)
         return self._ack(seq, CMD_SET)
 
-    def _refused(self, ch, f_mhz, w_ns, amp):
+    def _refused(self, ch, f_mhz, w_ns, amp, reg=W.REGULARITY_EVEN):
         """0 when a drive may run on a channel (off always may), else REFUSED_*."""
         if f_mhz == 0 or w_ns == 0 or amp == 0:
             return REFUSED_NONE
         refused = self.check_limits(f_mhz, w_ns)
         if refused:
             return refused
-        # The pulses come first: the bias is cut to the room they leave (_apply).
-        if not self._fits(ch, f_mhz, w_ns, 0.0):
+        # The heat of what runs: whole hertz on a PWM slice, and a jittered
+        # train's closest pulses.  The pulses come first: the bias is cut to the
+        # room they leave (_apply).
+        _, applied, _, j = C.plan(f_mhz, w_ns, reg)
+        if not self._fits(ch, max(f_mhz, applied), w_ns, 0.0, j):
             return REFUSED_ENERGY
         return REFUSED_NONE
 
@@ -442,7 +326,9 @@ class Controller:
             return
         before = (ch.frequency_mhz, ch.width_ns)
         p = self.limits.power(ch.sense.current_bound_a(_ticks_ms(), _ticks_diff))
-        room = self.limits.max_bias(f_mhz / 1000.0, w_ns / 1e9, p)
+        _, applied, _, j = C.plan(f_mhz, w_ns, reg)
+        room = self.limits.max_bias(max(f_mhz, applied) / 1000.0, w_ns / 1e9, p, j)
+        ch.p_w = p
         if ch.bias_q16 > int(room * 65536):
             ch.set_bias(int(room * 65536))
         ch.set(f_mhz, w_ns, amp, reg)
@@ -481,6 +367,9 @@ class Controller:
             refused = self._refused(ch, d[0], d[1], d[2])
             if refused:
                 return self._nak(seq, NAK_REFUSED_LIMIT, refused)
+        even = W.REGULARITY_EVEN
+        if self.pair_timer is None and ch0.request == d0 + (even,) and ch1.request == d1 + (even,):
+            return self._ack(seq, CMD_PAIR)  # a resent PAIR changes nothing
         self._cancel_pair()
         self._apply(ch0, d0[0], d0[1], d0[2])
         self._apply(ch1, 0, 0, 0)
@@ -532,7 +421,7 @@ class Controller:
     def status_payload(self):
         fields = [
             VERSION,
-            FLAG_WATCHDOG_TRIPPED if self.watchdog_tripped else 0,
+            self.flags(),
             _ticks_diff(_ticks_ms(), self.start_ms) & 0xFFFFFFFF,
             self.frames_ok,
             self.frames_bad,
@@ -546,7 +435,7 @@ class Controller:
         fields += [MIN_FREQUENCY_MHZ, MAX_FREQUENCY_MHZ, MIN_WIDTH_NS, MAX_WIDTH_NS, MAX_DUTY_PPM, WATCHDOG_MS]
         return struct.pack(STATUS_FORMAT, *fields)
 
-    def sense_payload(self):
+    def sense_payload(self, faults=True):
         rail = 0
         fields = []
         for i in range(2):
@@ -557,6 +446,8 @@ class Controller:
                 fields += [int(s.resistance_ohm * 1e6), int(s.current_a * 1e6), ch.bias_q16, ch.width_ns, s.count]
             else:
                 fields += [0, 0, 0, 0, 0]
+        if faults:
+            return struct.pack(SENSE_FORMAT + "B", min(rail, 0xFFFF), *(fields + [self.sense_faults() & 0xFF]))
         return struct.pack(SENSE_FORMAT, min(rail, 0xFFFF), *fields)
 
 

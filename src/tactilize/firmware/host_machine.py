@@ -3,7 +3,7 @@ firmware runs unchanged on the host.
 
 The emulator puts this module into ``sys.modules["machine"]`` before it imports
 ``controller.py``.  It implements just what the firmware uses (``Pin``, ``PWM``,
-``Timer``, ``WDT``, ``freq``) with the RP2040's semantics, and it records every
+``Timer``, ``WDT``, ``freq``, ``reset_cause``, ``disable_irq``) with the RP2040's semantics, and it records every
 change a real board would show on its pins, so tests and the emulator can see
 what the outputs do rather than what the firmware claims:
 
@@ -411,3 +411,18 @@ class WDT:
                     _record("reset", pin_id, mode="gpio", value=0)
                 resets.append(time.perf_counter())
                 return
+
+
+#: what disable_irq holds on the host: the timers' threads and the main loop
+#: share the firmware's heat estimate, as IRQs and the main loop do on a board
+_irq = threading.RLock()
+WDT_RESET = 3
+
+
+def disable_irq() -> bool:
+    _irq.acquire()
+    return True
+
+
+def enable_irq(state: bool = True) -> None:
+    _irq.release()

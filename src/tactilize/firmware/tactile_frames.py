@@ -18,7 +18,11 @@ _ticks_ms = getattr(time, "ticks_ms", None)
 _ticks_diff = getattr(time, "ticks_diff", None)
 _sleep_us = getattr(time, "sleep_us", None)
 _ticks_us = getattr(time, "ticks_us", None)
+_ticks_add = getattr(time, "ticks_add", None)
 if _ticks_ms is None:
+
+    def _ticks_add(a, b):
+        return a + b
 
     def _ticks_us():
         return int(time.monotonic() * 1000000)

@@ -54,6 +54,17 @@ CAL_TOLERANCE = 0.01
 # A sense reading at or above this read_u16 count is clipped: the amplifier
 # saturated (more current than the path was designed for); it bounds nothing.
 ADC_CLIPPED = 65000
+# A sense fault (docs/references.md, section 8 (sense faults)): a measured
+# resistance outside FAULT_R_LOW x the wire's lower .. FAULT_R_HIGH x its higher
+# phase resistance, or a current more than FAULT_CURRENT off what the rail can
+# drive through the path and the wire; a calibration outside CAL_RANGE x the
+# documented sense path, or a path outside 0 .. CAL_PATH_MAX_OHM.  A faulty
+# path bounds nothing: the limits fall back to the circuit's worst case.
+FAULT_R_LOW = 0.8
+FAULT_R_HIGH = 1.2
+FAULT_CURRENT = 0.2
+CAL_RANGE = (0.8, 1.25)
+CAL_PATH_MAX_OHM = 20.0
 
 # ---------------------------------------------------------------- the hold (between host messages)
 # The host's controller decides the heat (tactilize.actuators.sma.controller);
@@ -92,6 +103,12 @@ def load_calibration(text, channels):
         d["path_ohm_%d" % i] = DEFAULT_PATH_OHM[i] if i < len(DEFAULT_PATH_OHM) else DEFAULT_PATH_OHM[0]
     d = parse_config(text, d)
     return [(d["amps_per_count_%d" % i], d["path_ohm_%d" % i]) for i in range(channels)]
+
+
+def calibration_fault(amps_per_count, path_ohm):
+    """True when a channel's stored calibration is outside its plausible range."""
+    k = amps_per_count / DEFAULT_AMPS_PER_COUNT
+    return not (CAL_RANGE[0] <= k <= CAL_RANGE[1]) or not (0.0 <= path_ohm <= CAL_PATH_MAX_OHM)
 
 
 def calibration_text(cal):
@@ -140,26 +157,29 @@ class WireLimits:
         k = current_a * self.spread / ((1.0 - CAL_TOLERANCE) * self.i_min)
         return self.p_max * k * k if k < 1 else self.p_max
 
-    def rise_k(self, f_hz, width_s, bias, p_w):
+    def rise_k(self, f_hz, width_s, bias, p_w, j=0.0):
+        """The bound on the rise [K]; a train jittered by j periods may bring
+        its pulses j periods closer than even ones, which adds at most j E / C
+        (docs/references.md, section 2 (jittered trains))."""
         e = width_s * p_w
-        return (f_hz * e + bias * p_w) / self.h + e / self.c
+        return (f_hz * e + bias * p_w) / self.h + (1.0 + j) * e / self.c
 
-    def allowed(self, f_hz, width_s, bias, p_w):
-        return self.rise_k(f_hz, width_s, bias, p_w) <= self.budget * (1 + 1e-9)
+    def allowed(self, f_hz, width_s, bias, p_w, j=0.0):
+        return self.rise_k(f_hz, width_s, bias, p_w, j) <= self.budget * (1 + 1e-9)
 
     def heat_allowed(self, f_hz, pulse_j, bias_w):
         """The same bound for heat given directly: per pulse [J] and bias [W]."""
         return (f_hz * pulse_j + bias_w) / self.h + pulse_j / self.c <= self.budget * (1 + 1e-9)
 
-    def max_width_s(self, f_hz, bias, p_w):
+    def max_width_s(self, f_hz, bias, p_w, j=0.0):
         room = self.budget - bias * p_w / self.h
         if room <= 0 or f_hz <= 0:
             return 0.0
-        return room / (f_hz / self.h + 1.0 / self.c) / p_w
+        return room / (f_hz / self.h + (1.0 + j) / self.c) / p_w
 
-    def max_bias(self, f_hz, width_s, p_w):
+    def max_bias(self, f_hz, width_s, p_w, j=0.0):
         e = width_s * p_w
-        room = self.budget - e / self.c
+        room = self.budget - (1.0 + j) * e / self.c
         if room <= 0:
             return 0.0
         b = (room * self.h - f_hz * e) / p_w
@@ -168,9 +188,19 @@ class WireLimits:
 
 class Sense:
     """Self-sensing of one channel: ADC readings taken while current flows ->
-    the wire's resistance and current (averaged over SENSE_AVERAGE readings)."""
+    the wire's resistance and current (averaged over SENSE_AVERAGE readings),
+    each measurement checked against the wire and circuit in ``cfg`` (fault)."""
 
-    def __init__(self, adc_i, adc_rail, amps_per_count, path_ohm):
+    def __init__(self, adc_i, adc_rail, amps_per_count, path_ohm, cfg=None):
+        cfg = DEFAULT_CONFIG if cfg is None else cfg
+        r = (cfg["r_martensite_ohm"], cfg["r_austenite_ohm"])
+        self.r_lo, self.r_hi = min(r), max(r)
+        # A current sink regulates below what the rail could drive: only a voltage
+        # circuit (spread 1) must carry the rail's current.
+        self.voltage_circuit = cfg["current_spread"] <= 1.0
+        # The calibration is checked once: a bad one is a fault for good.
+        self.cal_fault = calibration_fault(amps_per_count, path_ohm)
+        self.fault = self.cal_fault
         self.adc_i = adc_i
         self.adc_rail = adc_rail
         self.amps_per_count = amps_per_count
@@ -206,6 +236,7 @@ class Sense:
         self.sum_i = self.sum_v = 0.0
         self.n = 0
         r = v / i - self.path_ohm
+        self.fault = self.cal_fault or self._faulty(r, i, v)
         if r <= 0:
             return False
         self.resistance_ohm = r
@@ -215,8 +246,15 @@ class Sense:
         self.count = (self.count + 1) & 0xFFFF
         return True
 
+    def _faulty(self, r, i, v):
+        if not (FAULT_R_LOW * self.r_lo <= r <= FAULT_R_HIGH * self.r_hi):
+            return True
+        if i > (1.0 + FAULT_CURRENT) * v / (self.path_ohm + self.r_lo):
+            return True
+        return self.voltage_circuit and i < (1.0 - FAULT_CURRENT) * v / (self.path_ohm + self.r_hi)
+
     def fresh(self, now_ms, ticks_diff):
-        return self.measured_ms is not None and ticks_diff(now_ms, self.measured_ms) <= SENSE_FRESH_MS
+        return not self.fault and self.measured_ms is not None and ticks_diff(now_ms, self.measured_ms) <= SENSE_FRESH_MS
 
     def power_w(self, now_ms, ticks_diff):
         """I^2 R of the latest fresh measurement [W], 0 when none."""

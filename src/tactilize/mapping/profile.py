@@ -223,7 +223,9 @@ class Profile:
                 raise ProfileError(source, f"[actuator] {exc}") from None
             except ProfileError as exc:
                 raise ProfileError(source, f"[actuator] {exc.fault}") from None
-        return cls(**kwargs)
+        profile = cls(**kwargs)
+        _check_laws(profile, source)
+        return profile
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -278,3 +280,48 @@ def preset_names() -> list[str]:
     """Names of the profiles shipped in ``tactilize/profiles``."""
     root = resources.files("tactilize.profiles")
     return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith(".toml"))
+
+
+#: The fastest pulse train a profile may ask for [Hz]: far above touch (the
+#: Pacinian channel ends near 400 Hz, docs/references.md, section 3) and below
+#: what every output can place (two samples per period at the audio output's
+#: 48 kHz; the simulated wire's 1 us schedule stops at 500 kHz).
+MAX_PROFILE_FREQUENCY_HZ = 20_000.0
+# The laws' declared domains, sampled at load: spatial frequency [cycles/m] from
+# a 1 km period to a 1 um one, stroking speed [m/s] from rest to 10 m/s,
+# spectral intensity, pressure and periodicity over [0, 1].
+_DOMAIN = {
+    "frequency": [10.0**e for e in range(-3, 7)],
+    "speed": [0.0, 1e-4, 1e-3, 0.01, 0.06, 0.3, 1.0, 3.0, 10.0],
+    "width": [0.0, 0.25, 0.5, 0.75, 1.0],
+    "amplitude": [None, 0.0, 0.5, 1.0],
+    "regularity": [0.0, 0.5, 1.0],
+}
+
+
+def _check_laws(profile: Profile, source: str) -> None:
+    """Refuse, at load, a profile whose laws fail or leave the finite numbers
+    anywhere on their domains, or whose band no output can render: such a
+    profile would load and then fail every drive (a batch, the pen page)."""
+    if profile.limits.max_frequency_hz > MAX_PROFILE_FREQUENCY_HZ:
+        raise ProfileError(source, f"[actuator] max_frequency_hz {profile.limits.max_frequency_hz:g} is above the "
+                                   f"{MAX_PROFILE_FREQUENCY_HZ:g} Hz any output can render")
+    for role, xs in _DOMAIN.items():
+        law = getattr(profile, role)
+        for x in xs:
+            try:
+                y = law(x)
+                bad = y is not None and not math.isfinite(float(y))
+            except (ArithmeticError, ValueError, TypeError) as exc:
+                raise ProfileError(source, f"[{role}] {law.kind} law fails at {x}: {exc.__class__.__name__}") from None
+            if bad:
+                raise ProfileError(source, f"[{role}] {law.kind} law gives {y} at {x}")
+    corners = DriveFeatures
+    for f_s in (_DOMAIN["frequency"][0], 1000.0, _DOMAIN["frequency"][-1]):
+        for i_s in (0.0, 1.0):
+            for v in (0.0, 0.06, _DOMAIN["speed"][-1]):
+                try:
+                    profile.drive(corners(f_s, i_s, 30.0, 1.0, 0.3), v, 0.5)
+                except (ArithmeticError, ValueError, TypeError, DriveError) as exc:
+                    what = getattr(exc, "fault", exc.__class__.__name__)
+                    raise ProfileError(source, f"no drive at {f_s:g} cycles/m, i_s {i_s:g}, {v:g} m/s: {what}") from None

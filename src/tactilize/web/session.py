@@ -48,9 +48,11 @@ Server to page
     (docs/surfaces.md); per channel the applied drive (frequency [Hz],
     width [s] and [ms], duty ratio, amplitude, the limits that clamped), the
     speed [m/s] and [mm/s], direction [deg, y up], whether the pen is down and
-    over the picture.  ``seq`` echoes the newest batch it covers; ``resting``
-    is true for the drive the server sends by itself when the pen is down but
-    no samples came for :data:`IDLE_S` (a resting pen: speed 0).
+    over the picture; ``output_fault``: one line when the output cannot be
+    trusted now (a faulty sense path, a stopped simulation), else null.
+    ``seq`` echoes the newest batch it covers; ``resting`` is true for the
+    drive the server sends by itself when the pen is down but no samples came
+    for :data:`IDLE_S` (a resting pen: speed 0).
 ``{"type": "wire", "t_s": [...], "displacement_um": [[...], [...]], "state": [...]}``
     The simulated wires' displacement per channel since the previous message
     (simulated time [s], displacement [um]) and each wire's controller state now
@@ -362,6 +364,9 @@ class PenSession:
         d["rendering"] = self.renderer.profile.rendering
         d["seq"] = self.seq
         d["resting"] = False
+        # Why the output cannot be trusted now (a faulty sense path, a stopped
+        # simulation): the page shows it beside the wire's state.
+        d["output_fault"] = getattr(self.renderer.output, "fault", None)
         return d
 
     def schedule_idle(self, loop: asyncio.AbstractEventLoop) -> None:
@@ -563,6 +568,9 @@ def _wire_source(output: Any):
         tr = fn(span_s)
         t = tr.get("time_s") or []
         chans = tr.get("channels") or []
+        if getattr(output, "fault", None) and not getattr(output, "connected", True):
+            # A stopped simulation makes no new points: its legend must not keep its last state.
+            return {"type": "wire", "t_s": [], "displacement_um": [[] for _ in chans], "state": ["failed"] * len(chans)}
         if not t or not chans:
             return None
         first = 0

@@ -49,7 +49,7 @@ from dataclasses import dataclass
 
 from ...drive import Drive
 from .circuit import Circuit
-from .envelope import SafetyEnvelope, build_envelope
+from .envelope import SafetyEnvelope, build_envelope, drive_jitter
 from .simulate import FOLLOW_THRESHOLD_M
 from .wire import WireSpec
 
@@ -228,7 +228,7 @@ class WireController:
         width = min(energy / power, 0.5 / f)
         # And what the envelope allows (the bias is then cut to what is left): in
         # closed loop the heat is measured, open loop assumes the circuit's worst.
-        w_env = self.envelope.max_pulse_energy_j(f) / self._bound_power_w()
+        w_env = self.envelope.max_pulse_energy_j(f, jitter_periods=drive_jitter(drive)) / self._bound_power_w()
         if width > w_env:
             width = w_env
             clamped += ("envelope",)

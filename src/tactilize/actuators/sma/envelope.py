@@ -15,7 +15,12 @@ conducts.  Two bounds, both from the lumped heat balance
   its period (the latent heat can only absorb part of it), and the lowest
   temperature is at most the mean.
 
-So ``T_amb + P_mean / (h A_s) + E / C <= T_max`` bounds the peak.  The envelope
+So ``T_amb + P_mean / (h A_s) + E / C <= T_max`` bounds the peak of an even
+train.  An irregular train (:mod:`tactilize.synthesis`) may bring a pulse ``j``
+periods closer to all those before it than an even train would: the heat left
+from them is then ``e^(j P / tau)`` times larger, which adds at most ``j E / C``
+(docs/references.md, section 2 (jittered trains)), so the per-pulse term is
+``(1 + j) E / C``.  The envelope
 uses the hottest air it is designed for (:data:`DESIGN_AMBIENT_C`, or the wire's
 own ambient when that is hotter) and keeps :data:`ENVELOPE_MARGIN` of the budget
 in reserve.  A property test drives the model with whatever the envelope lets
@@ -31,10 +36,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ...drive import Drive
+from ...synthesis.trains import JITTER_MAX_PERIODS
 from .circuit import Circuit
 from .wire import WireSpec
 
-__all__ = ["SafetyEnvelope", "build_envelope", "default_envelope", "DESIGN_AMBIENT_C", "ENVELOPE_MARGIN"]
+__all__ = ["SafetyEnvelope", "build_envelope", "default_envelope", "drive_jitter", "DESIGN_AMBIENT_C", "ENVELOPE_MARGIN"]
 
 #: The hottest air [deg C] the envelope is computed for by default: a warm room
 #: (5 K above the wires' nominal 25 C).  Hotter air needs ``design_ambient_c``:
@@ -91,21 +97,25 @@ class SafetyEnvelope:
         ``frequency_hz`` [Hz]: for a controller that measures the heat it delivers."""
         return max(0.0, self.budget_k * self.spec.conductance_w_k - frequency_hz * pulse_energy_j)
 
-    def max_pulse_energy_j(self, frequency_hz: float, bias_level: float = 0.0) -> float:
-        """Largest heat per pulse [J] at a pulse frequency [Hz] over a standby bias level."""
+    def max_pulse_energy_j(self, frequency_hz: float, bias_level: float = 0.0, jitter_periods: float = 0.0) -> float:
+        """Largest heat per pulse [J] at a pulse frequency [Hz] over a standby bias level,
+        for a train whose pulses may move ``jitter_periods`` toward each other (0: even)."""
         if frequency_hz <= 0:
             return 0.0
         hA, C = self.spec.conductance_w_k, self.spec.heat_capacity_j_k
         room_k = self.budget_k - bias_level * self.max_power_w / hA
         if room_k <= 0:
             return 0.0
-        return room_k / (frequency_hz / hA + 1.0 / C)
+        return room_k / (frequency_hz / hA + (1.0 + jitter_periods) / C)
 
-    def max_pulse_width_s(self, frequency_hz: float, amplitude: float = 1.0, bias_level: float = 0.0) -> float:
-        """Largest pulse width [s] at a frequency [Hz], switch fraction ``amplitude`` and bias level."""
+    def max_pulse_width_s(
+        self, frequency_hz: float, amplitude: float = 1.0, bias_level: float = 0.0, jitter_periods: float = 0.0
+    ) -> float:
+        """Largest pulse width [s] at a frequency [Hz], switch fraction ``amplitude``, bias
+        level and jitter depth [periods]."""
         if frequency_hz <= 0 or amplitude <= 0:
             return math.inf
-        return self.max_pulse_energy_j(frequency_hz, bias_level) / (amplitude * self.max_power_w)
+        return self.max_pulse_energy_j(frequency_hz, bias_level, jitter_periods) / (amplitude * self.max_power_w)
 
     def max_boost_j(self, start_upper_c: float) -> float:
         """Largest heat [J] of one warming burst from a wire known to be at most
@@ -119,7 +129,7 @@ class SafetyEnvelope:
         hA, C = self.spec.conductance_w_k, self.spec.heat_capacity_j_k
         E = 0.0 if drive.is_off else drive.amplitude * drive.pulse_width_s * self.max_power_w
         f = 0.0 if drive.is_off else drive.pulse_frequency_hz
-        return Ta + (f * E + bias_level * self.max_power_w) / hA + E / C
+        return Ta + (f * E + bias_level * self.max_power_w) / hA + (1.0 + drive_jitter(drive)) * E / C
 
     # -- applying it
 
@@ -127,7 +137,7 @@ class SafetyEnvelope:
         """True when the envelope would let ``drive`` through unchanged."""
         if drive.is_off:
             return bias_level <= self.max_bias_level() * (1 + 1e-12)
-        w = self.max_pulse_width_s(drive.pulse_frequency_hz, drive.amplitude, bias_level)
+        w = self.max_pulse_width_s(drive.pulse_frequency_hz, drive.amplitude, bias_level, drive_jitter(drive))
         return drive.pulse_width_s <= w * (1 + 1e-12)
 
     def apply(self, drive: Drive, bias_level: float = 0.0) -> Drive:
@@ -135,7 +145,7 @@ class SafetyEnvelope:
         to ``clamped`` when that happened; an off drive when nothing is allowed)."""
         if drive.is_off:
             return drive
-        w_max = self.max_pulse_width_s(drive.pulse_frequency_hz, drive.amplitude, bias_level)
+        w_max = self.max_pulse_width_s(drive.pulse_frequency_hz, drive.amplitude, bias_level, drive_jitter(drive))
         if drive.pulse_width_s <= w_max:
             return drive
         if w_max <= 0:
@@ -154,6 +164,16 @@ class SafetyEnvelope:
             "max_pulse_energy_j": [self.max_pulse_energy_j(f) for f in frequencies_hz],
             "max_width_s": [self.max_pulse_width_s(f) for f in frequencies_hz],
         }
+
+
+def drive_jitter(drive: Drive) -> float:
+    """The most a drive's pulses may move toward each other [periods]: 0 for an
+    even train, ``JITTER_MAX_PERIODS (1 - regularity)`` for an irregular one
+    (the synthesiser may cap it lower, never higher)."""
+    regularity = getattr(drive, "regularity", None)
+    if drive.is_off or regularity is None or regularity >= 1.0:
+        return 0.0
+    return JITTER_MAX_PERIODS * (1.0 - max(0.0, regularity))
 
 
 def build_envelope(

@@ -243,6 +243,9 @@ function onDrive(msg) {
   if (!msg.resting && typeof msg.seq === "number") meter.drive(msg.seq);
   T.lastDrive = msg;
   if (msg.pulses) T.pulses = (T.pulses || 0) + msg.pulses;
+  const fault = $("#output-fault");  // a faulty sense path, a stopped simulation
+  fault.hidden = !msg.output_fault;
+  fault.textContent = msg.output_fault || "";
   T.drives.push(msg);
   if (T.drives.length > HISTORY) T.drives.splice(0, T.drives.length - HISTORY);
   const chans = msg.channels && msg.channels.length ? msg.channels : [{}, {}];
