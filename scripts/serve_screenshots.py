@@ -118,7 +118,7 @@ def main(argv=None) -> None:
                 page.wait_for_timeout(300)
                 if phone == "first-visit":
                     page.wait_for_timeout(300)
-                    page.screenshot(path=os.path.join(args.out, name))
+                    page.screenshot(path=os.path.join(args.out, name), scale="css")
                     print(os.path.join(args.out, name))
                     ctx.close()
                     continue
@@ -129,9 +129,12 @@ def main(argv=None) -> None:
                     touch_stroke(page, dx, seconds=dx * mm / 60.0)  # about 60 mm/s
                 else:
                     stroke(page, dx, seconds=dx * mm / 100.0)  # about 100 mm/s
-                # At once, with the pen still down and moving: a pen at rest for 80 ms is
-                # rendered at speed 0 (and some profiles go quiet then).
-                page.screenshot(path=os.path.join(args.out, name))
+                # The page as it was with the pen moving: a pen at rest for 80 ms is rendered
+                # at speed 0 (and some profiles go quiet then), and a screenshot (three device
+                # pixels per CSS pixel on the phone) can take longer than that.  So the page
+                # stops reading drives now; what it shows is the moving pen's.
+                page.evaluate("window.tactilize.ws.onmessage = null")
+                page.screenshot(path=os.path.join(args.out, name), scale="css")
                 print(os.path.join(args.out, name))
                 ctx.close()
             browser.close()

@@ -109,14 +109,15 @@ function onSettings(msg) {
 // Sample positions are from #frame's top-left: the first picture's corner.
 
 /** The stroking area [CSS px]: the stage's width, and the height that leaves in
- *  the first screen what follows the surface: the figures beside a wide page, the
- *  drive readouts on a phone (style.css puts them right under the surface there). */
+ *  the first screen what follows the surface: the pulse plot on a wide page (Fig. 5
+ *  may be below the fold), the drive readouts on a phone (style.css puts them
+ *  right under the surface there). */
 function stageSize() {
   const s = $("#surface");
   const w = s.clientWidth || 600;
   const top = s.getBoundingClientRect().top + window.scrollY;
   const phone = getComputedStyle($("#stage")).display === "contents";
-  const below = (phone ? $("#drive-group") : $("#figures")).getBoundingClientRect().height || 0;
+  const below = (phone ? $("#drive-group") : $("#plot-figure")).getBoundingClientRect().height || 0;
   const h = Math.max(phone ? 160 : 200, window.innerHeight - top - below - (phone ? 12 : 24));
   return [w, h];
 }

@@ -7,9 +7,9 @@
 
 export const CARD_MM = [85.60, 53.98];
 export const DEFAULT_MM_PER_PX = 25.4 / 96;
-// A phone's CSS pixel: about 0.16 mm (docs/references.md, section 5 (CSS pixel on
-// phones)).  Only the calibration dialog's starting point on a phone, never a
-// value used uncalibrated: the page says it is not calibrated until the user saves.
+// A phone's CSS pixel is about 0.16 mm: docs/references.md, section 5 (CSS pixel on phones).
+// Only the calibration dialog's starting point on a phone, never a value used
+// uncalibrated: the page says it is not calibrated until the user saves.
 export const PHONE_MM_PER_PX = 0.16;
 // Narrower than this [CSS px], the card is held upright and its short side matched:
 // its long side (85.60 mm, over 500 phone pixels) does not fit a phone's width.

@@ -2,10 +2,12 @@
 // navigator.vibrate() patterns.
 //
 // The Vibration API can only switch the motor on and off for whole milliseconds
-// (docs/references.md, section 5 (Vibration API)): no amplitude, no frequency.  So
-// each pulse becomes one on-time, longer for a stronger pulse, and pulses closer
-// than 1/MAX_RATE_HZ are thinned out (a phone motor cannot follow faster ones,
-// and the texture's 100 .. 300 Hz pulse trains are out of its reach anyway).
+// (docs/references.md, section 5 (Vibration API)): no amplitude, no frequency.
+// A phone's motor takes about 10 .. 20 ms to respond: docs/references.md, section 5 (phone motors).
+// So each pulse becomes one on-time of 10 .. 20 ms, longer for a stronger pulse,
+// and pulses closer than 1/MAX_RATE_HZ are thinned out: the motor cannot follow
+// faster ones (the paper's 100 .. 300 Hz pulse trains are far out of its reach;
+// what a phone renders is the slow rhythm of a slow stroke, bump by bump).
 //
 // Pulses come from a *source*: a function (fromMs, toMs) -> [{t_ms, strength}] in
 // page time (performance.now()).  The steady drive the page receives is one source
@@ -15,10 +17,10 @@
 // replaces the rest of the last pattern, so the rhythm carries on unbroken.
 
 /** At most this many pulses a second [Hz]. */
-export const MAX_RATE_HZ = 40;
-/** On-time of the weakest and the strongest pulse [ms]. */
-export const MIN_ON_MS = 4;
-export const MAX_ON_MS = 16;
+export const MAX_RATE_HZ = 25;
+/** On-time of the weakest and the strongest pulse [ms]: what the motor needs to respond. */
+export const MIN_ON_MS = 10;
+export const MAX_ON_MS = 20;
 /** Each pattern covers this much of what comes [ms]; a new one follows after VIBRATE_EVERY_MS. */
 export const WINDOW_MS = 300;
 export const VIBRATE_EVERY_MS = 100;
