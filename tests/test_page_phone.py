@@ -386,3 +386,54 @@ def test_the_phones_motor_plays_the_drives_pulses(pw, server):
             assert all(on < gap for (_, on), gap in zip(pulses, gaps))
             results[v_mm_s] = f_drive
         assert results[80.0] > MAX_RATE_HZ > results[20.0]  # the two strokes tested both regimes
+
+
+SIMULATE_PLAYER = """async ({ late_ms, work_ms, seed }) => {
+  // vibrate.js on an injected clock: timers fire up to late_ms late, and up to work_ms
+  // pass between reading the clock and the call (a busy page); a seeded generator.
+  const m = await import('/static/vibrate.js');
+  let t = 0, s = seed;
+  const rand = () => ((s = (s * 1103515245 + 12345) % 2147483648) / 2147483648);
+  const calls = [], timers = [];
+  let ids = 0;
+  const nav = { vibrate: (p) => { calls.push({ t, pattern: Array.isArray(p) ? Array.from(p) : [p] }); return true; } };
+  const now = () => { t += rand() * work_ms; return t; };
+  const v = new m.VibrationPulses({ nav, now,
+    setTimer: (f, ms) => { const id = ++ids; timers.push({ id, at: t + ms + rand() * late_ms, f }); return id; },
+    clearTimer: (id) => { const i = timers.findIndex((x) => x.id === id); if (i >= 0) timers.splice(i, 1); } });
+  const runTo = (end) => {
+    for (;;) {
+      timers.sort((a, b) => a.at - b.at);
+      if (!timers.length || timers[0].at > end) { t = Math.max(t, end); return; }
+      const x = timers.shift(); t = Math.max(t, x.at); x.f();
+    }
+  };
+  v.start();
+  // A stroke: the drive's frequency changes every 50 ms (12 .. 70 Hz), then the pen rests.
+  for (let k = 0; k < 40; k++) {
+    v.setDrives([{ pulse_frequency_hz: 12 + 58 * rand(), strength: rand(), amplitude: 1 }]);
+    runTo(t + 50);
+  }
+  const restAt = t;
+  v.setDrives([{}, {}]);
+  runTo(t + 1000);
+  return { calls, restAt, maxRate: m.MAX_RATE_HZ };
+}"""
+
+
+@pytest.mark.parametrize("late_ms, work_ms, seed", [(0.0, 0.0, 1), (6.0, 0.3, 2), (30.0, 2.0, 3), (12.0, 4.0, 4)])
+def test_the_motor_player_never_doubles_or_crowds_a_pulse(pw, server, late_ms, work_ms, seed):
+    # On an injected clock with late timers and slow work: every pulse the motor
+    # plays is at least 1/MAX_RATE_HZ after the one before, whole ms >= 1, none after the rest.
+    with opened(pw, server, viewport=DESKTOP_VIEWPORT) as page:
+        out = page.evaluate(SIMULATE_PLAYER, {"late_ms": late_ms, "work_ms": work_ms, "seed": seed})
+    calls, rest = out["calls"], out["restAt"]
+    patterns = [c for c in calls if c["pattern"] not in ([0], [])]
+    assert len(patterns) > 10
+    assert all(isinstance(x, int) and x >= 1 for c in patterns for x in c["pattern"])
+    pulses = played_pulses(calls)
+    starts = np.array([p[0] for p in pulses])
+    assert np.diff(starts).min() >= 1000.0 / out["maxRate"] - 1e-6
+    assert all(c["t"] <= rest for c in patterns)
+    # The pen rested: whatever was playing was stopped then.
+    assert calls[-1]["pattern"] in ([0], []) and calls[-1]["t"] >= rest

@@ -182,17 +182,25 @@ export class VibrationPulses {
       this._later(due - now, moved);
       return;
     }
+    // The clock again, just before the call: on a busy page the work above can take
+    // long enough for the old pattern to start its next pulse meanwhile.  Then hand
+    // over after that pulse instead of playing a second one on top of it.
+    const c = this.now();
+    if (oldNext !== null && c >= oldNext - 0.5) {
+      this._later(oldNext + 1 - c);
+      return;
+    }
     this.nav.vibrate(pattern);
     const starts = [], ons = [];
-    for (let i = 0, t = now; i < pattern.length; i += 2) {
+    for (let i = 0, t = c; i < pattern.length; i += 2) {
       starts.push(t); ons.push(pattern[i]);
       t += pattern[i] + (pattern[i + 1] || 0);
     }
     this.current = { starts, ons, seen: 0 };
-    this._sync(now);
+    this._sync(c);
     // The next pattern takes over at the pulse about VIBRATE_EVERY_MS on, or when this one ends.
-    const k = starts.findIndex((t) => t - now >= VIBRATE_EVERY_MS);
+    const k = starts.findIndex((t) => t - c >= VIBRATE_EVERY_MS);
     const end = starts[starts.length - 1] + ons[ons.length - 1];
-    this._later((k > 0 ? starts[k] - EARLY_MS : end) - now);
+    this._later((k > 0 ? starts[k] - EARLY_MS : end) - c);
   }
 }
