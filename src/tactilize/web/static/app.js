@@ -122,6 +122,16 @@ function stageSize() {
   return [w, h];
 }
 
+/** The width the surface may take [CSS px]: its layout parent's content box (the
+ *  stage, or on a phone, where the stage gives its parts to main, main). */
+function availableWidth() {
+  let p = $("#surface").parentElement;
+  while (p && getComputedStyle(p).display === "contents") p = p.parentElement;
+  if (!p) return 600;
+  const cs = getComputedStyle(p);
+  return p.clientWidth - parseFloat(cs.paddingLeft) - parseFloat(cs.paddingRight);
+}
+
 function place(img, t, x, y, w, h) {
   if (img.dataset.id !== t.id) { img.src = t.url; img.dataset.id = t.id; }
   img.alt = t.name;
@@ -137,11 +147,13 @@ function layoutSurface() {
     const list = T.six.map((id) => textures.get(id)).filter(Boolean);
     if (!list.length) return null;
     cw = Math.max(...list.map((t) => t.width_mm)) / mm; ch = Math.max(...list.map((t) => t.height_mm)) / mm;
-    cols = SIX_COLS;
+    // Three across as in the paper where they fit (a quarter of a cell may be cut);
+    // fewer on a narrow screen, where a third column would be out of reach.
+    cols = Math.max(1, Math.min(SIX_COLS, Math.floor((availableWidth() + 0.25 * cw) / cw)));
     cells = list.map((t, i) => [t, (i % cols) * cw, Math.floor(i / cols) * ch]);
     msg = { type: "composite", ids: list.map((t) => t.id), cols };
     $("#texture-name").textContent = "Six textures side by side";
-    $("#texture-size").textContent = ` ${SIX_COLS} × ${Math.ceil(list.length / SIX_COLS)} cells of ${(cw * mm).toFixed(1)} × ${(ch * mm).toFixed(1)} mm (Fig. 16)`;
+    $("#texture-size").textContent = ` ${cols} × ${Math.ceil(list.length / cols)} cells of ${(cw * mm).toFixed(1)} × ${(ch * mm).toFixed(1)} mm (Fig. 16)`;
   } else {
     const t = textures.get(T.texture);
     if (!t) return null;
