@@ -221,6 +221,17 @@ def test_a_phone_calibrates_with_the_card_upright(pw, server):
         assert page.evaluate("document.documentElement.scrollWidth") <= PHONE_VIEWPORT["width"]
 
 
+def test_six_side_by_side_on_a_phone_keeps_every_cell_in_reach(pw, server):
+    with opened(pw, server, **phone_args(pw[0])) as page:
+        page.get_by_test_id("view-six").check()
+        page.wait_for_function("window.tactilize.settings && window.tactilize.settings.composite", timeout=10_000)
+        comp = page.evaluate("window.tactilize.settings.composite")
+        assert len(comp["ids"]) == 6 and comp["cols"] == 1  # 67.7 mm cells: one across a 390 px screen
+        frame = box(page, "#frame")
+        assert frame["x"] >= 0 and frame["x"] + frame["width"] <= PHONE_VIEWPORT["width"]
+        assert page.evaluate("document.documentElement.scrollWidth") <= PHONE_VIEWPORT["width"]
+
+
 # ---------------------------------------------------------------------------- a desktop
 
 
