@@ -75,6 +75,8 @@ def serve(
     log_level: str = "warning",
     extra_hosts: Iterable[str] = (),
     max_sockets: int | None = None,
+    lan: bool = False,
+    https: bool = False,
 ) -> None:
     """Serve the tactile pen page until interrupted.
 
@@ -98,6 +100,13 @@ def serve(
         ``host`` (:func:`.guard.accepted_hosts`: the one set every check uses).
     max_sockets : int, optional
         WebSockets open at once, at most (:data:`.guard.DEFAULT_MAX_SOCKETS`).
+    lan : bool
+        Bind this machine's address on the local network (or ``host``, when it
+        is one) so a phone can reach the page; the URL to type is printed with
+        a QR code (:mod:`.lan`).
+    https : bool
+        Serve HTTPS with a self-signed certificate made and kept by :mod:`.tls`
+        (the page's audio output and raw pointer updates need it off loopback).
     """
     import uvicorn
 
@@ -107,6 +116,18 @@ def serve(
     from .guard import DEFAULT_MAX_SOCKETS, accepted_hosts
 
     prof = Profile.resolve(DEFAULT_PROFILE if profile is None else profile)  # bad profiles fail before anything opens
+    if lan:
+        from .lan import lan_host
+
+        # From here on ``host`` is the address bound and typed on the phone: the
+        # one the server's host and origin checks must accept.
+        host = lan_host(None if is_loopback(host) else host)
+    ssl_files: tuple[str, str] | None = None
+    if https:
+        from .tls import certificate_for
+
+        cert, key = certificate_for([host])
+        ssl_files = (str(cert), str(key))
     sock = bind_socket(host, port)
     try:
         try:
@@ -129,9 +150,10 @@ def serve(
         per_page = (lambda: open_output(output)) if output.strip().lower() == "simulated" else None
         app = create_app(out, prof, output_name=output, extra_routers=extra_routers, close_output=True,
                          hosts=accepted_hosts(host, extra_hosts), max_sockets=max_sockets, page_outputs=per_page)
+        from .lan import context_notes, page_url, qr_text
+
         bound_host, bound_port = sock.getsockname()[:2]
-        shown = f"[{bound_host}]" if ":" in bound_host else bound_host
-        url = f"http://{shown}:{bound_port}/"
+        url = page_url(bound_host, bound_port, secure=https)
         if not is_loopback(host):
             warn(
                 f"tactilize: warning: serving on {host}, reachable from other machines on the network; "
@@ -139,6 +161,10 @@ def serve(
             )
         config = uvicorn.Config(
             app,
+            host=bound_host,
+            port=bound_port,
+            ssl_certfile=ssl_files[0] if ssl_files else None,
+            ssl_keyfile=ssl_files[1] if ssl_files else None,
             log_level=log_level,
             ws_max_size=1024 * 1024,  # the protocol's messages are far smaller
             # Compression costs ~0.1 ms per message each way and saves nothing on
@@ -158,6 +184,14 @@ def serve(
         # only serves, so the global setting harms nothing else.
         sys.setswitchinterval(SWITCH_INTERVAL_S)
         echo(f"tactilize: serving the tactile pen at {url} (output {output}, profile {prof.name}); Ctrl-C to stop")
+        if lan:
+            echo(f"tactilize: on a phone on the same network, open {url} or scan:")
+            echo(qr_text(url))
+        if not is_loopback(host):
+            for line in context_notes(secure=https):
+                echo(f"tactilize: {line}")
+        if https:
+            echo(f"tactilize: HTTPS with a self-signed certificate ({ssl_files[0]}): the browser warns once; see docs/serve.md")
         if open_browser is None:
             open_browser = display_available()
         if open_browser:

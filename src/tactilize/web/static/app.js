@@ -5,8 +5,9 @@
 import { attachPen, INPUT } from "./pen-input.js";
 import { startDrawing } from "./drawing.js";
 import { LatencyMeter } from "./latency.js";
-import { showSpectrum } from "./spectrum.js";
-import { AudioPulses } from "./audio.js";
+import { showSpectrum, redrawSpectrum } from "./spectrum.js";
+import { AudioPulses, audioAvailable } from "./audio.js";
+import { VibrationPulses, vibrationAvailable } from "./vibrate.js";
 import * as calibration from "./calibrate.js";
 import * as strokeExport from "./stroke-export.js";
 import { onOutputMessage } from "./output-lease.js";
@@ -27,6 +28,7 @@ const T = (window.tactilize = {
 const draw = startDrawing($("#plot"), $("#trail"), 2, (text) => showError(text));
 T.drawing = draw.mode;
 const audio = (T.audio = new AudioPulses());
+const vibration = (T.vibration = new VibrationPulses());
 let textures = new Map();
 let seq = 0;
 let queue = [];     // messages to send once the socket is open
@@ -73,6 +75,7 @@ function connect() {
   ws.onclose = () => {
     setStatus("closed", "disconnected, retrying…");
     showDrive(null);
+    vibration.setDrives([{}, {}]);
     draw.setDrives([{}, {}]);
     setTimeout(connect, retry);
     retry = Math.min(5000, retry * 2);
@@ -107,13 +110,28 @@ function onSettings(msg) {
 // stage when "fill the screen" is on), or six side by side (the paper's Fig. 16).
 // Sample positions are from #frame's top-left: the first picture's corner.
 
+/** The stroking area [CSS px]: the stage's width, and the height that leaves in
+ *  the first screen what follows the surface: the pulse plot on a wide page (Fig. 5
+ *  may be below the fold), the drive readouts on a phone (style.css puts them
+ *  right under the surface there). */
 function stageSize() {
   const s = $("#surface");
   const w = s.clientWidth || 600;
   const top = s.getBoundingClientRect().top + window.scrollY;
-  const figs = $("#figures").getBoundingClientRect().height || 0;
-  const h = Math.max(200, window.innerHeight - top - figs - 24);
+  const phone = getComputedStyle($("#stage")).display === "contents";
+  const below = (phone ? $("#drive-group") : $("#plot-figure")).getBoundingClientRect().height || 0;
+  const h = Math.max(phone ? 160 : 200, window.innerHeight - top - below - (phone ? 12 : 24));
   return [w, h];
+}
+
+/** The width the surface may take [CSS px]: its layout parent's content box (the
+ *  stage, or on a phone, where the stage gives its parts to main, main). */
+function availableWidth() {
+  let p = $("#surface").parentElement;
+  while (p && getComputedStyle(p).display === "contents") p = p.parentElement;
+  if (!p) return 600;
+  const cs = getComputedStyle(p);
+  return p.clientWidth - parseFloat(cs.paddingLeft) - parseFloat(cs.paddingRight);
 }
 
 function place(img, t, x, y, w, h) {
@@ -126,24 +144,30 @@ function place(img, t, x, y, w, h) {
 function layoutSurface() {
   const mm = T.mmPerPx, tiles = $("#tiles");
   let cells = [], cols = 1, cw = 0, ch = 0, msg = null;
+  let visW = null, visH = null;  // the part of the surface shown [CSS px], when it is cut
   if (T.view === "six") {
     const list = T.six.map((id) => textures.get(id)).filter(Boolean);
     if (!list.length) return null;
     cw = Math.max(...list.map((t) => t.width_mm)) / mm; ch = Math.max(...list.map((t) => t.height_mm)) / mm;
-    cols = SIX_COLS;
+    // Three across as in the paper where they fit (a quarter of a cell may be cut);
+    // fewer on a narrow screen, where a third column would be out of reach.
+    cols = Math.max(1, Math.min(SIX_COLS, Math.floor((availableWidth() + 0.25 * cw) / cw)));
     cells = list.map((t, i) => [t, (i % cols) * cw, Math.floor(i / cols) * ch]);
     msg = { type: "composite", ids: list.map((t) => t.id), cols };
     $("#texture-name").textContent = "Six textures side by side";
-    $("#texture-size").textContent = ` ${SIX_COLS} × ${Math.ceil(list.length / SIX_COLS)} cells of ${(cw * mm).toFixed(1)} × ${(ch * mm).toFixed(1)} mm (Fig. 16)`;
+    $("#texture-size").textContent = ` ${cols} × ${Math.ceil(list.length / cols)} cells of ${(cw * mm).toFixed(1)} × ${(ch * mm).toFixed(1)} mm (Fig. 16)`;
   } else {
     const t = textures.get(T.texture);
     if (!t) return null;
     cw = t.width_mm / mm; ch = t.height_mm / mm;
     let rows = 1;
     if ($("#fill").checked) {
-      const [W, H] = stageSize();
-      cols = Math.max(1, Math.floor(W / cw)); rows = Math.max(1, Math.floor(H / ch));
+      // Whole copies past the stage's edges, cut by the surface: the surface is the
+      // stage's full width (and the height left for it) whatever the picture's size.
+      [visW, visH] = stageSize();
+      cols = Math.max(1, Math.ceil(visW / cw)); rows = Math.max(1, Math.ceil(visH / ch));
       while (cols * rows > MAX_REPEAT) rows > 1 ? rows-- : cols--;
+      visW = Math.min(visW, cols * cw); visH = Math.min(visH, rows * ch);
     }
     for (let r = 0; r < rows; r++) for (let c = 0; c < cols; c++) cells.push([t, c * cw, r * ch]);
     msg = { type: "texture", id: t.id };
@@ -164,6 +188,9 @@ function layoutSurface() {
   if (pw) draw.plotResize(pw, pw / PLOT_ASPECT, dpr);
   trail.style.width = `${W}px`; trail.style.height = `${H}px`;
   const s = $("#surface");
+  s.style.width = visW === null ? `${W}px` : "";
+  s.style.height = visH === null ? "" : `${visH}px`;
+  T.visible = { w: visW === null ? W : visW, h: visH === null ? H : visH, mapW: W, mapH: H };
   s.dataset.view = T.view;
   s.dataset.texture = T.view === "six" ? "" : T.texture;
   s.dataset.mmPerPx = String(mm);
@@ -205,6 +232,21 @@ function setView(view) {
   applySurface();
 }
 
+/** Samples as the server's map has them: a point past the cut edge of a filled
+ *  surface is moved past the map's edge by as much, so leaving what is shown is
+ *  leaving the picture (and the drive stops), as with one copy. */
+function toMap(rows) {
+  const v = T.visible;
+  if (!v || (v.w >= v.mapW && v.h >= v.mapH)) return rows;
+  return rows.map((r) => {
+    if (r[1] < v.w && r[2] < v.h) return r;
+    const q = r.slice();
+    if (q[1] >= v.w) q[1] += v.mapW - v.w;
+    if (q[2] >= v.h) q[2] += v.mapH - v.h;
+    return q;
+  });
+}
+
 function calibrationNote() {
   $("#calibration-note").textContent = `${T.mmPerPx.toFixed(4)} mm per CSS px` + (calibration.isCalibrated() ? " (calibrated)" : " (not calibrated: 1/96 inch)");
 }
@@ -241,6 +283,7 @@ function showDrive(msg) {
 
 function onDrive(msg) {
   if (!msg.resting && typeof msg.seq === "number") meter.drive(msg.seq);
+  msg.page_ms = performance.now();  // when it arrived, in the page's clock (outputs and tests line up on it)
   T.lastDrive = msg;
   if (msg.pulses) T.pulses = (T.pulses || 0) + msg.pulses;
   const fault = $("#output-fault");  // a faulty sense path, a stopped simulation
@@ -249,7 +292,8 @@ function onDrive(msg) {
   T.drives.push(msg);
   if (T.drives.length > HISTORY) T.drives.splice(0, T.drives.length - HISTORY);
   const chans = msg.channels && msg.channels.length ? msg.channels : [{}, {}];
-  audio.setDrives(chans);  // the sound and the plot follow at once
+  audio.setDrives(chans);  // the sound, the motor and the plot follow at once
+  vibration.setDrives(msg.on && !msg.resting ? chans : [{}, {}]);
   draw.setDrives(chans);
   // The readouts of a moving pen change READOUT_MS apart, not once a batch: numbers
   // changing faster cannot be read, and each change costs the main thread a layout
@@ -288,6 +332,57 @@ function addToGallery(t) {
   $("#gallery").append(li);
 }
 
+// ------------------------------------------------------------------ outputs on the page
+
+/** The audio button says its state: off, starting, on (with the browser's latency),
+ *  or why it cannot be on (the AudioWorklet needs a secure context: HTTPS or loopback). */
+function setupAudioToggle(b) {
+  const say = (state, text) => { b.dataset.state = state; b.textContent = text; b.setAttribute("aria-pressed", String(state === "on")); };
+  if (!audioAvailable()) {
+    say("unavailable", "Audio: needs HTTPS");
+    b.disabled = true;
+    b.title = "The audio output (an AudioWorklet) needs a secure context: serve with --https, or open the page on this machine";
+    return;
+  }
+  say("off", "Audio: off");
+  b.addEventListener("click", async () => {
+    try {
+      if (audio.on) { await audio.stop(); say("off", "Audio: off"); }
+      else {
+        say("starting", "Audio: starting…");
+        await audio.start();
+        const l = audio.latencyS();
+        say("on", `Audio: on${l ? ` (${(l * 1e3).toFixed(0)} ms)` : ""}`);
+      }
+    } catch (e) { say("off", "Audio: off"); showError(`audio: ${e.message}`); }
+  });
+}
+
+/** The phone's own motor, where the browser has the Vibration API and a touch
+ *  screen: off until tapped (the API wants a user gesture, and a motor should not
+ *  start by surprise). */
+function setupVibrationToggle(b) {
+  if (!vibrationAvailable()) return;
+  b.hidden = false;
+  const say = (on) => { b.dataset.state = on ? "on" : "off"; b.textContent = on ? "Vibrate: on" : "Vibrate: off"; b.setAttribute("aria-pressed", String(on)); };
+  say(false);
+  b.addEventListener("click", () => {
+    if (vibration.on) vibration.stop(); else vibration.start();
+    say(vibration.on);
+  });
+}
+
+/** On a touch screen not yet calibrated, say so over the surface: a phone's CSS
+ *  pixel is far from 1/96 inch, so its textures show too large until then. */
+function setupCalibrationPrompt() {
+  const box = $("#calibrate-prompt");
+  const later = "tactilize.calibration.later";
+  if (calibration.isCalibrated() || !calibration.likelyPhone() || sessionStorage.getItem(later)) return;
+  box.hidden = false;
+  $("#calibrate-now").addEventListener("click", () => { box.hidden = true; $("#calibrate").click(); });
+  $("#calibrate-later").addEventListener("click", () => { box.hidden = true; sessionStorage.setItem(later, "1"); applySurface(); });
+}
+
 async function setup() {
   const [config, profiles, list] = await Promise.all([loadJSON("/api/config"), loadJSON("/api/profiles"), loadJSON("/api/textures")]);
   T.config = config;
@@ -304,6 +399,7 @@ async function setup() {
   attachPen($("#surface"), $("#frame"), {
     onDown: (ev) => {
       draw.trailClear();
+      $("#surface-hint").hidden = true;
       // Six side by side: Fig. 5 follows the picture the stroke starts on.
       if (T.view === "six" && T.cell) {
         const r = $("#frame").getBoundingClientRect();
@@ -319,12 +415,13 @@ async function setup() {
       if (T.view !== "six") strokeExport.addSamples(rows);
       T.seq = ++seq;
       T.samplesSent += rows.length;
-      send({ type: "samples", seq, samples: rows });
+      send({ type: "samples", seq, samples: toMap(rows) });
       meter.sent(seq, rows[rows.length - 1][0]);
       draw.trailAdd(rows);
     },
     onLift: () => {
       audio.setDrives([{}, {}]);  // silence now, not after the round trip
+      vibration.setDrives([{}, {}]);
       T.seq = ++seq;
       send({ type: "lift", seq });
     },
@@ -333,22 +430,15 @@ async function setup() {
 
   calibration.setupDialog($("#calibration"), $("#calibrate"), (mm) => {
     T.mmPerPx = mm;
+    $("#calibrate-prompt").hidden = true;
     calibrationNote();
     send({ type: "calibrate", mm_per_px: mm });
     applySurface();
   });
 
-  $("#audio-toggle").addEventListener("click", async () => {
-    const b = $("#audio-toggle");
-    try {
-      if (audio.on) { await audio.stop(); b.textContent = "Audio off"; b.setAttribute("aria-pressed", "false"); }
-      else {
-        await audio.start(); b.setAttribute("aria-pressed", "true");
-        const l = audio.latencyS();
-        b.textContent = `Audio on${l ? ` (${(l * 1e3).toFixed(0)} ms)` : ""}`;
-      }
-    } catch (e) { showError(`audio: ${e.message}`); }
-  });
+  setupAudioToggle($("#audio-toggle"));
+  setupVibrationToggle($("#vibrate-toggle"));
+  setupCalibrationPrompt();
 
   $("#upload-form").addEventListener("submit", async (ev) => {
     ev.preventDefault();
@@ -378,7 +468,10 @@ async function setup() {
   for (const r of document.querySelectorAll('input[name="view"]')) r.addEventListener("change", () => r.checked && setView(r.value));
   $("#fill").addEventListener("change", applySurface);
   let resizeTimer = null;
-  window.addEventListener("resize", () => { clearTimeout(resizeTimer); resizeTimer = setTimeout(applySurface, 150); });
+  window.addEventListener("resize", () => {
+    clearTimeout(resizeTimer);
+    resizeTimer = setTimeout(() => { applySurface(); redrawSpectrum(); }, 150);
+  });
   T.six = list.filter((t) => t.builtin).slice(0, 6).map((t) => t.id);
   T.sixNext = 0;
   if (list.length) T.texture = list[0].id;

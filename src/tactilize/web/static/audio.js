@@ -2,6 +2,12 @@
 // Off until the user turns it on (browsers only start audio after a gesture,
 // and an actuator on an amplifier should never start by surprise).
 
+/** Can this page play pulses?  The AudioWorklet exists only in a secure context
+ *  (HTTPS, or loopback): over plain HTTP from a phone it does not. */
+export function audioAvailable() {
+  return typeof AudioContext === "function" && typeof AudioWorkletNode === "function" && window.isSecureContext !== false;
+}
+
 export class AudioPulses {
   constructor() { this.ctx = null; this.node = null; this.on = false; this.last = null; }
 

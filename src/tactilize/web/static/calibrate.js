@@ -7,6 +7,18 @@
 
 export const CARD_MM = [85.60, 53.98];
 export const DEFAULT_MM_PER_PX = 25.4 / 96;
+// A phone's CSS pixel is about 0.16 mm: docs/references.md, section 5 (CSS pixel on phones).
+// Only the calibration dialog's starting point on a phone, never a value used
+// uncalibrated: the page says it is not calibrated until the user saves.
+export const PHONE_MM_PER_PX = 0.16;
+// Narrower than this [CSS px], the card is held upright and its short side matched:
+// its long side (85.60 mm, over 500 phone pixels) does not fit a phone's width.
+const UPRIGHT_BELOW_PX = 600;
+
+/** A touch screen the size of a phone (the calibration prompt's audience). */
+export function likelyPhone() {
+  return matchMedia("(pointer: coarse)").matches && Math.min(screen.width, screen.height) < UPRIGHT_BELOW_PX;
+}
 const KEY = "tactilize.calibration.v1";
 
 /** The calibrated mm per CSS pixel for the current zoom, or the 1/96 inch default. */
@@ -45,23 +57,35 @@ export function setupDialog(dialog, openButton, onChange) {
   const range = dialog.querySelector("#card-range");
   const cardPx = dialog.querySelector("#card-px");
   const mmInput = dialog.querySelector("#mm-per-px");
+  let side = CARD_MM[0];  // the card's side matched to the on-screen card's width [mm]
+  const orient = () => {
+    const upright = window.innerWidth < UPRIGHT_BELOW_PX;
+    side = upright ? CARD_MM[1] : CARD_MM[0];
+    card.style.aspectRatio = upright ? `${CARD_MM[1]} / ${CARD_MM[0]}` : `${CARD_MM[0]} / ${CARD_MM[1]}`;
+    dialog.querySelector("#card-side").textContent = side.toFixed(2);
+    dialog.querySelector("#card-how").textContent = upright ? "upright" : "lying";
+  };
   const show = (mm) => {
-    const w = CARD_MM[0] / mm;
+    const w = side / mm;
     card.style.width = `${w}px`;
     range.value = String(w);
     cardPx.value = w.toFixed(1);
     mmInput.value = mm.toFixed(5);
   };
-  range.addEventListener("input", () => show(CARD_MM[0] / Number(range.value)));
+  range.addEventListener("input", () => show(side / Number(range.value)));
   cardPx.addEventListener("input", () => {
     const w = Number(cardPx.value);
-    if (w > 0) { card.style.width = `${w}px`; range.value = String(w); mmInput.value = (CARD_MM[0] / w).toFixed(5); }
+    if (w > 0) { card.style.width = `${w}px`; range.value = String(w); mmInput.value = (side / w).toFixed(5); }
   });
   mmInput.addEventListener("input", () => {
     const mm = Number(mmInput.value);
-    if (mm > 0) { const w = CARD_MM[0] / mm; card.style.width = `${w}px`; range.value = String(w); cardPx.value = w.toFixed(1); }
+    if (mm > 0) { const w = side / mm; card.style.width = `${w}px`; range.value = String(w); cardPx.value = w.toFixed(1); }
   });
-  openButton.addEventListener("click", () => { show(mmPerPx()); dialog.showModal(); });
+  openButton.addEventListener("click", () => {
+    orient();
+    show(!isCalibrated() && likelyPhone() ? PHONE_MM_PER_PX : mmPerPx());
+    dialog.showModal();
+  });
   dialog.addEventListener("close", () => {
     if (dialog.returnValue === "save") {
       const mm = Number(mmInput.value);
