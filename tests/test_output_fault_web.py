@@ -14,10 +14,10 @@ from test_web import FakeOutput, hello, recv_type, stroke_rows
 def test_drive_messages_carry_the_outputs_fault():
     out = FakeOutput()
     app = create_app(out, "paper", output_name="fake")
-    with TestClient(app) as client:
+    with TestClient(app, base_url="http://127.0.0.1") as client:
         page = client.get("/").text
         assert 'data-testid="output-fault"' in page
-        with client.websocket_connect("/ws") as ws:
+        with client.websocket_connect("ws://127.0.0.1/ws") as ws:
             hello(ws)
             ws.send_text(json.dumps({"type": "samples", "seq": 0, "samples": stroke_rows(20.0)}))
             assert recv_type(ws, "drive")["output_fault"] is None

@@ -18,6 +18,7 @@ import pytest
 
 from tactilize.errors import TactilizeError
 from tactilize.web import lan
+from tactilize.web.serve import DEFAULT_PROFILE
 from tactilize.web.lan import choose_lan_address, context_notes, lan_host, page_url, qr_text
 from tactilize.web.tls import certificate_for, certificate_names
 
@@ -132,7 +133,7 @@ def test_serve_https_on_loopback_with_the_generated_certificate(tmp_path):
         assert cert.exists()
         ctx = ssl.create_default_context(cafile=str(cert))
         r = httpx.get(m.group(0) + "api/config", verify=ctx, timeout=10)
-        assert r.status_code == 200 and r.json()["profile"] == "perceptual"
+        assert r.status_code == 200 and r.json()["profile"] == DEFAULT_PROFILE
         # Without the certificate the client refuses, as a browser warns.
         with pytest.raises(httpx.ConnectError):
             httpx.get(m.group(0) + "api/config", timeout=10)

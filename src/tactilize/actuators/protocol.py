@@ -77,6 +77,7 @@ from enum import IntEnum
 from typing import NamedTuple
 
 __all__ = [
+    "command_name",
     "START",
     "MAX_PAYLOAD",
     "HEADER_SIZE",
@@ -141,6 +142,14 @@ class Command(IntEnum):
     NAK = 0x81
     STATUS_REPLY = 0x82
     SENSE_REPLY = 0x83
+
+
+def command_name(command: int) -> str:
+    """A command code's name for messages ("SET"), or its hex for an unknown one."""
+    try:
+        return Command(command).name
+    except ValueError:
+        return f"0x{command:02x}"
 
 
 class NakReason(IntEnum):

@@ -49,13 +49,6 @@ from .sma import Circuit, SafetyEnvelope, WireController, WireSpec, default_enve
 __all__ = ["SerialOutput"]
 
 
-def _command_name(command: int) -> str:
-    try:
-        return P.Command(command).name
-    except ValueError:
-        return f"0x{command:02x}"
-
-
 class _PortLost(Exception):
     """The port failed under us (internal; callers see OutputError)."""
 
@@ -370,12 +363,12 @@ class SerialOutput(OutputBase):
                         continue
                     what = getattr(reason, "name", str(reason)).lower().replace("_", " ")
                     extra = f" ({detail.name.lower().replace('_', ' ')})" if getattr(detail, "value", 0) else ""
-                    raise OutputError(self.port, f"controller refused {_command_name(requests[i][0])}: {what}{extra}")
+                    raise OutputError(self.port, f"controller refused {P.command_name(requests[i][0])}: {what}{extra}")
                 replies[i] = reply
             todo = retry
             if not todo:
                 return replies  # type: ignore[return-value]
-        names = ", ".join(sorted({_command_name(requests[i][0]) for i in todo}))
+        names = ", ".join(sorted({P.command_name(requests[i][0]) for i in todo}))
         raise OutputError(self.port, f"controller did not acknowledge {names} after {attempts} attempts")
 
     def _write(self, frame: bytes) -> None:

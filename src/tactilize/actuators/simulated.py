@@ -34,7 +34,7 @@ from __future__ import annotations
 import threading
 import time
 from collections import deque
-from typing import Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 
@@ -45,6 +45,9 @@ from .base import OutputBase
 from .sma import Circuit, SafetyEnvelope, WireController, WireModel, WireSpec, build_envelope
 from .sma.controller import STATES
 from .simulated_events import event_starts, run_event_block, take_events
+
+if TYPE_CHECKING:
+    from .sma.heat import RunningHeat
 
 __all__ = ["SimulatedOutput"]
 
