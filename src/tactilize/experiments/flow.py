@@ -25,7 +25,7 @@ from ..mapping import DriveFeatures
 from .protocols import Protocol
 from .store import ExperimentSession, Store, iso, utcnow
 
-__all__ = ["Flow", "FlowError", "StrokeHandler", "CODE_PATTERN", "OPEN_TRIAL_TTL_S"]
+__all__ = ["Flow", "FlowError", "CODE_PATTERN", "OPEN_TRIAL_TTL_S"]
 
 CODE_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,31}$")
 # Plausible screen scales: 0.05 mm/px (a 500 DPI panel) .. 1 mm/px (a projector).
