@@ -109,3 +109,27 @@ def test_a_batch_whose_rows_cannot_be_made_fails_alone(tmp_path):
     assert writer.barrier(30)
     with sqlite3.connect(tmp_path / "drives.sqlite3") as con:
         assert con.execute("select batch_id, n_samples from stroke_batches").fetchall() == [("good", 1)]
+
+
+def test_an_expired_open_trial_is_read_after_the_reply_not_before(tmp_path, monkeypatch):
+    import tactilize.experiments.flow as flow_mod
+
+    flow, token, trial = _flow(tmp_path)
+    handler = flow.stroke_handler(token)
+    msg = {"trial": 0, "image": trial["images"][0]["id"], "batch": "b1", "samples": _curve(4)}
+    assert handler.handle(msg)["stored"] == "stored"
+    queries = []
+    original = flow_mod.Flow._first_open
+
+    def counted(self, *a, **kw):
+        queries.append(1)
+        return original(self, *a, **kw)
+
+    monkeypatch.setattr(flow_mod.Flow, "_first_open", counted)
+    monkeypatch.setattr(flow_mod, "OPEN_TRIAL_TTL_S", -1.0)  # every remembered value has expired
+    reply, future = handler.take({**msg, "batch": "b2"})
+    assert reply["type"] == "drive" and future.result(timeout=30) == "stored"
+    assert queries == []  # the drive did not wait for the database
+    assert flow.open_trial_due(handler.session)
+    handler.refresh_open_trial()  # what the socket does once the reply is on its way
+    assert queries == [1]

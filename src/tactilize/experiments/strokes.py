@@ -136,7 +136,9 @@ class StrokeHandler:
             if err:
                 raise FlowError("stroke", err, 422)
         batch = _batch_id(msg.get("batch"))
-        current = self.flow.open_trial(self.session)
+        # An expired value is used once more rather than querying on the drive's
+        # path; pump() refreshes it right after the reply (refresh_open_trial).
+        current = self.flow.open_trial(self.session, stale_ok=True)
         if current is not None and idx > current:
             current = self.flow.open_trial(self.session, fresh=True)
             if current is not None and idx > current:
@@ -167,6 +169,11 @@ class StrokeHandler:
         return {"type": "drive", "trial": idx, "image": image_id, "batch": batch, "speed_mm_s": speed * 1e3,
                 "logged": len(taken), "drive": drive.to_dict()}, future
 
+    def refresh_open_trial(self) -> None:
+        """Re-read the open trial if its remembered value expired (after a reply, off the drive's path)."""
+        if self.flow.open_trial_due(self.session):
+            self.flow.open_trial(self.session, fresh=True)
+
     def handle(self, msg: Any, timeout_s: float = 60.0) -> dict[str, Any]:
         """Handle one message and wait for its samples' commit (synthetic participants, tests).
 
@@ -174,6 +181,7 @@ class StrokeHandler:
         ``"duplicate"``) for a batch; a late batch answers ``{"type": "logged"}``.
         """
         reply, future = self.take(msg)
+        self.refresh_open_trial()
         if future is None:
             return reply
         status = future.result(timeout=timeout_s)
@@ -258,6 +266,8 @@ async def pump(ws, handler: StrokeHandler) -> None:
             if future is not None:
                 batch, trial = (reply or {}).get("batch") or msg.get("batch"), msg.get("trial")
                 future.add_done_callback(lambda f, b=batch, t=trial: post(_ack(f, b, t)))
+                if handler.flow.open_trial_due(handler.session):  # the reply is on its way: query now
+                    await run_in_threadpool(handler.refresh_open_trial)
     except WebSocketDisconnect:
         return
     finally:
