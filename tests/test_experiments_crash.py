@@ -74,6 +74,8 @@ def test_sigkill_mid_session_then_resume(tmp_path):
         with connect(f"ws://127.0.0.1:{port}/experiment/ws/{token}") as ws:
             ws.send(json.dumps({"trial": 2, "image": "image3", "samples": [[k * 8.0, k * 0.5, 3.0, 0.4] for k in range(30)]}))
             assert json.loads(ws.recv(timeout=10))["logged"] == 30
+            # Written = acknowledged: the ack follows the commit (the drive goes back before it).
+            assert json.loads(ws.recv(timeout=30))["type"] == "ack"
             # The answer to trial 2 is in flight when the server dies: it may or may not
             # have been committed, but it must end up stored exactly once either way.
             in_flight = {"speed_match": 7, "speed_difference": 1}

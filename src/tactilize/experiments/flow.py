@@ -320,6 +320,8 @@ class Flow:
         trials = self.store.trials(sess.id)
         answered = self.store.answers_of(sess.id)
         current = self._first_open(sess, trials, answered)
+        # Read from the database just now: the pen socket's next message needs no query.
+        self._open_cache[sess.id] = (current, time.monotonic())
         done = sum(1 for t in trials if len(answered.get(t.index, {})) >= len(self.protocol.questions))
         doc: dict[str, Any] = {
             "session": token,
@@ -367,17 +369,25 @@ class Flow:
 
         return StrokeHandler(self, self._session(token), output)
 
-    def open_trial(self, sess: ExperimentSession, fresh: bool = False) -> int | None:
+    def open_trial(self, sess: ExperimentSession, fresh: bool = False, stale_ok: bool = False) -> int | None:
         """The index of the session's first trial without all its answers (None: done).
 
         Asked for every pen message, so it is kept in memory for
         :data:`OPEN_TRIAL_TTL_S` seconds (an answer through this flow updates it
-        at once) and the drive back to the page never waits for a query."""
+        at once) and the drive back to the page never waits for a query.
+        ``stale_ok``: an expired value is returned as it is (the pen socket
+        refreshes it after answering, :meth:`open_trial_due`); a query is made
+        only when nothing is known."""
         now = time.monotonic()
         hit = self._open_cache.get(sess.id)
-        if fresh or hit is None or now - hit[1] > OPEN_TRIAL_TTL_S:
+        if fresh or hit is None or (not stale_ok and now - hit[1] > OPEN_TRIAL_TTL_S):
             hit = self._open_cache[sess.id] = (self._first_open(sess), now)
         return hit[0]
+
+    def open_trial_due(self, sess: ExperimentSession) -> bool:
+        """True when :meth:`open_trial`'s value of ``sess`` is older than :data:`OPEN_TRIAL_TTL_S`."""
+        hit = self._open_cache.get(sess.id)
+        return hit is None or time.monotonic() - hit[1] > OPEN_TRIAL_TTL_S
 
 
 def __getattr__(name: str):

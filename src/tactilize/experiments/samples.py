@@ -14,7 +14,11 @@ Rules, and why:
 - a batch's :class:`~concurrent.futures.Future` resolves only after its
   transaction committed; the page is acknowledged from there, and keeps every
   unacknowledged batch to resend it, so what the page was told is stored
-  survives SIGKILL and what it was not told is sent again.
+  survives SIGKILL and what it was not told is sent again;
+- a batch's rows may be given as a function that makes them, called in the
+  writer's thread: the socket's thread then only computes what the page is
+  answered with (:mod:`.strokes` logs a drive per sample and answers one per
+  message).
 """
 
 from __future__ import annotations
@@ -22,9 +26,10 @@ from __future__ import annotations
 import datetime as dt
 import logging
 import threading
+from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Union
 
 from sqlalchemy import DateTime, ForeignKey, Integer, String, UniqueConstraint, insert, select, update
 from sqlalchemy.exc import IntegrityError
@@ -53,12 +58,15 @@ class StrokeBatch(Base):
     received_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
+Rows = Union[list[dict[str, Any]], Callable[[], list[dict[str, Any]]]]
+
+
 @dataclass
 class _Item:
     session_id: int
     trial_id: int
     batch_id: str
-    rows: list[dict[str, Any]]
+    rows: Rows
     future: Future = field(default_factory=Future)
 
 
@@ -82,13 +90,16 @@ class SampleWriter:
         self._finished = 0
         self._thread: threading.Thread | None = None
 
-    def submit(self, session_id: int, trial_id: int, batch_id: str, rows: list[dict[str, Any]]) -> Future:
+    def submit(self, session_id: int, trial_id: int, batch_id: str, rows: Rows) -> Future:
         """Queue one batch; the future gives ``"stored"`` or ``"duplicate"`` after the commit.
 
+        ``rows`` is the list of the batch's :class:`~.store.StrokeSample` rows, or
+        a function of no argument returning it, called once in the writer's thread.
         The future fails with the database's exception when the transaction does
-        not commit (nothing of the batch is stored then; the page resends it).
+        not commit (nothing of the batch is stored then; the page resends it), or
+        with the function's when it raises (nothing of that batch is stored).
         """
-        item = _Item(session_id, trial_id, str(batch_id), list(rows))
+        item = _Item(session_id, trial_id, str(batch_id), rows if callable(rows) else list(rows))
         with self._cond:
             if self._thread is None or not self._thread.is_alive():
                 self._thread = threading.Thread(target=self._run, name=self.THREAD_NAME, daemon=True)
@@ -113,8 +124,9 @@ class SampleWriter:
             with self._cond:
                 self._cond.wait_for(lambda: bool(self._items))
                 group, self._items = self._items[:MAX_GROUP_ITEMS], self._items[MAX_GROUP_ITEMS:]
+            group = self._materialize(group)
             try:
-                statuses = self._write(group)
+                statuses = self._write(group) if group else []
             except Exception as exc:  # the database is unreachable, full...: nothing of the group is stored
                 log.warning("stroke samples not stored (%s); the pages keep them and resend", exc.__class__.__name__)
                 for it in group:
@@ -125,6 +137,23 @@ class SampleWriter:
             with self._cond:
                 self._finished += len(group)
                 self._cond.notify_all()
+
+    def _materialize(self, group: list[_Item]) -> list[_Item]:
+        """Make the rows given as functions; a batch whose function raises fails alone."""
+        ready = []
+        for it in group:
+            if callable(it.rows):
+                try:
+                    it.rows = it.rows()
+                except Exception as exc:
+                    log.warning("stroke samples of batch %r not stored: %s", it.batch_id, exc)
+                    it.future.set_exception(exc)
+                    with self._cond:
+                        self._finished += 1
+                        self._cond.notify_all()
+                    continue
+            ready.append(it)
+        return ready
 
     def _write(self, group: list[_Item]) -> list[str]:
         for _attempt in range(3):

@@ -33,6 +33,7 @@ import math
 import uuid
 from concurrent.futures import Future
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 from .flow import FlowError
@@ -135,7 +136,9 @@ class StrokeHandler:
             if err:
                 raise FlowError("stroke", err, 422)
         batch = _batch_id(msg.get("batch"))
-        current = self.flow.open_trial(self.session)
+        # An expired value is used once more rather than querying on the drive's
+        # path; pump() refreshes it right after the reply (refresh_open_trial).
+        current = self.flow.open_trial(self.session, stale_ok=True)
         if current is not None and idx > current:
             current = self.flow.open_trial(self.session, fresh=True)
             if current is not None and idx > current:
@@ -145,26 +148,31 @@ class StrokeHandler:
         if len(self.trackers) > 16:  # strokes of trials long answered
             self.trackers = {k: v for k, v in self.trackers.items() if current is None or k[0] >= current - 1}
         tracker = self.trackers.setdefault((idx, image_id), StrokeTracker())
-        rows = []
-        drive = None
-        speed = 0.0
+        # The stroke's state after each sample (the speed logged with it), the
+        # drive for the latest only: the page feels one drive per message; the
+        # logged per-sample drives are computed by the writer's thread
+        # (:func:`_logged_rows`), with the same call, so they are the same numbers.
         # Millimetres are "pixels" of 1 mm for the pen module's converter.
+        taken = []
         for ps in samples_from_css(samples, 1e-3):
             tracker.add(ps)
             st = tracker.state
-            speed = st.speed_m_s if st else 0.0
-            drive = profile.drive(feats, speed_m_s=speed, direction_rad=st.direction_rad if st else None,
-                                  pressure=ps.pressure)
-            rows.append({"image_id": image_id, "t_s": ps.t_s, "x_m": ps.x_m, "y_m": ps.y_m, "pressure": ps.pressure,
-                         "speed_m_s": speed, "pulse_frequency_hz": drive.pulse_frequency_hz,
-                         "pulse_width_s": drive.pulse_width_s, "amplitude": drive.amplitude})
+            taken.append((ps, st.speed_m_s if st else 0.0, st.direction_rad if st else None))
+        ps, speed, direction = taken[-1]
+        drive = profile.drive(feats, speed_m_s=speed, direction_rad=direction, pressure=ps.pressure)
+        rows = partial(_logged_rows, profile, feats, image_id, taken, drive)
         future = writer_for(self.flow.store).submit(self.session.id, trial.id, batch, rows)
         if idx != current:
             return None, future  # logged under its own trial, not felt: the page has moved on
         if self.output is not None:
             self.output.apply([drive] * int(self.output.channels))
         return {"type": "drive", "trial": idx, "image": image_id, "batch": batch, "speed_mm_s": speed * 1e3,
-                "logged": len(rows), "drive": drive.to_dict()}, future
+                "logged": len(taken), "drive": drive.to_dict()}, future
+
+    def refresh_open_trial(self) -> None:
+        """Re-read the open trial if its remembered value expired (after a reply, off the drive's path)."""
+        if self.flow.open_trial_due(self.session):
+            self.flow.open_trial(self.session, fresh=True)
 
     def handle(self, msg: Any, timeout_s: float = 60.0) -> dict[str, Any]:
         """Handle one message and wait for its samples' commit (synthetic participants, tests).
@@ -173,11 +181,33 @@ class StrokeHandler:
         ``"duplicate"``) for a batch; a late batch answers ``{"type": "logged"}``.
         """
         reply, future = self.take(msg)
+        self.refresh_open_trial()
         if future is None:
             return reply
         status = future.result(timeout=timeout_s)
         reply = reply or {"type": "logged", "trial": msg.get("trial"), "image": msg.get("image")}
         return {**reply, "stored": status}
+
+
+def _logged_rows(profile, feats, image_id: str, taken: list, last_drive) -> list[dict[str, Any]]:
+    """The stroke log's rows of one batch: each sample with its speed and the drive for it.
+
+    Runs in the writer's thread (:meth:`.SampleWriter.submit` takes a callable),
+    off the socket's path.  ``taken`` holds ``(sample, speed_m_s, direction_rad)``
+    per sample; the last sample's drive was computed for the reply and is
+    ``last_drive``; the others are computed here by the same
+    :meth:`~tactilize.mapping.Profile.drive` call the reply's was, so the log holds
+    what answering every sample would have given, exactly.
+    """
+    rows = []
+    n = len(taken)
+    for k, (ps, speed, direction) in enumerate(taken):
+        drive = last_drive if k == n - 1 else profile.drive(feats, speed_m_s=speed, direction_rad=direction,
+                                                             pressure=ps.pressure)
+        rows.append({"image_id": image_id, "t_s": ps.t_s, "x_m": ps.x_m, "y_m": ps.y_m, "pressure": ps.pressure,
+                     "speed_m_s": speed, "pulse_frequency_hz": drive.pulse_frequency_hz,
+                     "pulse_width_s": drive.pulse_width_s, "amplitude": drive.amplitude})
+    return rows
 
 
 def _ack(future: Future, batch: str, trial: Any) -> dict[str, Any]:
@@ -236,6 +266,8 @@ async def pump(ws, handler: StrokeHandler) -> None:
             if future is not None:
                 batch, trial = (reply or {}).get("batch") or msg.get("batch"), msg.get("trial")
                 future.add_done_callback(lambda f, b=batch, t=trial: post(_ack(f, b, t)))
+                if handler.flow.open_trial_due(handler.session):  # the reply is on its way: query now
+                    await run_in_threadpool(handler.refresh_open_trial)
     except WebSocketDisconnect:
         return
     finally:
