@@ -172,6 +172,31 @@ class Pen:
     def lift(self, x, y):
         self._send("mouseReleased", x, y, 0, force=0.0)
 
+    def keep_moving_until(self, y, v_px_s, check, span_px=60.0, timeout_s=30.0):
+        """With the pen down at ``self.last_x``, go on stroking at ``v_px_s`` [CSS px/s],
+        back and forth over ``span_px``, and call ``check()`` every 40 ms of strokes
+        until it returns something truthy, which is returned.
+
+        A check that looks at the page (a screenshot) may take hundreds of ms on a
+        loaded machine; the pen then moves on the clock (position and timestamp
+        from one reading), so the drive the page shows is that of a moving pen
+        whenever the check runs, however late.  Fails after ``timeout_s``."""
+        epoch0, x_start = time.time(), self.last_x
+        deadline = time.monotonic() + timeout_s
+        while True:
+            for _ in range(10):
+                t = time.time() - epoch0
+                s = (v_px_s * t) % (2 * span_px)
+                x = x_start + (s if s < span_px else 2 * span_px - s)
+                self._send("mouseMoved", x, y, 1, at_s=epoch0 + t)
+                time.sleep(0.004)
+            self.last_x = x
+            got = check()
+            if got:
+                return got
+            if time.monotonic() > deadline:
+                raise AssertionError(f"the page never showed what was awaited within {timeout_s} s of stroking")
+
 
 def surface_box(page):
     return page.locator("#picture").bounding_box()
@@ -410,13 +435,14 @@ def test_the_page_shows_the_wire_state_and_hover_readies_it(page):
     box = surface_box(page)
     x, y = box["x"] + 40, box["y"] + 40
     # A pen hovering over the picture (no button): the server puts the wire in standby.
-    for i in range(10):
-        pen._send("mouseMoved", x + 2 * i, y, 0, force=0.0)
-        time.sleep(0.03)
-    page.wait_for_function(
-        "() => (window.tactilize.wireState || []).every(s => s === 'standby') && (window.tactilize.wireState || []).length === 2",
-        timeout=10_000,
-    )
+    # It hovers until the page says so (a hover is an event, not a duration).
+    standby = "(window.tactilize.wireState || []).length === 2 && window.tactilize.wireState.every(s => s === 'standby')"
+    deadline = time.monotonic() + 30.0
+    i = 0
+    while not page.evaluate(standby):
+        assert time.monotonic() < deadline, "a hovering pen never put the wire in standby"
+        pen._send("mouseMoved", x + 2 * (i % 10), y, 0, force=0.0)
+        i += 1
     # A stroke: the wire vibrates, and the plot's legend says so in micrometres.
     pen.stroke(x, y + 20, 40.0 / DEFAULT_MM_PER_PX, duration_s=0.5)
     page.wait_for_function("() => (window.tactilize.wireState || []).includes('vibrating')", timeout=10_000)
@@ -440,9 +466,9 @@ def test_readouts_are_written_only_when_their_text_changes(page):
                        if (t === 'wire') c.traces++; else if (t === 'drive') c.drives = (c.drives || 0) + 1; });
                    window.__wireBefore = window.tactilize.wireState.join(); }"""
     )
-    time.sleep(0.6)
+    # Idle until the trace has come 5 times (20 a second: at least a quarter second).
+    page.wait_for_function("window.__writes.traces >= 5", timeout=30_000)
     idle = page.evaluate("({...window.__writes, same: window.tactilize.wireState.join() === window.__wireBefore})")
-    assert idle["traces"] >= 5  # the trace kept coming
     assert idle["same"] and idle["wire"] == 0
     # A steady stroke to the right: the direction reads 0 deg from its first drive
     # until the pen comes to rest ("–"), and the surface turns on once, however
@@ -562,22 +588,52 @@ def _pixels(page, selector):
     return np.asarray(Image.open(io.BytesIO(page.locator(selector).screenshot())).convert("RGB")).astype(int)
 
 
+def _is_red(im):
+    return (im[..., 0] > 180) & (im[..., 1] < 90) & (im[..., 2] < 90)
+
+
+def _red(im):
+    """Pixels of the pen's trail."""
+    return int(_is_red(im).sum())
+
+
+def _blue(im):
+    """Pixels of the plot's pulse train."""
+    return int(((im[..., 2] > 200) & (im[..., 0] < 80)).sum())
+
+
+def drawn(page):
+    """(trail, plot) screenshots once both show a stroke (a trail and a pulse
+    train), else None: the drawing runs at its own pace, in a worker."""
+    trail, plot = _pixels(page, "#trail"), _pixels(page, "#plot")
+    return (trail, plot) if _red(trail) > 100 and _blue(plot) > 20 else None
+
+
+def until(check, timeout_s=30.0):
+    """Poll ``check()`` until it is truthy (its value) or ``timeout_s`` passes (None)."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        got = check()
+        if got or time.monotonic() > deadline:
+            return got or None
+
+
 def test_the_plot_and_the_trail_are_drawn_off_the_main_thread(page):
     # Chromium has OffscreenCanvas and module workers: the page's drawing runs there.
     assert page.evaluate("window.tactilize.drawing") == "worker"
     assert page.get_by_test_id("drawing-mode").text_content() == "worker"
     pick(page, "corduroy")
-    is_red = lambda im: (im[..., 0] > 180) & (im[..., 1] < 90) & (im[..., 2] < 90)  # noqa: E731
-    red = lambda im: int(is_red(im).sum())  # noqa: E731
-    blue = lambda im: int(((im[..., 2] > 200) & (im[..., 0] < 80)).sum())  # noqa: E731
+    is_red, red, blue = _is_red, _red, _blue
     assert red(_pixels(page, "#trail")) == 0
     pen = Pen(page)
     box = surface_box(page)
     x0, y = box["x"] + 10, box["y"] + 40
-    pen.stroke(x0, y, 40.0 / DEFAULT_MM_PER_PX, duration_s=0.8)
-    # Still down: the plot shows the pulse train of the drives that came back.
-    page.wait_for_timeout(150)
-    trail, plot = _pixels(page, "#trail"), _pixels(page, "#plot")
+    v = 40.0 / DEFAULT_MM_PER_PX
+    pen.stroke(x0, y, v, duration_s=0.8)
+    # Still down and moving: the plot shows the pulse train of the drives that came
+    # back, and the trail the stroke, once the drawing worker has drawn them (a
+    # loaded machine may take a while: the pen keeps moving until it has).
+    trail, plot = pen.keep_moving_until(y, v, lambda: drawn(page))
     pen.lift(pen.last_x, y)
     # The trail runs along the stroke, at its height, and nowhere else.
     rows = np.nonzero(is_red(trail).any(axis=1))[0]
@@ -585,12 +641,16 @@ def test_the_plot_and_the_trail_are_drawn_off_the_main_thread(page):
     scale = trail.shape[1] / page.locator("#trail").bounding_box()["width"]
     assert abs(rows.mean() / scale - (y - page.locator("#trail").bounding_box()["y"])) < 4
     assert blue(plot) > 20
-    # A new stroke clears the old trail.
+    # A new stroke clears the old trail (awaited: the worker clears it when it gets there).
     pen._send("mousePressed", x0, y + 60, 1)
-    page.wait_for_timeout(150)
-    rows = np.nonzero(is_red(_pixels(page, "#trail")).any(axis=1))[0]
+    top = page.locator("#trail").bounding_box()["y"]
+
+    def old_trail_gone():
+        rows = np.nonzero(is_red(_pixels(page, "#trail")).any(axis=1))[0]
+        return not (np.abs(rows / scale - (y - top)) < 4).any()
+
+    assert until(old_trail_gone), "a new stroke left the old trail on the surface"
     pen.lift(x0, y + 60)
-    assert not (np.abs(rows / scale - (y - page.locator("#trail").bounding_box()["y"])) < 4).any()
 
 
 def test_without_offscreen_canvases_the_page_draws_on_its_own_thread(browser, server):
@@ -601,9 +661,9 @@ def test_without_offscreen_canvases_the_page_draws_on_its_own_thread(browser, se
         pick(page, "corduroy")
         pen = Pen(page)
         box = surface_box(page)
-        pen.stroke(box["x"] + 10, box["y"] + 40, 40.0 / DEFAULT_MM_PER_PX, duration_s=0.8)
-        page.wait_for_timeout(150)
-        trail, plot = _pixels(page, "#trail"), _pixels(page, "#plot")
+        v = 40.0 / DEFAULT_MM_PER_PX
+        pen.stroke(box["x"] + 10, box["y"] + 40, v, duration_s=0.8)
+        trail, plot = pen.keep_moving_until(box["y"] + 40, v, lambda: drawn(page))
         pen.lift(pen.last_x, box["y"] + 40)
-    assert int(((trail[..., 0] > 180) & (trail[..., 1] < 90) & (trail[..., 2] < 90)).sum()) > 100
-    assert int(((plot[..., 2] > 200) & (plot[..., 0] < 80)).sum()) > 20
+    assert _red(trail) > 100
+    assert _blue(plot) > 20

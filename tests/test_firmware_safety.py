@@ -267,13 +267,12 @@ def test_a_hung_vm_is_reset_by_the_hardware_watchdog(tmp_path):
     th = threading.Thread(target=fw.run, args=(read, ctl, wdt), daemon=True)
     th.start()
     assert hung.wait(2.0)
-    t0 = time.perf_counter()
-    deadline = time.monotonic() + 1.0
+    deadline = time.monotonic() + 30.0  # a bound only
     while not host_machine.resets and time.monotonic() < deadline:
         time.sleep(0.002)
     assert host_machine.resets, "the watchdog never reset the chip"
-    # fired after its timeout, not while the loop was feeding it
-    assert host_machine.resets[0] - t0 < fw.WDT_TIMEOUT_MS / 1e3 + 0.05
+    # fired after its timeout without a feed, not while the loop was feeding it
+    assert host_machine.resets[0] - wdt.last_feed_s >= fw.WDT_TIMEOUT_MS / 1e3
     hw = host_machine.pin_state(PIN0)
     assert hw["mode"] == "gpio" and hw["value"] == 0
     th.join(2.0)
@@ -307,16 +306,28 @@ def test_a_stored_calibration_is_used(tmp_path):
     assert [(c.sense.amps_per_count, c.sense.path_ohm) for c in ctl.channels] == cal
 
 
-def test_the_second_channel_starts_at_the_onset_offset_timed_on_the_board(tmp_path):
+def test_the_second_channel_starts_at_the_onset_offset_timed_on_the_board(tmp_path, monkeypatch):
+    # The offset is the board's hardware timer: the test reads the period the
+    # firmware arms it with, and checks the second channel waits for it.
+    armed: list[float] = []
+
+    class RecordingTimer(host_machine.Timer):
+        def init(self, **kwargs):
+            super().init(**kwargs)
+            armed.append(self.period_ms)
+
+    monkeypatch.setattr(host_machine, "Timer", RecordingTimer)
     seen: dict[int, float] = {}
     ctl = _controller(tmp_path)
     ctl.on_change = lambda ch, on, f, w, why: seen.setdefault(ch, time.perf_counter()) if on else None
     ctl.feed(P.encode_frame(1, P.Command.PAIR, P.encode_pair(0.08, (100.0, 200e-6, 1.0), (100.0, 200e-6, 1.0))))
     assert P.Command(_replies(ctl)[0].command) == P.Command.ACK
-    deadline = time.monotonic() + 2.0
+    assert armed == [pytest.approx(80.0, abs=1e-3)]
+    deadline = time.monotonic() + 30.0  # a bound only
     while 1 not in seen and time.monotonic() < deadline:
         time.sleep(0.001)
-    assert 0.079 <= seen[1] - seen[0] <= 0.12, seen
+    # never before the offset (a loaded host may only make it later)
+    assert seen[1] - seen[0] >= 0.079, seen
     assert host_machine.pin_state(PIN1)["duty_ns"] == 200_000
     ctl.all_off("exit")
 
