@@ -73,11 +73,11 @@ def stars(p: float) -> str:
     return "***" if p < 0.001 else "**" if p < 0.01 else "*"
 
 
-#: Figure widths [mm] of one and of two journal columns (Nature's 89 and 183 mm;
-#: IEEE's 3.5 and 7.16 in and Elsevier's 90 and 190 mm are within a few mm).
+#: Figure widths [mm] of one and of two journal columns (docs/references.md, section 7
+#: (Figures for a journal)).
 COLUMN_WIDTHS_MM = {"single": 89.0, "double": 183.0}
 #: The Okabe-Ito palette, told apart with every common colour-vision deficiency
-#: (Okabe and Ito, "Color Universal Design", 2008); black is kept for the medians.
+#: (docs/references.md, section 7 (Colour-blind-safe palette)); black is kept for the medians.
 OKABE_ITO = ("#0072B2", "#E69F00", "#009E73", "#D55E00", "#CC79A7", "#56B4E9", "#F0E442")
 _FONT_PT = 8.0
 _MM_PER_IN = 25.4
