@@ -19,6 +19,7 @@ import re
 import shutil
 import subprocess
 import sys
+import threading
 import time
 
 import numpy as np
@@ -41,24 +42,31 @@ DEFAULT_MM_PER_PX = 25.4 / 96
 
 
 @pytest.fixture(scope="module")
-def server():
+def server(tmp_path_factory):
+    # The server's log goes to a file and its stdout is drained: a pipe nobody reads
+    # fills (64 KiB, about fifty tests' worth of log lines) and then blocks the
+    # server for good -- every later test saw "never showed a drive".
+    log = open(tmp_path_factory.mktemp("serve") / "serve.log", "w+")
     proc = subprocess.Popen(
         [sys.executable, "-m", "tactilize.cli", "serve", "--no-open", "--port", "0"],
         stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
+        stderr=log,
         text=True,
     )
     line = proc.stdout.readline()
     m = re.search(r"http://127\.0\.0\.1:\d+/", line)
     if not m:
         proc.kill()
-        pytest.fail(f"tactilize serve did not print its address: {line!r} {proc.stderr.read()[-2000:]}")
+        log.seek(0)
+        pytest.fail(f"tactilize serve did not print its address: {line!r} {log.read()[-2000:]}")
+    threading.Thread(target=proc.stdout.read, daemon=True).start()
     yield m.group(0)
     proc.terminate()
     try:
-        proc.communicate(timeout=10)
+        proc.wait(timeout=10)
     except subprocess.TimeoutExpired:
         proc.kill()
+    log.close()
 
 
 @pytest.fixture(scope="module")
