@@ -452,8 +452,11 @@ def test_the_page_shows_the_wire_state_and_hover_readies_it(page):
         pen._send("mouseMoved", x + 2 * (i % 10), y, 0, force=0.0)
         i += 1
     # A stroke: the wire vibrates, and the plot's legend says so in micrometres.
-    pen.stroke(x, y + 20, 40.0 / DEFAULT_MM_PER_PX, duration_s=0.5)
-    page.wait_for_function("() => (window.tactilize.wireState || []).includes('vibrating')", timeout=10_000)
+    # The wire warms before it vibrates, and a loaded machine is slow to: the pen
+    # keeps moving until the page says so (a pen at rest would let it fall back).
+    v = 40.0 / DEFAULT_MM_PER_PX
+    pen.stroke(x, y + 20, v, duration_s=0.5)
+    pen.keep_moving_until(y + 20, v, lambda: page.evaluate("(window.tactilize.wireState || []).includes('vibrating')"))
     pen.lift(pen.last_x, y + 20)
     page.wait_for_function("() => (window.tactilize.wireState || []).every(s => s === 'standby')", timeout=10_000)
 
