@@ -138,8 +138,10 @@ def test_missing_portaudio_says_how_to_install(monkeypatch):
     def no_portaudio(name):
         raise OSError("PortAudio library not found")
 
-    monkeypatch.setattr(audio_mod.importlib, "import_module", no_portaudio)
-    with pytest.raises(OutputError, match="PortAudio"):
+    import importlib
+
+    monkeypatch.setattr(importlib, "import_module", no_portaudio)
+    with pytest.raises(OutputError, match="PortAudio library not found; install the PortAudio library .*libportaudio2"):
         AudioOutput()
 
 

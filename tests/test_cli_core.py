@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 
@@ -31,7 +32,10 @@ def run(*args: str):
 def test_analyze_json_agrees_with_the_library(grating_png):
     res = run("analyze", str(grating_png), "--json")
     assert res.exit_code == 0, res.output
-    doc = json.loads(res.output)
+    docs = json.loads(res.output)
+    # Always a list, one object per image: one image too.
+    assert isinstance(docs, list) and len(docs) == 1
+    doc = docs[0]
     feat = tz.extract_features(tz.load_image(grating_png))
     assert doc["spatial_frequency_per_m"] == pytest.approx(feat.spatial_frequency_per_m, rel=1e-9)
     assert doc["spectral_intensity"] == pytest.approx(feat.spectral_intensity, rel=1e-9)
@@ -101,3 +105,34 @@ def test_bad_input_is_one_line_and_exit_2(args, needle, grating_png, tmp_path):
     assert len(lines) == 1, proc.stderr
     assert needle in lines[0]
     assert "Traceback" not in proc.stderr
+
+
+def test_analyze_plot_draws_one_file_per_image(grating_png, tmp_path):
+    other = tmp_path / "other.png"
+    other.write_bytes(grating_png.read_bytes())
+    res = run("analyze", str(grating_png), str(other), "--plot", str(tmp_path / "fig.png"), "--json")
+    assert res.exit_code == 0, res.output
+    docs = json.loads(res.output)
+    assert [d["plot"] for d in docs] == [str(tmp_path / "fig-grating.png"), str(tmp_path / "fig-other.png")]
+    for d in docs:
+        with Image.open(d["plot"]) as im:
+            assert im.size[0] > 500
+    # One image: the file named, as before.
+    res = run("analyze", str(grating_png), "--plot", str(tmp_path / "one.png"))
+    assert res.exit_code == 0 and (tmp_path / "one.png").exists() and "wrote" in res.output
+
+
+def test_simulate_a_stroke_refuses_a_plot_it_cannot_draw(grating_png, tmp_path):
+    out = tmp_path / "stroke.png"
+    res = CliRunner().invoke(main, ["simulate", "--image", str(grating_png), "--speed", "30", "--plot", str(out)])
+    assert res.exit_code == 2
+    assert res.output.strip().startswith("tactilize: --plot: draws the raw mode only")
+    assert len(res.output.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_simulate_rounds_the_strength(grating_png):
+    res = run("simulate", "--image", str(grating_png), "--speed", "30", "--duration", "0.3")
+    assert res.exit_code == 0, res.output
+    shown = re.search(r"strength (\S+)", res.output).group(1)
+    assert re.fullmatch(r"\d\.\d\d", shown), shown

@@ -121,8 +121,9 @@ def test_drive_holds_on_the_controller_and_exits_0(emulator, grating):
     assert {e["channel"] for e in ons} == {0, 1}
     # held for the time asked, kept alive by heartbeats (no watchdog), then stopped
     assert all(e["reason"] == "stop" for e in stops)
+    # held at least as long as asked (a loaded machine may only make it longer)
     held = min(e["t_s"] for e in stops) - max(e["t_s"] for e in ons)
-    assert 0.45 <= held <= 1.5
+    assert held >= 0.45
 
 
 def test_drive_json_reports_the_acknowledged_drive(emulator, grating):

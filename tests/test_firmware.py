@@ -185,46 +185,106 @@ def test_stop_turns_everything_off(emu, link):
     assert {(e["channel"], e["reason"]) for e in offs} == {(0, "stop"), (1, "stop")}
 
 
-def test_watchdog_turns_outputs_off_within_250_ms_of_silence(emu, link):
-    link.set(0, 120.0, 300e-6)
-    link.set(1, 60.0, 400e-6)
-    last_frame_s = time.monotonic()  # the ACK of the last valid frame is in
-    deadline = last_frame_s + 1.0
-    while time.monotonic() < deadline and sum(1 for e in emu.events if not e["on"]) < 2:
-        time.sleep(0.005)
-    offs = [e for e in emu.events if not e["on"]]
-    assert [e["reason"] for e in offs] == ["watchdog", "watchdog"]
-    silence = max(e["seen_s"] for e in offs) - last_frame_s
-    assert 0.19 <= silence <= 0.25, silence
+class BoardClock:
+    """The firmware's millisecond ticks, moved by hand: the watchdog's window is
+    tested on the board's own clock, not on how fast a loaded host runs threads."""
+
+    def __init__(self, monkeypatch, start_ms: int = 1_000):
+        from tactilize.firmware import tactile_frames
+
+        self.ms = start_ms
+        monkeypatch.setattr(fw, "_ticks_ms", lambda: self.ms)
+        monkeypatch.setattr(tactile_frames, "_ticks_ms", lambda: self.ms)
+
+
+@pytest.fixture
+def board(monkeypatch):
+    """A Controller on the host pins, fed and ticked by the test on a hand clock:
+    (controller, clock, output changes as (ms, channel, on, reason))."""
+    host_machine.reset()
+    clock = BoardClock(monkeypatch)
+    changes: list[tuple[int, int, bool, str]] = []
+    sent: list[bytes] = []
+    ctl = fw.Controller(sent.append, on_change=lambda ch, on, f, w, why: changes.append((clock.ms, ch, bool(on), why)))
+    ctl.sent = sent  # type: ignore[attr-defined]
+    yield ctl, clock, changes
+    ctl.all_off("exit")
+    host_machine.reset()
+
+
+def _run_loop(ctl, clock, until_ms: int, every_ms: int = fw.POLL_MS, feed=None) -> None:
+    """The main loop's passes up to ``until_ms``: one tick at least every POLL_MS
+    (``read(POLL_MS)`` returns by then on the board), with ``feed(ms)``'s bytes."""
+    while clock.ms < until_ms:
+        clock.ms += every_ms
+        data = feed(clock.ms) if feed is not None else b""
+        if data:
+            ctl.feed(data)
+        ctl.tick()
+
+
+def test_watchdog_turns_outputs_off_within_250_ms_of_silence(board):
+    ctl, clock, changes = board
+    ctl.feed(P.encode_frame(1, P.Command.SET, P.encode_set_channel(0, 120.0, 300e-6, 1.0)))
+    ctl.feed(P.encode_frame(2, P.Command.SET, P.encode_set_channel(1, 60.0, 400e-6, 1.0)))
+    last_frame_ms = clock.ms
+    _run_loop(ctl, clock, last_frame_ms + 190)
+    assert not [c for c in changes if not c[2]], "off before 190 ms of silence"
+    _run_loop(ctl, clock, last_frame_ms + 400)
+    offs = [c for c in changes if not c[2]]
+    assert sorted((ch, why) for _, ch, _, why in offs) == [(0, "watchdog"), (1, "watchdog")]
+    silence_ms = max(ms for ms, *_ in offs) - last_frame_ms
+    assert fw.WATCHDOG_MS < silence_ms <= fw.WATCHDOG_MS + fw.POLL_MS <= 250
     for pin in (PIN0, PIN1):
         hw = host_machine.pin_state(pin)
         assert hw["mode"] == "gpio" and hw["value"] == 0
     # the next ACK tells the host that the watchdog fired
+    ctl.sent.clear()
+    ctl.feed(P.encode_frame(3, P.Command.HEARTBEAT))
+    ack = P.FrameDecoder().feed(b"".join(ctl.sent))[0]
+    assert ack.command == P.Command.ACK and ack.payload[1] & P.FLAG_WATCHDOG_TRIPPED
+
+
+def test_watchdog_over_the_serial_port(emu, link):
+    # End to end through the pty: silence turns both outputs off and the next
+    # ACK says so (when, to the millisecond, is the test above's, on the board's clock).
+    link.set(0, 120.0, 300e-6)
+    link.set(1, 60.0, 400e-6)
+    deadline = time.monotonic() + 30.0  # a bound only: a loaded machine is slow
+    while time.monotonic() < deadline and sum(1 for e in emu.events if not e["on"]) < 2:
+        time.sleep(0.005)
+    offs = [e for e in emu.events if not e["on"]]
+    assert [e["reason"] for e in offs] == ["watchdog", "watchdog"]
+    for pin in (PIN0, PIN1):
+        hw = host_machine.pin_state(pin)
+        assert hw["mode"] == "gpio" and hw["value"] == 0
     ack = link.request(P.Command.HEARTBEAT)
     assert ack.payload[1] & P.FLAG_WATCHDOG_TRIPPED
     assert P.decode_status(link.request(P.Command.STATUS).payload).watchdog_tripped
 
 
-def test_heartbeats_keep_the_outputs_on(emu, link):
-    link.set(0, 120.0, 300e-6)
-    end = time.monotonic() + 0.6
-    while time.monotonic() < end:
-        assert link.request(P.Command.HEARTBEAT).command == P.Command.ACK
-        time.sleep(0.05)
-    assert not [e for e in emu.events if not e["on"]]
+def test_heartbeats_keep_the_outputs_on(board):
+    ctl, clock, changes = board
+    ctl.feed(P.encode_frame(1, P.Command.SET, P.encode_set_channel(0, 120.0, 300e-6, 1.0)))
+    # a heartbeat every 150 ms of the board's clock for 2 s: under the watchdog's 200 ms
+    _run_loop(ctl, clock, clock.ms + 2_000,
+              feed=lambda ms: P.encode_frame(2, P.Command.HEARTBEAT) if ms % 150 == 0 else b"")
+    assert not [c for c in changes if not c[2]]
     assert host_machine.pin_state(PIN0)["duty_ns"] == 300_000
+    # and without them the same loop trips it: the heartbeats above did the work
+    _run_loop(ctl, clock, clock.ms + 400)
+    assert [why for _, _, on, why in changes if not on] == ["watchdog"]
 
 
-def test_a_corrupt_length_cannot_starve_the_watchdog(emu, link):
+def test_a_corrupt_length_cannot_starve_the_watchdog(board):
     # A start byte with a long length would swallow the following heartbeats
-    # if the firmware waited for it to complete; it gives up after 50 ms.
-    link.set(0, 120.0, 300e-6)
-    link.send_raw(bytes((P.START, 64, 0, 0)))
-    end = time.monotonic() + 0.5
-    while time.monotonic() < end:
-        link.send_raw(P.encode_frame(1, P.Command.HEARTBEAT))
-        time.sleep(0.04)
-    assert not [e for e in emu.events if not e["on"]]
+    # if the firmware waited for it to complete; it gives up after FRAME_TIMEOUT_MS.
+    ctl, clock, changes = board
+    ctl.feed(P.encode_frame(1, P.Command.SET, P.encode_set_channel(0, 120.0, 300e-6, 1.0)))
+    ctl.feed(bytes((P.START, 64, 0, 0)))
+    _run_loop(ctl, clock, clock.ms + 1_000,
+              feed=lambda ms: P.encode_frame(1, P.Command.HEARTBEAT) if ms % 40 == 0 else b"")
+    assert not [c for c in changes if not c[2]]
 
 
 def test_slow_trains_use_a_timer_with_exact_pulse_width(emu, link):

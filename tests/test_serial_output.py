@@ -164,7 +164,8 @@ def test_a_port_where_nobody_answers():
         t0 = time.monotonic()
         with pytest.raises(OutputError, match="no tactile controller answers"):
             SerialOutput(os.ttyname(slave), connect_timeout_s=0.4)
-        assert time.monotonic() - t0 < 2.0
+        # it gave up (a bound against hanging, not a timing: a loaded machine is slow)
+        assert time.monotonic() - t0 < 30.0
     finally:
         os.close(master)
         os.close(slave)
@@ -214,12 +215,17 @@ def test_a_lost_ack_is_resent():
     ctl = FlakyController()
     ctl.start()
     try:
-        with SerialOutput(ctl.device, ack_timeout_s=0.05) as out:
+        # The timeout is what is tested, so it must pass once; half a second
+        # keeps the ACKs that do come inside it on a loaded machine.
+        with SerialOutput(ctl.device, ack_timeout_s=0.5) as out:
             out.apply([Drive(100.0, 3e-4), Drive.off()])
-            # both SETs go out back to back; channel 0's is ignored and resent
-            # under a fresh sequence number, channel 1's is acknowledged at once
-            assert [ch for _, ch in ctl.sets] == [0, 1, 0]
-            assert len({seq for seq, _ in ctl.sets}) == 3
+            chans = [ch for _, ch in ctl.sets]
+            # both SETs go out back to back, before any reply; channel 0's is
+            # ignored and resent under a fresh sequence number (channel 1's only
+            # if its ACK was late: resending is harmless)
+            assert chans[:2] == [0, 1]
+            assert 0 in chans[2:]
+            assert len({seq for seq, _ in ctl.sets}) == len(ctl.sets)
     finally:
         ctl.close()
 

@@ -109,11 +109,26 @@ def test_stop_turns_everything_off_and_the_wire_cools(envelope):
         assert rise < 0.05 * (warm - SPEC.ambient_c)
 
 
+def _wait_for(predicate, timeout_s: float = 30.0) -> bool:
+    deadline = time.monotonic() + timeout_s  # a bound only: a loaded machine is slow
+    while not predicate() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    return predicate()
+
+
 def test_real_time_thread_runs_and_close_joins(envelope):
-    out = SimulatedOutput(SPEC, envelope=envelope, tick_s=0.01)
+    # The thread follows its clock (injected: 10 ms a reading), not the host's pace.
+    now = [100.0]
+
+    def clock():
+        now[0] += 0.010
+        return now[0]
+
+    out = SimulatedOutput(SPEC, envelope=envelope, tick_s=0.01, clock=clock)
     out.apply([Drive(200.0, 0.2e-3), Drive(200.0, 0.2e-3)])
-    time.sleep(0.6)
-    assert 0.3 < out.time_s < 1.5
+    assert _wait_for(lambda: out.time_s > 0.3)
+    # never ahead of its clock (the first reading is its start)
+    assert out.time_s <= now[0] - 100.010 + 1e-9
     thread = out._thread
     out.close()
     assert thread is not None and not thread.is_alive()
@@ -133,9 +148,8 @@ def test_the_real_time_thread_advances_in_slices_so_a_pen_batch_never_waits_a_ti
     advance = out.advance
     out.advance = lambda d: (steps.append(d), advance(d))[1]
     out.start()
-    time.sleep(0.3)
+    assert _wait_for(lambda: len(steps) >= 8)
     out.close()
-    assert len(steps) >= 8
     # Each hold of the lock covers at most 5 ms of simulated time; the slices of a
     # tick add up to the tick (23 ms: 5 + 5 + 5 + 5 + 3).
     assert max(steps) <= 0.005 + 1e-12

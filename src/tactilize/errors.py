@@ -66,6 +66,11 @@ class CatalogVersionError(CatalogError):
     """
 
 
+class MissingExtraError(TactilizeError):
+    """A command or option needs an optional extra that is not installed
+    (:mod:`tactilize.extras` builds the message: which module, which extra)."""
+
+
 class RequestError(TactilizeError):
     """A request a server refuses (the pen page's, the experiments' routes).
 

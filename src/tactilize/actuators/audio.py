@@ -16,7 +16,6 @@ install them.
 
 from __future__ import annotations
 
-import importlib
 from typing import Any, Sequence
 
 import numpy as np
@@ -28,19 +27,16 @@ from .base import OutputBase
 
 __all__ = ["AudioOutput", "import_sounddevice"]
 
-INSTALL_HINT = "pip install 'tactilize[audio]'"
-PORTAUDIO_HINT = "install PortAudio (Debian/Ubuntu: apt install libportaudio2; macOS: brew install portaudio)"
-
-
 def import_sounddevice() -> Any:
-    """The sounddevice module, or an OutputError telling how to get it."""
+    """The sounddevice module, or an OutputError telling how to get it
+    (the extra, or the system's PortAudio: :mod:`tactilize.extras`)."""
+    from ..extras import SYSTEM_PACKAGES, require
+
     try:
-        return importlib.import_module("sounddevice")
-    except ImportError:
-        raise OutputError("audio", f"sounddevice is not installed ({INSTALL_HINT})") from None
+        return require("sounddevice", "audio", "audio", error=OutputError)
     except OSError as exc:
         # sounddevice raises OSError("PortAudio library not found") on import.
-        raise OutputError("audio", f"the PortAudio library is missing: {exc}; {PORTAUDIO_HINT}") from None
+        raise OutputError("audio", f"{exc}; install {SYSTEM_PACKAGES['audio']}") from None
 
 
 class AudioOutput(OutputBase):

@@ -204,11 +204,11 @@ def run_processes(feed: Feeder, settings: AnalysisSettings, workers: int) -> Ite
 
 def run_dask(feed: Feeder, settings: AnalysisSettings, scheduler: Any, timeout_s: float) -> Iterator[list[dict[str, Any]]]:
     """Tasks on a Dask cluster: a scheduler address, or a connected ``distributed.Client``."""
-    try:
-        from distributed import Client, as_completed
-        from distributed.scheduler import KilledWorker
-    except ImportError:  # pragma: no cover - the batch extra is not installed
-        raise CatalogError("--scheduler", "needs dask[distributed] (pip install 'tactilize[batch]')") from None
+    from ..extras import require
+
+    distributed = require("distributed", "--scheduler", "batch", error=CatalogError)
+    Client, as_completed = distributed.Client, distributed.as_completed
+    KilledWorker = require("distributed.scheduler", "--scheduler", "batch", error=CatalogError).KilledWorker
 
     own = not isinstance(scheduler, Client)
     with _dask_quiet(own):

@@ -95,7 +95,9 @@ class ParquetStore:
     """
 
     def __init__(self, path: Path, columns: list[tuple[str, str]]):
-        import pyarrow as pa
+        from ..extras import require
+
+        pa = require("pyarrow", f"--out {path}", "batch", error=CatalogError)
 
         self.path = path
         types = {"str": pa.string(), "float": pa.float64(), "int": pa.int64(), "bool": pa.bool_()}

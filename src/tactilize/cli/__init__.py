@@ -23,6 +23,10 @@ from ..web.encode import dumps
 BAD_INPUT = 2
 
 
+#: The extra to name when a module comes with several: the one of the command.
+_PREFERRED_EXTRA = {"batch": "batch", "experiment": "experiments", "serve": "batch"}
+
+
 class _Group(click.Group):
     """Turns library errors into one line and exit status 2, never a traceback."""
 
@@ -43,6 +47,15 @@ class _Group(click.Group):
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             ctx.exit(0)
         except Exception as exc:  # a bug, not bad input: still one line, unless asked
+            from ..extras import extra_for, missing
+
+            if isinstance(exc, ModuleNotFoundError) and extra_for(exc.name or "") is not None:
+                # An optional module the code imported without tactilize.extras.require:
+                # the same one line, naming the command.
+                command = ctx.meta.get("tactilize.command", "")
+                err = missing(f"tactilize {command}".strip(), exc.name or "", _PREFERRED_EXTRA.get(command.split(" ")[0]))
+                click.echo(f"tactilize: {err.source}: {err.fault}", err=True)
+                ctx.exit(BAD_INPUT)
             if os.environ.get("TACTILIZE_DEBUG"):
                 raise
             click.echo(
@@ -50,6 +63,16 @@ class _Group(click.Group):
                 err=True,
             )
             ctx.exit(1)
+
+    def resolve_command(self, ctx: click.Context, args: list[str]) -> Any:
+        # Remember the (sub)command names, e.g. "experiment analyze", for the
+        # missing-extra line above.
+        name, cmd, rest = super().resolve_command(ctx, args)
+        words = [name or ""]
+        if isinstance(cmd, click.Group) and rest and rest[0] in cmd.commands:
+            words.append(rest[0])
+        ctx.meta["tactilize.command"] = " ".join(words)
+        return name, cmd, rest
 
 
 def emit_json(doc: Any) -> None:
@@ -77,9 +100,10 @@ def main() -> None:
 @click.argument("images", nargs=-1, required=True)
 @click.option("--dpi", type=float, callback=_positive("dpi"), help="Pixels per inch of the displayed image.")
 @click.option("--width-mm", type=float, callback=_positive("width-mm"), help="Displayed width of the image [mm].")
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document: a list, one object per IMAGE.")
 @click.option("--plot", "plot_path", default=None,
-              help="Draw the paper's Fig. 5 (image, log spectrum with the peak, tile map) to this image file (one IMAGE).")
+              help="Draw the paper's Fig. 5 (image, log spectrum with the peak, tile map) to this image file; "
+                   "with several IMAGEs one file each, FILE's name plus the image's (fig.png: fig-cloth.png ...).")
 def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, as_json: bool, plot_path: str | None) -> None:
     """Measure the texture features of IMAGE(s)."""
     from ..features import extract_features
@@ -87,10 +111,13 @@ def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, 
 
     if dpi is not None and width_mm is not None:
         raise TactilizeError("--dpi/--width-mm", "give one of them, not both")
-    if plot_path is not None and len(images) != 1:
-        raise TactilizeError("--plot", f"draws one image, got {len(images)}")
+    if plot_path is not None:
+        from .plots import _pyplot, plot_paths
+
+        _pyplot("--plot")  # a missing matplotlib is said before any work
+        plots = plot_paths(plot_path, images)
     rows = []
-    for path in images:
+    for i, path in enumerate(images):
         img = load_image(path, dpi=dpi, width_mm=width_mm)
         feat = extract_features(img)
         rows.append({"image": path, **img.describe(), **feat.to_dict()})
@@ -98,11 +125,16 @@ def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, 
             from ..texturemap import texture_map
             from .plots import plot_spectrum
 
-            plot_spectrum(img, feat, texture_map(img), plot_path)
+            plot_spectrum(img, feat, texture_map(img), plots[i])
+            rows[-1]["plot"] = plots[i]
     if as_json:
-        emit_json(rows[0] if len(rows) == 1 else rows)
+        # Always a list, one object per image in the order given (one image too),
+        # so that a script reads the same shape whatever it is given.
+        emit_json(rows)
         return
     for row in rows:
+        if "plot" in row:
+            click.echo(f"wrote {row['plot']}")
         click.echo(
             f"{row['image']}\n"
             f"  size                {row['width_px']} x {row['height_px']} px, {row['width_mm']:.1f} x {row['height_mm']:.1f} mm\n"

@@ -1,30 +1,44 @@
 """Figures for the command line (``simulate --plot``, ``envelope --plot``, ``analyze --plot``).
 
 matplotlib is an optional extra (``tactilize[plot]``); without it these raise a
-:class:`~tactilize.errors.TactilizeError` naming the option that asked for a plot.
+:class:`~tactilize.errors.MissingExtraError` naming the option that asked for a plot.
 Only the CLI draws these, so they live beside it; the experiments draw their
 own figures (``tactilize.experiments.figures``).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 from ..errors import TactilizeError
 
-__all__ = ["plot_simulation", "plot_envelope", "plot_profile_report", "plot_spectrum"]
+__all__ = ["plot_paths", "plot_simulation", "plot_envelope", "plot_profile_report", "plot_spectrum"]
 
 
 def _pyplot(option: str):
     """matplotlib.pyplot on a file backend, or a one-line error naming the option."""
-    try:
-        import matplotlib
+    from ..extras import require
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        raise TactilizeError(option, "needs matplotlib (pip install 'tactilize[plot]')") from None
-    return plt
+    matplotlib = require("matplotlib", option, "plot")
+    matplotlib.use("Agg")
+    return require("matplotlib.pyplot", option, "plot")
+
+
+def plot_paths(path: str, images: Sequence[str]) -> list[str]:
+    """Where ``--plot PATH`` draws each of ``images``: PATH itself for one image;
+    for several, PATH's stem, a dash and the image's stem (``fig.png``, ``a/cloth.jpg``
+    -> ``fig-cloth.png``), with a number where two images share a stem."""
+    if len(images) == 1:
+        return [path]
+    base = Path(path)
+    stems = [Path(im).stem for im in images]
+    out = []
+    for i, stem in enumerate(stems):
+        name = f"{base.stem}-{stem}" + (f"-{i + 1}" if stems.count(stem) > 1 else "")
+        out.append(str(base.with_name(name + base.suffix)))
+    return out
 
 
 def _save(plt: Any, fig: Any, path: str) -> None:

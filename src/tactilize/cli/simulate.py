@@ -33,6 +33,10 @@ def simulate_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
         raise TactilizeError("--texture/--image", "give one of them, not both")
     if opt["speed_mm_s"] is None:
         raise TactilizeError("--speed", "give the stroking speed in mm/s")
+    if opt["plot_path"]:
+        # The stroke's report keeps no traces to draw; saying so beats exiting 0 with no file.
+        raise TactilizeError("--plot", "draws the raw mode only (--frequency, --pulse-width-ms, --current-ma), "
+                                       "not a stroke on --texture/--image")
     _finite("speed", opt["speed_mm_s"], positive=False)
     _finite("duration", opt["duration_s"])
     if opt["duration_s"] is not None and opt["duration_s"] > 600:
@@ -79,7 +83,7 @@ def simulate_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     first = "never" if report.first_follow_ms == math.inf else f"{report.first_follow_ms:.1f} ms"
     text = (
         f"{source} at {opt['speed_mm_s']:g} mm/s, profile {profile.name}, {spec.name} wire on {circuit.name}\n"
-        f"  pulse frequency     {report.pulse_frequency_hz:.1f} Hz (the profile's), strength {drive.strength}\n"
+        f"  pulse frequency     {report.pulse_frequency_hz:.1f} Hz (the profile's), strength {drive.strength:.2f}\n"
         f"  follows             {'yes' if report.follows else 'no'} ({report.pulses_followed}/{report.pulses} pulses)\n"
         f"  displacement p-p    {report.displacement_pp_um:.2f} um\n"
         f"  first felt pulse    {first} after the pen touched ({'from standby' if report.standby else 'from cold'})\n"

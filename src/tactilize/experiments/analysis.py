@@ -240,6 +240,28 @@ def pairwise_wilcoxon(cell) -> list[dict[str, Any]]:
     return out
 
 
+def protocol_labels(store_or_df, pnames) -> dict[str, dict[str, str]]:
+    """``{protocol: {condition or question id: label}, "__title__": title}`` from the
+    stored protocol texts (the newest version wins), the question's whole text as its
+    label; empty when only a DataFrame is given."""
+    out: dict[str, dict[str, str]] = {}
+    if not hasattr(store_or_df, "protocol_texts"):
+        return out
+    from .protocols import ProtocolError, protocol_from_toml
+
+    for pv in store_or_df.protocol_texts():
+        if pv["name"] not in pnames:
+            continue
+        try:
+            proto = protocol_from_toml(pv["text"], source=f"stored {pv['name']}")
+        except ProtocolError:  # a stored text today's checks refuse: ids stay as they are
+            continue
+        labels = {c.id: c.label for c in proto.conditions}
+        labels.update({q.id: q.text for q in proto.questions})
+        out[pv["name"]] = {**labels, "__title__": proto.title}
+    return out
+
+
 def analyze(store_or_df, protocol_name: str | None = None, include_simulated: bool = False) -> dict[str, Any]:
     """Analyse every protocol in the store (or a tidy DataFrame).
 
@@ -251,7 +273,9 @@ def analyze(store_or_df, protocol_name: str | None = None, include_simulated: bo
     dict
         ``{"provenance": ..., "protocols": {name: {"n_participants", "questions":
         {qid: {"descriptives": {condition: {...}}, "friedman": {...} | None,
-        "pairwise": [...]}}}}}``.  Values are plain floats (None for undefined).
+        "pairwise": [...]}}, "condition_labels": {condition: label}}}}``.  Values
+        are plain floats (None for undefined); the labels are the protocol's (the ids
+        themselves when only a DataFrame is given).
     """
     from .store import provenance
 
@@ -271,6 +295,7 @@ def analyze(store_or_df, protocol_name: str | None = None, include_simulated: bo
     prov.update({"pingouin": pingouin.__version__, "scipy": scipy.__version__,
                  "aggregation": "mean rating per participant and condition (over images and repetitions)"})
     result: dict[str, Any] = {"provenance": prov, "protocols": {}}
+    labels = protocol_labels(store_or_df, set(df["protocol"]))
     for pname, pdf in df.groupby("protocol", sort=True):
         pres: dict[str, Any] = {
             "n_participants": int(pdf["participant"].nunique()),
@@ -280,6 +305,8 @@ def analyze(store_or_df, protocol_name: str | None = None, include_simulated: bo
             "conditions": list(dict.fromkeys(sorted(pdf["condition"].unique()))),
             "questions": {},
         }
+        plabels = labels.get(str(pname), {})
+        pres["condition_labels"] = {str(c): plabels.get(str(c), str(c)) for c in pres["conditions"]}
         for qid, qdf in pdf.groupby("question", sort=False):
             cell = qdf.groupby(["participant", "condition"], as_index=False)["rating"].mean()
             desc = {str(c): describe(g["rating"]) for c, g in cell.groupby("condition", sort=True)}

@@ -38,11 +38,16 @@ def protocols_cmd(as_json: bool) -> None:
     if as_json:
         _emit([p.to_dict() for p in protos])
         return
+    width = max(len(p.name) for p in protos)  # the columns line up whatever the names
     for p in protos:
-        n = len(p.plan(1))
-        click.echo(f"{p.name:<11} v{p.version}  {len(p.conditions):>2} conditions, {len(p.images)} images, "
-                   f"{len(p.questions)} questions, {n} trial{'s' * (n != 1)}, n = {p.participants_planned}  "
-                   f"{p.title}")
+        counts = "  ".join(_count(k, what) for k, what in ((len(p.conditions), "condition"), (len(p.images), "image"),
+                                                          (len(p.questions), "question"), (len(p.plan(1)), "trial")))
+        click.echo(f"{p.name:<{width}}  v{p.version}  {counts}  n = {p.participants_planned:<3} {p.title}")
+
+
+def _count(n: int, noun: str) -> str:
+    """``3 images``, `` 1 image ``: padded to one width, so that the columns line up."""
+    return f"{n:>2} " + f"{noun}{'s' * (n != 1)}".ljust(len(noun) + 1)
 
 
 @experiment.command("run")
@@ -116,10 +121,11 @@ def export_cmd(db_url: str | None, fmt: str, protocol_name: str | None, output: 
             raise TactilizeError("--format parquet", "needs -o FILE (Parquet is binary)")
         if strokes:
             raise TactilizeError("--format parquet", "is for the answers; export --strokes as csv or json")
+        from ..extras import require
+
+        require("pyarrow", "--format parquet", "experiments")
         try:
             tidy_answers(store, protocol_name).to_parquet(output, index=False)
-        except ImportError:
-            raise TactilizeError("--format parquet", "needs pyarrow (pip install pyarrow)") from None
         except OSError as exc:
             raise TactilizeError(output, f"cannot write ({exc.strerror or exc})") from None
         click.echo(f"wrote {output}")
@@ -132,19 +138,43 @@ def export_cmd(db_url: str | None, fmt: str, protocol_name: str | None, output: 
             raise TactilizeError("--format wide", "is for the answers; export --strokes as csv or json")
         from .demographics import all_answers
 
-        text = wide_table(tidy_answers(store, protocol_name), all_answers(store)).to_csv(index=False,
-                                                                                        lineterminator="\n")
+        answers = tidy_answers(store, protocol_name)
+        pnames = sorted(answers["protocol"].unique())
+        if len(pnames) > 1:
+            # Each protocol has its own conditions and questions: one table each, never
+            # one table whose columns are half empty for every participant.
+            if output is None:
+                raise TactilizeError("--format wide", f"the store holds {len(pnames)} protocols ({', '.join(pnames)}): "
+                                                      "give --protocol NAME, or -o FILE for one file per protocol")
+            demographics = all_answers(store)
+            for pname in pnames:
+                path = _per_protocol(output, pname)
+                _write(path, wide_table(answers[answers["protocol"] == pname], demographics)
+                       .to_csv(index=False, lineterminator="\n"), provenance(protocol_filter=pname))
+                click.echo(f"wrote {path}")
+            return
+        text = wide_table(answers, all_answers(store)).to_csv(index=False, lineterminator="\n")
     else:
         text = export_strokes(store, fmt, protocol_name) if strokes else export_answers(store, fmt, protocol_name)
     if output is None:
         sys.stdout.write(text)
         return
+    _write(output, text, provenance(protocol_filter=protocol_name) if fmt in ("csv", "wide") else None)
+
+
+def _per_protocol(output: str, pname: str) -> str:
+    """``answers.csv`` -> ``answers-g-law.csv``: one protocol's file beside the name asked for."""
+    path = Path(output)
+    return str(path.with_name(f"{path.stem}-{pname}{path.suffix}"))
+
+
+def _write(output: str, text: str, prov: dict | None) -> None:
+    """Write ``text``; a CSV's provenance goes beside it (CSV has no place for
+    metadata that every reader skips)."""
     try:
         Path(output).write_text(text, "utf-8")
-        if fmt in ("csv", "wide"):
-            # CSV has no place for metadata that every reader skips; the versions go beside it.
-            Path(output + ".provenance.json").write_text(json.dumps(provenance(protocol_filter=protocol_name),
-                                                                    indent=2), "utf-8")
+        if prov is not None:
+            Path(output + ".provenance.json").write_text(json.dumps(prov, indent=2), "utf-8")
     except OSError as exc:
         raise TactilizeError(output, f"cannot write ({exc.strerror or exc})") from None
 
@@ -153,10 +183,12 @@ def export_cmd(db_url: str | None, fmt: str, protocol_name: str | None, output: 
 @click.option("--db", "db_url", default=None, help=DB_HELP)
 @click.option("--protocol", "protocol_name", default=None, help="Only this protocol.")
 @click.option("--figures", "figures_dir", default=None, help="Write PNG (300 dpi), PDF and SVG figures into this directory.")
+@click.option("--figure-width", type=click.Choice(["single", "double"]), default="double", show_default=True,
+              help="Figures one (89 mm) or two (183 mm) journal columns wide.")
 @click.option("--include-simulated", is_flag=True, help="Count simulated participants too (left out by default).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
-def analyze_cmd(db_url: str | None, protocol_name: str | None, figures_dir: str | None, include_simulated: bool,
-                as_json: bool) -> None:
+def analyze_cmd(db_url: str | None, protocol_name: str | None, figures_dir: str | None, figure_width: str,
+                include_simulated: bool, as_json: bool) -> None:
     """Descriptives, Friedman (F) with Kendall's W, Wilcoxon with Holm; optional figures."""
     from .analysis import analyze
     from .store import Store
@@ -171,7 +203,8 @@ def analyze_cmd(db_url: str | None, protocol_name: str | None, figures_dir: str 
     if figures_dir:
         from .figures import make_figures
 
-        result["figures"] = make_figures(store, figures_dir, protocol_name, include_simulated=include_simulated)
+        result["figures"] = make_figures(store, figures_dir, protocol_name, include_simulated=include_simulated,
+                                         width=figure_width)
     if as_json:
         _emit(result)
         return
@@ -179,9 +212,12 @@ def analyze_cmd(db_url: str | None, protocol_name: str | None, figures_dir: str 
         click.echo(f"{pname}: {pres['n_participants']} participants, {pres['n_answers']} answers")
         for qid, q in pres["questions"].items():
             click.echo(f"  {qid}")
+            names = {cid: f"{cid}  {pres['condition_labels'].get(cid, cid)}" if pres["condition_labels"].get(cid, cid) != cid
+                     else cid for cid in q["descriptives"]}
+            width = max(8, *(len(n) for n in names.values()))
             for cid, d in q["descriptives"].items():
                 sd = f"{d['sd']:.2f}" if d["sd"] is not None else "-"
-                click.echo(f"    {cid:<8} n={d['n']:<3} median {d['median']:.1f} (IQR {d['iqr']:.2f})  "
+                click.echo(f"    {names[cid]:<{width}}  n={d['n']:<3} median {d['median']:.1f} (IQR {d['iqr']:.2f})  "
                            f"mean {d['mean']:.2f} SD {sd}")
             fr = q["friedman"]
             if fr and fr.get("F") is not None:

@@ -18,7 +18,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-__all__ = ["PAPER_FIGURE", "figure_data", "protocol_figure", "make_figures", "caption", "significance_pairs"]
+__all__ = ["COLUMN_WIDTHS_MM", "OKABE_ITO", "PAPER_FIGURE", "figure_data", "protocol_figure", "make_figures", "caption",
+           "significance_pairs", "text_boxes"]
 
 PAPER_FIGURE = {"g-law": "Fig. 10", "h-law": "Fig. 12", "alpha-law": "Fig. 14", "assessment": "Fig. 17"}
 
@@ -56,28 +57,6 @@ def figure_data(df, protocol_name: str) -> dict[str, Any]:
     return out
 
 
-def _labels(store_or_df, pnames) -> dict[str, dict[str, str]]:
-    """``{protocol: {condition or question id: label}}`` from the stored protocol texts
-    (the newest version wins); empty when only a DataFrame is given."""
-    out: dict[str, dict[str, str]] = {}
-    if not hasattr(store_or_df, "protocol_texts"):
-        return out
-    from .protocols import ProtocolError, protocol_from_toml
-
-    for pv in store_or_df.protocol_texts():
-        if pv["name"] not in pnames:
-            continue
-        try:
-            proto = protocol_from_toml(pv["text"], source=f"stored {pv['name']}")
-        except ProtocolError:  # a stored text today's checks refuse: ids stay as they are
-            continue
-        labels = {c.id: c.label for c in proto.conditions}
-        # Items are named by their text, cut to fit under a bar.
-        labels.update({q.id: q.text if len(q.text) <= 32 else q.text[:30].rstrip() + "…" for q in proto.questions})
-        out[pv["name"]] = {**labels, "__title__": proto.title}
-    return out
-
-
 def significance_pairs(analysis: dict | None, protocol_name: str, question: str) -> list[tuple[str, str, float]]:
     """``(a, b, p_holm)`` of the pairs whose Holm-corrected Wilcoxon p is below 0.05."""
     if not analysis:
@@ -94,12 +73,56 @@ def stars(p: float) -> str:
     return "***" if p < 0.001 else "**" if p < 0.01 else "*"
 
 
-def protocol_figure(df, protocol_name: str, labels: dict[str, str] | None = None, analysis: dict | None = None):
+#: Figure widths [mm] of one and of two journal columns (docs/references.md, section 7
+#: (Figures for a journal)).
+COLUMN_WIDTHS_MM = {"single": 89.0, "double": 183.0}
+#: The Okabe-Ito palette, told apart with every common colour-vision deficiency
+#: (docs/references.md, section 7 (Colour-blind-safe palette)); black is kept for the medians.
+OKABE_ITO = ("#0072B2", "#E69F00", "#009E73", "#D55E00", "#CC79A7", "#56B4E9", "#F0E442")
+_FONT_PT = 8.0
+_MM_PER_IN = 25.4
+
+
+def _wrap(text: str, chars: int) -> str:
+    import textwrap
+
+    return "\n".join(textwrap.wrap(str(text), max(8, chars), break_long_words=False)) or str(text)
+
+
+def _chars(width_in: float, font_pt: float = _FONT_PT) -> int:
+    """Characters of ``font_pt`` text that fit in ``width_in`` [in] (an average glyph is ~0.55 em)."""
+    return int(width_in * 72.0 / (0.55 * font_pt))
+
+
+def _overlap(a, b, pad: float = 0.0) -> bool:
+    return a.x0 < b.x1 + pad and b.x0 < a.x1 + pad and a.y0 < b.y1 + pad and b.y0 < a.y1 + pad
+
+
+def text_boxes(fig) -> list[tuple[str, Any]]:
+    """Every visible, non-empty text of ``fig`` and its box in display pixels
+    (drawn first, so that the layout has run)."""
+    from matplotlib.text import Text
+
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    out = []
+    for t in fig.findobj(Text):
+        if t.get_visible() and t.get_text().strip() and t.figure is not None:
+            out.append((t.get_text(), t.get_window_extent(renderer)))
+    return out
+
+
+def protocol_figure(df, protocol_name: str, labels: dict[str, str] | None = None, analysis: dict | None = None,
+                    width: str = "double"):
     """A matplotlib Figure for one protocol, and the data it plots.
 
     Conditions (or, for the assessment, items) are labelled from ``labels``
-    (the protocol's labels); brackets with stars mark the pairs the
-    Holm-corrected Wilcoxon tests of ``analysis`` find different (p < 0.05).
+    (the protocol's labels), wrapped under their bars; where they still do not
+    fit, the bars carry the ids and the axis title a key (``A: k5 = 0.02 ...``).
+    The legend names each question by its whole text.  Brackets with stars mark
+    the pairs the Holm-corrected Wilcoxon tests of ``analysis`` find different
+    (p < 0.05).  ``width`` is ``"single"`` or ``"double"`` (journal columns,
+    :data:`COLUMN_WIDTHS_MM`); the height follows the text it must hold.
     """
     import matplotlib
 
@@ -107,48 +130,79 @@ def protocol_figure(df, protocol_name: str, labels: dict[str, str] | None = None
     import matplotlib.pyplot as plt
     import numpy as np
 
+    if width not in COLUMN_WIDTHS_MM:
+        from ..errors import TactilizeError
+
+        raise TactilizeError("--figure-width", f"must be one of {', '.join(COLUMN_WIDTHS_MM)}, got {width!r}")
     labels = labels or {}
     data = figure_data(df, protocol_name)
     xs, series = data["x"], data["series"]
     n_part = df[df["protocol"] == protocol_name]["participant"].nunique()
-    fig, ax = plt.subplots(figsize=(min(10.0, max(4.5, 1.5 + 0.6 * len(xs) * max(1, len(series)))), 3.8))
-    width = 0.8 / max(1, len(series))
-    rng = np.random.default_rng(0)  # jitter of the points only; fixed so figures are reproducible
-    top = 7.3
-    for j, s in enumerate(series):
-        pos = np.arange(len(xs)) + (j - (len(series) - 1) / 2) * width
-        means = [data["mean"][s][x] for x in xs]
-        sds = [data["sd"][s][x] for x in xs]
-        label = None if data["by_item"] else labels.get(s, s)
-        ax.bar(pos, means, width * 0.9, yerr=np.nan_to_num(sds), capsize=3, label=label, alpha=0.8,
-               gid=f"bar:{s}", error_kw={"elinewidth": 1})
-        ax.scatter(pos, [data["median"][s][x] for x in xs], marker="D", s=18, color="k", zorder=3)
-        for p, x in zip(pos, xs):
-            pts = data["points"][s][x]
-            ax.scatter(p + rng.uniform(-width * 0.25, width * 0.25, len(pts)), pts, s=6, color="0.3", alpha=0.6,
-                       zorder=2)
-        if not data["by_item"]:
-            # Brackets from the statistics, never drawn by eye: one per significant pair.
-            where = {x: float(p) for p, x in zip(pos, xs)}
-            for a, b, p_holm in significance_pairs(analysis, protocol_name, s):
-                if a not in where or b not in where:
-                    continue
-                top += 0.45
-                xa, xb = sorted((where[a], where[b]))
-                ax.plot([xa, xa, xb, xb], [top - 0.15, top, top, top - 0.15], color="k", lw=0.8, gid=f"sig:{a}:{b}")
-                ax.text((xa + xb) / 2, top, stars(p_holm), ha="center", va="bottom", fontsize=8)
-    ax.set_xticks(np.arange(len(xs)))
-    ax.set_xticklabels([labels.get(x, x) for x in xs], rotation=30 if len(xs) > 5 else 0,
-                       ha="right" if len(xs) > 5 else "center", fontsize=8)
-    ax.set_ylim(0, max(7.5, top + 0.6))
-    ax.set_yticks(range(1, 8))
-    ax.set_ylabel("rating (1..7)")
-    ax.set_xlabel("item" if data["by_item"] else "condition")
-    ax.set_title(f"{labels.get('__title__', protocol_name)} (n = {n_part})", fontsize=9)
-    if not data["by_item"] and len(series) > 1:
-        ax.legend(fontsize=8, frameon=False, ncols=min(4, len(series)))
-    ax.grid(axis="y", alpha=0.3)
-    fig.tight_layout()
+    w_in = COLUMN_WIDTHS_MM[width] / _MM_PER_IN
+    line_chars = _chars(w_in * 0.92)
+    legend = not data["by_item"] and len(series) > 1
+    legend_texts = [_wrap(labels.get(s, s), line_chars - 6) for s in series] if legend else []
+    legend_lines = sum(t.count("\n") + 1 for t in legend_texts)
+    tick_chars = _chars(w_in * 0.85 / max(1, len(xs)))
+    names = [str(labels.get(x, x)) for x in xs]
+    wrapped = [_wrap(n, tick_chars) for n in names]
+    # More than three lines under a bar, or a word wider than its slot: ids and a key.
+    keyed = any(w.count("\n") >= 3 or max(len(part) for part in w.split("\n")) > tick_chars for w in wrapped)
+    what = "item" if data["by_item"] else "condition"
+    if keyed:
+        ticks = [str(x) for x in xs]
+        # One entry a line, each wrapped: the key reads as a list.
+        xlabel = "\n".join([what] + [_wrap(f"{x}: {n}", line_chars) for x, n in zip(xs, names) if n != str(x)])
+    else:
+        ticks, xlabel = wrapped, what
+    tick_lines = max(t.count("\n") + 1 for t in ticks)
+    title = _wrap(f"{labels.get('__title__', protocol_name)} (n = {n_part})", _chars(w_in * 0.9, 9.0))
+    h_in = (2.4 + 0.14 * (tick_lines + xlabel.count("\n") + title.count("\n")) + 0.15 * legend_lines
+            + (0.1 if legend else 0.0))
+    with plt.rc_context({"font.size": _FONT_PT, "axes.titlesize": 9.0, "legend.fontsize": _FONT_PT,
+                         "xtick.labelsize": _FONT_PT, "ytick.labelsize": _FONT_PT}):
+        fig, ax = plt.subplots(figsize=(w_in, h_in), layout="constrained")
+        bar_w = 0.8 / max(1, len(series))
+        rng = np.random.default_rng(0)  # jitter of the points only; fixed so figures are reproducible
+        top = 7.3
+        handles = []
+        for j, s in enumerate(series):
+            pos = np.arange(len(xs)) + (j - (len(series) - 1) / 2) * bar_w
+            means = [data["mean"][s][x] for x in xs]
+            sds = [data["sd"][s][x] for x in xs]
+            bars = ax.bar(pos, means, bar_w * 0.9, yerr=np.nan_to_num(sds), capsize=3,
+                          color=OKABE_ITO[j % len(OKABE_ITO)], alpha=0.85, gid=f"bar:{s}",
+                          error_kw={"elinewidth": 1})
+            handles.append(bars)
+            ax.scatter(pos, [data["median"][s][x] for x in xs], marker="D", s=14, color="k", zorder=3)
+            for p, x in zip(pos, xs):
+                pts = data["points"][s][x]
+                ax.scatter(p + rng.uniform(-bar_w * 0.25, bar_w * 0.25, len(pts)), pts, s=5, color="0.3",
+                           alpha=0.6, zorder=2)
+            if not data["by_item"]:
+                # Brackets from the statistics, never drawn by eye: one per significant pair.
+                where = {x: float(p) for p, x in zip(pos, xs)}
+                for a, b, p_holm in significance_pairs(analysis, protocol_name, s):
+                    if a not in where or b not in where:
+                        continue
+                    top += 0.5
+                    xa, xb = sorted((where[a], where[b]))
+                    ax.plot([xa, xa, xb, xb], [top - 0.15, top, top, top - 0.15], color="k", lw=0.8,
+                            gid=f"sig:{a}:{b}")
+                    ax.text((xa + xb) / 2, top - 0.05, stars(p_holm), ha="center", va="bottom", fontsize=7)
+        ax.set_xticks(np.arange(len(xs)))
+        ax.set_xticklabels(ticks, linespacing=1.0)
+        ax.set_ylim(0, max(7.5, top + 0.6))
+        ax.set_yticks(range(1, 8))
+        ax.set_ylabel("rating (1..7)")
+        ax.set_xlabel(xlabel, linespacing=1.1, multialignment="left" if keyed else "center")
+        ax.set_title(title, linespacing=1.1)
+        if legend:
+            fig.legend(handles, legend_texts, loc="outside lower center", ncols=1, frameon=False,
+                       handlelength=1.2, borderaxespad=0.2)
+        ax.grid(axis="y", alpha=0.3)
+        ax.set_axisbelow(True)
+        fig.canvas.draw()  # the layout runs here, inside the fonts' context
     return fig, data
 
 
@@ -164,9 +218,10 @@ def caption(protocol_name: str, n_part: int, labels: dict[str, str] | None = Non
 
 
 def make_figures(store_or_df, out_dir: str | Path, protocol_name: str | None = None,
-                 include_simulated: bool = False, dpi: int = 300) -> dict[str, dict[str, str]]:
+                 include_simulated: bool = False, dpi: int = 300, width: str = "double") -> dict[str, dict[str, str]]:
     """Write ``<protocol>.png`` (``dpi``), ``.pdf`` and ``.svg`` (vector) and a caption file
-    for every protocol with answers.
+    for every protocol with answers, ``width`` one (``"single"``) or two (``"double"``)
+    journal columns wide.
 
     Simulated participants are left out unless ``include_simulated``.  Every
     file carries the provenance (versions, protocol hash, seeds) in its
@@ -185,7 +240,7 @@ def make_figures(store_or_df, out_dir: str | Path, protocol_name: str | None = N
     import matplotlib.pyplot as plt
 
     from ..errors import TactilizeError
-    from .analysis import analyze, tidy_answers
+    from .analysis import analyze, protocol_labels, tidy_answers
     from .store import provenance
 
     if hasattr(store_or_df, "answer_rows"):
@@ -202,11 +257,11 @@ def make_figures(store_or_df, out_dir: str | Path, protocol_name: str | None = N
     except OSError as exc:
         raise TactilizeError(str(out_dir), f"cannot create the figure directory ({exc.strerror or exc})") from None
     pnames = sorted(df["protocol"].unique())
-    all_labels = _labels(store_or_df, pnames)
+    all_labels = protocol_labels(store_or_df, pnames)
     written = {}
     for pname in pnames:
         labels = all_labels.get(pname, {})
-        fig, _data = protocol_figure(df, pname, labels, analysis)
+        fig, _data = protocol_figure(df, pname, labels, analysis, width)
         pdf = df[df["protocol"] == pname]
         prov = provenance(protocol=pname, protocol_sha256=sorted(set(pdf["protocol_sha256"])),
                           seeds=sorted({int(s) for s in pdf["seed"]}), n_answers=int(len(pdf)),
@@ -216,8 +271,10 @@ def make_figures(store_or_df, out_dir: str | Path, protocol_name: str | None = N
                 "pdf": {"Creator": f"tactilize {prov['tactilize']}", "Subject": json.dumps(prov)},
                 "svg": {"Creator": f"tactilize {prov['tactilize']}", "Description": json.dumps(prov)}}
         try:
-            for ext, path in files.items():
-                fig.savefig(path, dpi=dpi, metadata=meta[ext])
+            # Text stays text in the vector files (editable, searchable; TrueType in the PDF).
+            with plt.rc_context({"svg.fonttype": "none", "pdf.fonttype": 42}):
+                for ext, path in files.items():
+                    fig.savefig(path, dpi=dpi, metadata=meta[ext])
             cap = out / f"{pname}.caption.txt"
             cap.write_text(caption(pname, int(pdf["participant"].nunique()), labels) + "\n", "utf-8")
         except OSError as exc:
