@@ -97,8 +97,11 @@ def test_cli_analyze_plot_draws_fig5(tmp_path):
     assert res.exit_code == 0, res.output
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "0.4" in res.output or "400.0" in res.output  # f_s 400 cycles/m printed as usual
-    two = CliRunner().invoke(main, ["analyze", str(src), str(src), "--plot", str(out)])
-    assert two.exit_code != 0 and "--plot" in two.output
+    # Several pictures: one figure each, named after the picture (two of one stem are numbered).
+    two = CliRunner().invoke(main, ["analyze", str(src), str(src), "--width-mm", "100", "--plot", str(out)])
+    assert two.exit_code == 0, two.output
+    for name in ("fig5-grating-1.png", "fig5-grating-2.png"):
+        assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
 
 
 def test_cli_analyze_plot_marks_the_same_peak(tmp_path):
