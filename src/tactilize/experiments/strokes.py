@@ -32,7 +32,6 @@ import json
 import math
 import threading
 import uuid
-import weakref
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import partial
@@ -56,7 +55,7 @@ _PEN_EXECUTOR: ThreadPoolExecutor | None = None
 #: How many requests of one event loop run their store work at once (:func:`in_store_thread`).
 STORE_THREADS = 4
 
-_STORE_LIMITERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_STORE_LIMITER: Any = None  # an anyio RunVar: one limiter per event loop, made on first use
 
 
 async def in_store_thread(func, *args):
@@ -70,12 +69,16 @@ async def in_store_thread(func, *args):
     a time do the same work in the same total time, and the drive's threads
     find the interpreter free sooner.
     """
+    global _STORE_LIMITER
     import anyio
+    from anyio.lowlevel import RunVar
 
-    loop = asyncio.get_running_loop()
-    limiter = _STORE_LIMITERS.get(loop)
+    if _STORE_LIMITER is None:
+        _STORE_LIMITER = RunVar("tactilize_store_limiter")
+    limiter = _STORE_LIMITER.get(None)
     if limiter is None:
-        limiter = _STORE_LIMITERS[loop] = anyio.CapacityLimiter(STORE_THREADS)
+        limiter = anyio.CapacityLimiter(STORE_THREADS)
+        _STORE_LIMITER.set(limiter)
     return await anyio.to_thread.run_sync(partial(func, *args), limiter=limiter)
 
 
