@@ -26,6 +26,7 @@ Usage::
 
     python bench/bench_experiment_samples.py               # ~3 minutes
     python bench/bench_experiment_samples.py --trials 2    # shorter
+    python bench/bench_experiment_samples.py --db postgresql --kills 0   # one backend, latency only
 
 No assertion on wall-clock time: figures and ratios are printed.
 """
@@ -310,19 +311,21 @@ def main() -> None:
     ap.add_argument("--trials", type=int, default=4, help="trials per participant (alpha-law has 4)")
     ap.add_argument("--stroke-s", type=float, default=3.0, help="stroke time per trial, seconds")
     ap.add_argument("--kills", type=int, default=5)
+    ap.add_argument("--db", choices=("both", "sqlite", "postgresql"), default="both",
+                    help="which backend(s) to run (postgresql needs TACTILIZE_TEST_POSTGRES_URL)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
 
     results = []
     with tempfile.TemporaryDirectory() as tmp:
-        dbs = [("sqlite", f"sqlite:///{Path(tmp) / 'bench.sqlite3'}", None)]
-        pg = os.environ.get("TACTILIZE_TEST_POSTGRES_URL")
+        dbs = [("sqlite", f"sqlite:///{Path(tmp) / 'bench.sqlite3'}", None)] if args.db != "postgresql" else []
+        pg = os.environ.get("TACTILIZE_TEST_POSTGRES_URL") if args.db != "sqlite" else None
         if pg:
             url, drop = _postgres_schema(pg)
             dbs.append(("postgresql", url, drop))
         try:
             for label, url, _ in dbs:
-                for kills in (0, args.kills):
+                for kills in sorted({0, args.kills}):  # --kills 0: the latency run alone
                     r = asyncio.run(_run(url, label, args.participants, kills, args.stroke_s, args.trials,
                                          echo=kills == 0))
                     results.append(r)
@@ -332,7 +335,7 @@ def main() -> None:
             for _, _, drop in dbs:
                 if drop:
                     drop()
-    if not pg and not args.json:
+    if not pg and args.db != "sqlite" and not args.json:
         print("postgresql: skipped (set TACTILIZE_TEST_POSTGRES_URL)")
     if args.json:
         print(json.dumps(results, indent=2))

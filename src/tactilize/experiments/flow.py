@@ -367,7 +367,11 @@ class Flow:
         drives go to ``output`` too when given."""
         from .strokes import StrokeHandler
 
-        return StrokeHandler(self, self._session(token), output)
+        handler = StrokeHandler(self, self._session(token), output)
+        # Read now, while the socket opens, what the first pen message would
+        # otherwise query on the drive's path: the trial plan and the open trial.
+        handler.prefetch()
+        return handler
 
     def open_trial(self, sess: ExperimentSession, fresh: bool = False, stale_ok: bool = False) -> int | None:
         """The index of the session's first trial without all its answers (None: done).
@@ -383,6 +387,12 @@ class Flow:
         if fresh or hit is None or (not stale_ok and now - hit[1] > OPEN_TRIAL_TTL_S):
             hit = self._open_cache[sess.id] = (self._first_open(sess), now)
         return hit[0]
+
+    def open_trial_known(self, sess: ExperimentSession) -> tuple[bool, int | None]:
+        """``(known, index)``: whether :meth:`open_trial` has a value of ``sess`` in
+        memory (expired or not, so ``stale_ok`` needs no query), and that value."""
+        hit = self._open_cache.get(sess.id)
+        return (False, None) if hit is None else (True, hit[0])
 
     def open_trial_due(self, sess: ExperimentSession) -> bool:
         """True when :meth:`open_trial`'s value of ``sess`` is older than :data:`OPEN_TRIAL_TTL_S`."""

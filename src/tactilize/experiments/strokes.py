@@ -30,8 +30,9 @@ from __future__ import annotations
 import asyncio
 import json
 import math
+import threading
 import uuid
-from concurrent.futures import Future
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import partial
 from typing import Any
@@ -39,10 +40,62 @@ from typing import Any
 from .flow import FlowError
 from .samples import writer_for
 
-__all__ = ["StrokeHandler", "pump"]
+__all__ = ["StrokeHandler", "pump", "pen_executor", "PEN_THREADS", "in_store_thread", "STORE_THREADS"]
 
 #: Longest batch id the page may choose (the column's width).
 MAX_BATCH_ID = 64
+
+#: Threads of the pen messages' own executor (:func:`pen_executor`).
+PEN_THREADS = 2
+
+_PEN_LOCK = threading.Lock()
+_PEN_EXECUTOR: ThreadPoolExecutor | None = None
+
+
+#: How many requests of one event loop run their store work at once (:func:`in_store_thread`).
+STORE_THREADS = 4
+
+_STORE_LIMITER: Any = None  # an anyio RunVar: one limiter per event loop, made on first use
+
+
+async def in_store_thread(func, *args):
+    """Run ``func(*args)`` in a worker thread, at most :data:`STORE_THREADS` at a time.
+
+    Starting, calibrating and answering run a dozen ORM queries each, all
+    Python, and an answer also waits for the writer's commit; when twenty
+    participants answer at once, twenty such threads took turns on the
+    interpreter with the event loop and the pen's threads (each turn up to the
+    5 ms switch interval), so the drives waited tens of milliseconds.  A few at
+    a time do the same work in the same total time, and the drive's threads
+    find the interpreter free sooner.
+    """
+    global _STORE_LIMITER
+    import anyio
+    from anyio.lowlevel import RunVar
+
+    if _STORE_LIMITER is None:
+        _STORE_LIMITER = RunVar("tactilize_store_limiter")
+    limiter = _STORE_LIMITER.get(None)
+    if limiter is None:
+        limiter = anyio.CapacityLimiter(STORE_THREADS)
+        _STORE_LIMITER.set(limiter)
+    return await anyio.to_thread.run_sync(partial(func, *args), limiter=limiter)
+
+
+def pen_executor() -> ThreadPoolExecutor:
+    """The executor that turns pen messages into drives, apart from every request that waits on the store.
+
+    Answers, starts and calibrations run in Starlette's thread pool and block on
+    the database (an answer waits for the writer's commit); a pen message queued
+    behind them would wait for their queries.  Its few threads only run
+    :meth:`StrokeHandler.take` for messages that need no query
+    (:meth:`StrokeHandler.needs_store`): a fraction of a millisecond each.
+    """
+    global _PEN_EXECUTOR
+    with _PEN_LOCK:
+        if _PEN_EXECUTOR is None:
+            _PEN_EXECUTOR = ThreadPoolExecutor(PEN_THREADS, thread_name_prefix="tactilize-pen")
+        return _PEN_EXECUTOR
 
 
 def _batch_id(value: Any) -> str:
@@ -99,6 +152,27 @@ class StrokeHandler:
         record_event(self.flow.store, trials[idx].id, "interrupted",
                      {"gap_s": gap, "queued_samples": msg.get("queued") if isinstance(msg.get("queued"), int) else None})
         return {"type": "marked", "trial": idx, "kind": "interrupted"}
+
+    def prefetch(self) -> None:
+        """Read the trial plan and the open trial (when not in memory) before the first message."""
+        self._trials()
+        self.flow.open_trial(self.session, stale_ok=True)
+
+    def needs_store(self, msg: Any) -> bool:
+        """True when :meth:`take` may query or write the store for ``msg``.
+
+        The first message (the trial plan and the open trial are read once), a
+        reconnection mark (written), and a batch for a trial past the open one
+        (re-read) do; every other batch is answered from memory."""
+        if not isinstance(msg, dict):
+            return False
+        if msg.get("type") == "reconnected" or not self.trial_cache:
+            return True
+        if msg.get("type") in ("lift", "ping"):
+            return False
+        known, current = self.flow.open_trial_known(self.session)
+        idx = msg.get("trial")
+        return not known or (isinstance(idx, int) and current is not None and idx > current)
 
     def take(self, msg: Any) -> tuple[dict[str, Any] | None, Future | None]:
         """Handle one message without waiting for the database.
@@ -221,10 +295,13 @@ def _ack(future: Future, batch: str, trial: Any) -> dict[str, Any]:
 async def pump(ws, handler: StrokeHandler) -> None:
     """Serve one accepted WebSocket until it closes.
 
-    Handling runs in the thread pool and never waits for the database: the
-    drive goes back as soon as it is computed, and each batch's ``ack`` follows
-    from the writer's thread once its group committed.  One task sends, so
-    answers and acknowledgements never interleave on the socket.
+    A message that needs no query runs in :func:`pen_executor`'s threads, not
+    queued behind the requests blocked on the database in the thread pool;
+    one that does (:meth:`StrokeHandler.needs_store`) runs in the thread pool.
+    Neither waits for the samples' commit: the drive goes back as soon as it is
+    computed, and each batch's ``ack`` follows from the writer's thread once its
+    group committed.  One task sends, so answers and acknowledgements never
+    interleave on the socket.
     """
     from starlette.concurrency import run_in_threadpool
     from starlette.websockets import WebSocketDisconnect
@@ -243,6 +320,7 @@ async def pump(ws, handler: StrokeHandler) -> None:
             await ws.send_json(doc)
 
     sending = asyncio.create_task(sender())
+    refreshing: asyncio.Future | None = None
     try:
         while not sending.done():
             message = await ws.receive()
@@ -254,7 +332,10 @@ async def pump(ws, handler: StrokeHandler) -> None:
             future = msg = None
             try:
                 msg = json.loads(text or "")
-                reply, future = await run_in_threadpool(handler.take, msg)
+                if handler.needs_store(msg):
+                    reply, future = await in_store_thread(handler.take, msg)
+                else:
+                    reply, future = await loop.run_in_executor(pen_executor(), handler.take, msg)
             except json.JSONDecodeError:
                 reply = {"type": "error", "error": "messages must be JSON", "source": "stroke", "status": 400}
             except FlowError as exc:
@@ -266,14 +347,19 @@ async def pump(ws, handler: StrokeHandler) -> None:
             if future is not None:
                 batch, trial = (reply or {}).get("batch") or msg.get("batch"), msg.get("trial")
                 future.add_done_callback(lambda f, b=batch, t=trial: post(_ack(f, b, t)))
-                if handler.flow.open_trial_due(handler.session):  # the reply is on its way: query now
-                    await run_in_threadpool(handler.refresh_open_trial)
+                if (handler.flow.open_trial_due(handler.session)  # the reply is on its way: query now,
+                        and (refreshing is None or refreshing.done())):  # without holding up the next message
+                    refreshing = asyncio.ensure_future(in_store_thread(handler.refresh_open_trial))
+                    # A failed read is retried at the next message; the drive goes on meanwhile.
+                    refreshing.add_done_callback(lambda f: f.cancelled() or f.exception())
     except WebSocketDisconnect:
         return
     finally:
         out.put_nowait(None)
-        try:
-            await sending
-        except Exception:  # the socket closed under the sender: nothing more can be told
-            pass
+        for task in (sending, refreshing):
+            try:
+                if task is not None:
+                    await task
+            except Exception:  # the socket closed under the sender / the store failed: nothing more to tell
+                pass
         await run_in_threadpool(handler.stop)

@@ -23,8 +23,10 @@ reach loopback through DNS rebinding); :func:`serve_flow` and
 one keeps them closed.  Pass it as ``Authorization: Bearer <token>``,
 ``X-Tactilize-Token`` or ``?token=``.
 
-Every route is a plain function run in FastAPI's thread pool, because the store
-is synchronous; the answer route returns only after the commit.  A refusal is
+The store is synchronous: a route that writes (start, resume, calibration,
+break, answers, opening the pen socket) runs in a worker thread, a few at a
+time (:func:`.strokes.in_store_thread`), and the answer route returns only
+after the commit; pen messages have threads of their own (:func:`.strokes.pump`).  A refusal is
 a :class:`~.flow.FlowError` raised by the route, answered with its status and
 ``{"error", "source"}`` (:class:`tactilize.web.http.ErrorAnsweringRoute`).
 """
@@ -34,17 +36,18 @@ from __future__ import annotations
 import hmac
 import json
 import secrets
+from contextlib import asynccontextmanager
 from importlib import resources
 from typing import Any
 
 from fastapi import APIRouter, FastAPI, Request, WebSocket
 from fastapi.responses import FileResponse, JSONResponse, PlainTextResponse, RedirectResponse, Response
-from starlette.concurrency import run_in_threadpool
 
 from ..web.encode import jsonable
-from ..web.http import ErrorAnsweringRoute, is_loopback
+from ..web.http import ErrorAnsweringRoute, is_loopback, settle_heap
 from ..web.ownership import TRIAL, page_output
 from .flow import Flow, FlowError
+from .strokes import in_store_thread
 
 __all__ = ["experiment_router", "create_experiment_app", "serve_flow", "is_loopback", "PREFIX"]
 
@@ -117,7 +120,7 @@ def experiment_router(flow: Flow) -> APIRouter:
     @router.post("/api/sessions")
     async def start(request: Request) -> Response:
         body = await _json_object(request)
-        return JSONResponse(await run_in_threadpool(lambda: flow.start(body.get("participant_id"), body.get("consent"),
+        return JSONResponse(await in_store_thread(lambda: flow.start(body.get("participant_id"), body.get("consent"),
                                                                       demographics=body.get("demographics"))))
 
     @router.post("/api/resume")
@@ -128,7 +131,7 @@ def experiment_router(flow: Flow) -> APIRouter:
         # The page resumes by its unguessable session token; resuming by ID needs
         # the experimenter (their token, in the body or as for the admin routes).
         require_admin(request, body.get("token"))
-        return JSONResponse(await run_in_threadpool(flow.resume, body.get("participant_id")))
+        return JSONResponse(await in_store_thread(flow.resume, body.get("participant_id")))
 
     @router.get("/api/sessions/{token}")
     def state(token: str) -> Response:
@@ -137,18 +140,18 @@ def experiment_router(flow: Flow) -> APIRouter:
     @router.post("/api/sessions/{token}/calibration")
     async def calibrate(token: str, request: Request) -> Response:
         body = await _json_body(request)
-        return JSONResponse(await run_in_threadpool(flow.calibrate, token, body))
+        return JSONResponse(await in_store_thread(flow.calibrate, token, body))
 
     @router.post("/api/sessions/{token}/break")
     async def end_break(token: str, request: Request) -> Response:
         body = await _json_body(request)
         idx = body.get("trial") if isinstance(body, dict) else None
-        return JSONResponse(await run_in_threadpool(flow.end_break, token, idx))
+        return JSONResponse(await in_store_thread(flow.end_break, token, idx))
 
     @router.post("/api/sessions/{token}/answers")
     async def answers(token: str, request: Request) -> Response:
         body = await _json_object(request)
-        doc = await run_in_threadpool(
+        doc = await in_store_thread(
             lambda: flow.submit(token, body.get("trial"), body.get("ratings"),
                                 response_time_s=body.get("response_time_s"),
                                 submission_id=body.get("submission_id"), comment=body.get("comment")))
@@ -172,7 +175,7 @@ def experiment_router(flow: Flow) -> APIRouter:
         server_state = getattr(ws.app.state, "tactilize", None)
         output = None if server_state is None else page_output(server_state, TRIAL)
         try:
-            handler = await run_in_threadpool(flow.stroke_handler, token, output)
+            handler = await in_store_thread(flow.stroke_handler, token, output)
         except FlowError as exc:
             if output is not None:
                 output.close()
@@ -244,7 +247,17 @@ def create_experiment_app(protocol, db_url: str | None = None, admin_token: str 
     if not isinstance(protocol, Protocol):
         protocol = load_protocol(protocol)
     flow = Flow(protocol, Store(db_url), admin_token=admin_token or secrets.token_urlsafe(16))
-    app = FastAPI(title=f"tactilize experiment: {protocol.name}", docs_url=None, redoc_url=None)
+
+    @asynccontextmanager
+    async def lifespan(_app):
+        from ..pen import StrokeTracker  # noqa: F401  (the pen path's modules, imported before the freeze)
+        from ..web.rows import samples_from_css  # noqa: F401
+        from . import strokes  # noqa: F401
+
+        settle_heap()  # as the pen app does once warm: full collections skip what lives as long as the server
+        yield
+
+    app = FastAPI(title=f"tactilize experiment: {protocol.name}", docs_url=None, redoc_url=None, lifespan=lifespan)
     app.state.experiment_flow = flow
     from ..web.guard import install
 

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import asyncio
 import collections
-import gc
 import hashlib
 import logging
 import threading
@@ -46,6 +45,7 @@ from ..errors import ProfileError, TactilizeError
 from ..mapping import Profile, preset_names
 from .api import MAX_UPLOAD_BYTES, MAX_UPLOAD_PIXELS, api_router
 from .encode import jsonable
+from .http import settle_heap
 from .rows import DEFAULT_M_PER_CSS_PX
 
 __all__ = ["create_app", "ServerState", "TextureEntry", "MAX_UPLOAD_BYTES", "MAX_UPLOAD_PIXELS"]
@@ -306,20 +306,6 @@ def _simulated() -> Any:
     return open_output("simulated")
 
 
-def _settle_heap() -> None:
-    """Keep the garbage collector's full passes off the pen's path.
-
-    What exists once the server has warmed up (imported libraries, compiled
-    kernels, the built-in maps: about 150 000 objects) lives as long as the
-    server, yet every full collection walked it: 80 .. 130 ms with the event
-    loop stopped, measured as pen batches answered 130 ms late.  Collect once
-    now, then move the survivors out of the collector's sight (``gc.freeze``),
-    so later collections see only what the sessions make.
-    """
-    gc.collect()
-    gc.freeze()
-
-
 def create_app(
     output: Any = None,
     profile: Profile | str | None = None,
@@ -388,7 +374,7 @@ def create_app(
         warm_task = None
         if warm:
             warm_task = asyncio.get_running_loop().run_in_executor(None, state.warm)
-            warm_task.add_done_callback(lambda _: _settle_heap())
+            warm_task.add_done_callback(lambda _: settle_heap())
         try:
             yield
         finally:
