@@ -138,11 +138,11 @@ def batch_costs(batches: int, rounds: int) -> dict:
     out = SimulatedOutput()
     mm_per_px = 25.4 / 96
     lat: dict[str, list[int]] = {"perceptual": [], "surface": []}
-    with TestClient(create_app(out, "surface", output_name="simulated", close_output=True)) as client:
+    with TestClient(create_app(out, "surface", output_name="simulated", close_output=True), base_url="http://127.0.0.1") as client:
         state = client.app.state.tactilize
         for _ in range(rounds):
             for prof in ("perceptual", "surface"):
-                with client.websocket_connect("/ws") as ws:
+                with client.websocket_connect("ws://127.0.0.1/ws") as ws:
                     ws.send_text(json.dumps({"type": "hello", "texture": "sandpaper", "profile": prof}))
                     while ws.receive_json()["type"] != "ready":
                         pass
