@@ -196,3 +196,31 @@ def test_drive_fails_when_the_controller_vanishes_during_the_hold(grating):
 def test_hold_without_output_is_bad_input(grating):
     res = subprocess.run(cli("drive", grating, "--speed", "60", "--hold", "1"), capture_output=True, text=True)
     assert res.returncode == 2 and "--hold" in res.stderr
+
+
+def test_a_controller_lost_while_the_drive_is_acknowledged_is_a_lost_controller(monkeypatch):
+    # Deterministic twin of the test above: the port goes between one channel's
+    # ACK and the next, so apply itself fails on a disconnected output.
+    from tactilize.actuators import factory
+    from tactilize.cli.outputs import hold_drive
+    from tactilize.drive import Drive
+    from tactilize.errors import OutputError
+
+    class Vanishing:
+        channels = 2
+        connected = True
+        events = ()
+        closed = False
+
+        def apply(self, drives):
+            self.connected = False
+            raise OutputError("/dev/pts/9", "controller disconnected; outputs are off")
+
+        def close(self):
+            self.closed = True
+
+    out = Vanishing()
+    monkeypatch.setattr(factory, "open_output", lambda spec: out)
+    with pytest.raises(OutputError, match=r"controller lost before the hold began") as err:
+        hold_drive("serial:/dev/pts/9", Drive(pulse_frequency_hz=50.0, pulse_width_s=0.002), 1.0)
+    assert err.value.source == "serial:/dev/pts/9" and out.closed

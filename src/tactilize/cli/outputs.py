@@ -34,7 +34,14 @@ def hold_drive(spec: str, drive: Drive, hold_s: float, channels: int = 2) -> dic
 
     out = open_output(spec)
     try:
-        applied = out.apply([drive] * min(channels, out.channels))
+        try:
+            applied = out.apply([drive] * min(channels, out.channels))
+        except OutputError as exc:
+            # The controller can vanish while the drive is being acknowledged (one
+            # channel's ACK in, the next one's lost): that is a lost controller too.
+            if not out.connected:
+                raise OutputError(spec, f"controller lost before the hold began ({exc.fault})") from None
+            raise
         started = time.monotonic()
         deadline = started + hold_s
         # The output keeps itself alive (the serial output's heartbeat thread);
