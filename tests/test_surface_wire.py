@@ -8,7 +8,7 @@ does; the wire model (not the controller's belief) is the judge.
 from __future__ import annotations
 
 import numpy as np
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from tactilize.actuators.sma import FOLLOW_THRESHOLD_M, circuit_names
@@ -20,6 +20,10 @@ from tactilize.surface.fields import grain_field
 
 BATCH_S = 0.004
 LOOKAHEAD_S = 0.025
+
+
+#: Longest warming from standby at a stroke's start [s] (bench_felt: felt within 25 ms of pen-down).
+WARMING_BOUND_S = 0.025
 
 
 def _play(out: SimulatedOutput, events, duration_s: float) -> None:
@@ -35,9 +39,12 @@ def _play(out: SimulatedOutput, events, duration_s: float) -> None:
 def _check(out: SimulatedOutput, events) -> None:
     for c in range(out.channels):
         counts = out.event_counts()[c]
-        # Every event is a pulse, but the first may find the wire still warming from standby.
+        # Every event is a pulse, but those in the first moments of the stroke may find the wire
+        # still warming from standby (about 4 ms; felt within 25 ms of pen-down is the controller's
+        # promise, docs/signals-and-wire.md): two bumps 4.5 ms apart at the start can both fall there.
         assert counts["fired"] + counts["dropped"] == len(events)
-        assert counts["dropped"] <= 1
+        early = sum(1 for e in events if e.t_s < WARMING_BOUND_S)
+        assert counts["dropped"] <= max(1, early), (counts, early)
         log = out.event_log(c)
         assert len(log) >= counts["fired"] - 1  # the last pulse's period has not ended
         assert all(rise >= FOLLOW_THRESHOLD_M for _, rise in log), [r for _, r in log]
@@ -51,6 +58,7 @@ def _check(out: SimulatedOutput, events) -> None:
     circuit=st.sampled_from(circuit_names()),
     seed=st.integers(0, 50),
 )
+@example(pitch_mm=0.5, speed_mm_s=100.0, circuit="aa-resistor", seed=34)  # two bumps while warming
 def test_wire_follows_every_pulse_of_a_surface_and_stays_cool(pitch_mm, speed_mm_s, circuit, seed):
     pitch, v, dur = pitch_mm * 1e-3, speed_mm_s * 1e-3, 0.4
     f = grain_field(pitch, (v * dur + 8e-3, 10e-3), seed=seed)
