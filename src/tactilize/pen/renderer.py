@@ -321,6 +321,8 @@ class _SurfacePath:
     def __init__(self, surface: Any) -> None:
         self.surface = surface
         self.stroke = None
+        self._drive_key: tuple[Any, list] | None = None
+        self._drive = Drive.off()
         if surface is not None:
             from ..surface.stroke import SurfaceStroke
 
@@ -343,7 +345,14 @@ class _SurfacePath:
             stroke.rest()
             return [], Drive.off()
         events = stroke.update(batch, state.speed_m_s, state.direction_rad, state.pressure)
-        return events, equivalent_drive(stroke.recent(WINDOW_S), state.t_s, profile)
+        # The drive depends only on the events in the window and the profile: most batches
+        # bring the same ones (a Drive and its limits cost more than comparing a few events).
+        since = state.t_s - WINDOW_S
+        key = (profile, [e for e in stroke.recent(WINDOW_S) if e.t_s >= since])
+        if self._drive_key is None or key[0] is not self._drive_key[0] or key[1] != self._drive_key[1]:
+            self._drive = equivalent_drive(key[1], state.t_s, profile)
+            self._drive_key = key
+        return events, self._drive
 
 
 def _close(a: Sequence[Drive], b: Sequence[Drive], rel: float) -> bool:

@@ -134,8 +134,11 @@ class SurfaceModel:
         with one region per picture, so bumps are never found across a boundary.
         """
         h, inside = self._lookup(x_m, y_m)
+        floors = np.full(h.shape, self.prominence_floor)
+        if inside.all():  # the usual case: a stroke on the picture
+            return h, np.zeros(h.shape, dtype=np.intp), floors
         ids = inside.astype(np.intp) - 1  # 0 inside, -1 outside
-        return np.where(inside, h, np.nan), ids, np.full(h.shape, self.prominence_floor)
+        return np.where(inside, h, np.nan), ids, floors
 
     def at_scale(self, surface_pitch_m: float | tuple[float, float]) -> "SurfaceModel":
         """The same picture as a surface of another real size [m per pixel]."""
