@@ -138,7 +138,6 @@ def profile_report(
         The pictures of ``textures`` (a surface rendering strokes them); the
         built-in textures' by default.
     """
-    from .actuators.sma import feel
 
     if getattr(profile, "rendering", "steady") == "surface":
         return _surface_report(profile, images, speeds_mm_s, wire, simulate_wire)
@@ -162,26 +161,18 @@ def profile_report(
                 "interval_cv": interval_cv(d),
                 "clamped": list(d.clamped),
             }
-            if simulate_wire and not d.is_off:
-                felt = feel(d, wire)
-                row.update(follows=felt.follows, displacement_pp_um=felt.displacement_pp_um,
-                           first_follow_ms=felt.first_follow_ms if math.isfinite(felt.first_follow_ms) else None)
-            else:
-                row.update(follows=False, displacement_pp_um=0.0, first_follow_ms=None)
+            row.update(_felt_columns(d, wire, simulate_wire))
             report.rows.append(row)
         for a, b in itertools.combinations(drives, 2):
             report.pairs += 1
             if not distinguishable(drives[a], drives[b]):
-                fa, fb = drives[a].pulse_frequency_hz, drives[b].pulse_frequency_hz
-                ratio = max(fa, fb) / min(fa, fb) if min(fa, fb) > 0 else math.inf
-                report.close_pairs.append({"speed_mm_s": float(v), "a": a, "b": b, "frequency_ratio": ratio})
+                report.close_pairs.append(_close_pair(v, a, b, drives[a].pulse_frequency_hz, drives[b].pulse_frequency_hz))
     return report
 
 
 def _surface_report(profile: Profile, images: dict[str, Any] | None, speeds_mm_s: Sequence[float], wire: Any,
                     simulate_wire: bool) -> ProfileReport:
     """The report of a surface rendering: what a straight stroke at each speed produces."""
-    from .actuators.sma import feel
     from .surface.model import surface_model
     from .surface.straight import surface_stroke_drive
 
@@ -207,17 +198,27 @@ def _surface_report(profile: Profile, images: dict[str, Any] | None, speeds_mm_s
                 "pulses": stats["pulses"],
                 "clamped": sorted({c for e in events for c in e.clamped}),
             }
-            if simulate_wire and not d.is_off:
-                felt = feel(d, wire)
-                row.update(follows=felt.follows, displacement_pp_um=felt.displacement_pp_um,
-                           first_follow_ms=felt.first_follow_ms if math.isfinite(felt.first_follow_ms) else None)
-            else:
-                row.update(follows=False, displacement_pp_um=0.0, first_follow_ms=None)
+            row.update(_felt_columns(d, wire, simulate_wire))
             report.rows.append(row)
         for a, b in itertools.combinations(measured, 2):
             report.pairs += 1
             if not distinguishable_measured(measured[a], measured[b]):
-                fa, fb = measured[a][0], measured[b][0]
-                ratio = max(fa, fb) / min(fa, fb) if min(fa, fb) > 0 else math.inf
-                report.close_pairs.append({"speed_mm_s": float(v), "a": a, "b": b, "frequency_ratio": ratio})
+                report.close_pairs.append(_close_pair(v, a, b, measured[a][0], measured[b][0]))
     return report
+
+
+def _felt_columns(d: Any, wire: Any, simulate_wire: bool) -> dict[str, Any]:
+    """What the simulated wire makes of drive ``d`` (follows, displacement [um], first felt pulse [ms])."""
+    if not simulate_wire or d.is_off:
+        return {"follows": False, "displacement_pp_um": 0.0, "first_follow_ms": None}
+    from .actuators.sma import feel
+
+    felt = feel(d, wire)
+    return {"follows": felt.follows, "displacement_pp_um": felt.displacement_pp_um,
+            "first_follow_ms": felt.first_follow_ms if math.isfinite(felt.first_follow_ms) else None}
+
+
+def _close_pair(speed_mm_s: float, a: str, b: str, fa_hz: float, fb_hz: float) -> dict[str, Any]:
+    """One pair the finger cannot tell apart at ``speed_mm_s``, with its frequency ratio."""
+    ratio = max(fa_hz, fb_hz) / min(fa_hz, fb_hz) if min(fa_hz, fb_hz) > 0 else math.inf
+    return {"speed_mm_s": float(speed_mm_s), "a": a, "b": b, "frequency_ratio": ratio}
