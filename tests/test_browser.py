@@ -292,6 +292,24 @@ def test_pen_stroke_two_speeds_then_lift(page):
         assert chans[0]["amplitude"] == chans[1]["amplitude"] == pytest.approx(1.0)
 
 
+def stroke_across_the_right_edge(page, pen, box, y, beyond_px):
+    """Press 30 px inside the surface's right edge and drag to ``beyond_px`` past it, 2 px every 4 ms
+    (about 130 mm/s); wait until the page shows the pen down, outside and off.  Returns the drives
+    received since the press and the pen's last x."""
+    x = box["x"] + box["width"] - 30
+    seq0 = page.evaluate("window.tactilize.seq")
+    pen._send("mousePressed", x, y, 1)
+    while x < box["x"] + box["width"] + beyond_px:
+        x += 2
+        pen._send("mouseMoved", x, y, 1)
+        time.sleep(0.004)  # the pen's pace, not a wait for the page
+    page.wait_for_function(
+        "() => { const d = window.tactilize.lastDrive; return d && d.seq >= window.tactilize.seq && d.down && !d.inside && !d.on; }",
+        timeout=5_000,
+    )
+    return page.evaluate(f"window.tactilize.drives.filter(d => d.seq > {seq0})"), x
+
+
 def test_leaving_the_picture_stops(page):
     # One copy of the picture (not repeated to fill the screen): its right edge is the surface's.
     page.get_by_test_id("fill").uncheck()
@@ -300,19 +318,7 @@ def test_leaving_the_picture_stops(page):
     pen = Pen(page)
     box = surface_box(page)
     y = box["y"] + 40
-    x = box["x"] + box["width"] - 30
-    seq0 = page.evaluate("window.tactilize.seq")
-    pen._send("mousePressed", x, y, 1)
-    # 2 px every 4 ms (about 130 mm/s): 30 px inside, then 60 px beyond the edge.
-    while x < box["x"] + box["width"] + 60:
-        x += 2
-        pen._send("mouseMoved", x, y, 1)
-        time.sleep(0.004)
-    page.wait_for_function(
-        "() => { const d = window.tactilize.lastDrive; return d && d.seq >= window.tactilize.seq && d.down && !d.inside && !d.on; }",
-        timeout=5_000,
-    )
-    drives = page.evaluate(f"window.tactilize.drives.filter(d => d.seq > {seq0})")
+    drives, x = stroke_across_the_right_edge(page, pen, box, y, beyond_px=60)
     assert any(d["on"] and d["inside"] for d in drives)  # it was driven while over the picture
     assert page.get_by_test_id("drive-frequency").text_content() == "0.0"
     assert page.get_by_test_id("surface").get_attribute("data-state") == "off"

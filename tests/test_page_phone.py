@@ -19,7 +19,8 @@ import time
 import numpy as np
 import pytest
 
-from test_browser import CHROMIUM, CHROMIUM_ARGS, DEFAULT_MM_PER_PX, Pen, pick, server  # noqa: F401  (server: a fixture)
+from test_browser import (  # noqa: F401  (server: a fixture)
+    CHROMIUM, CHROMIUM_ARGS, DEFAULT_MM_PER_PX, Pen, pick, server, stroke_across_the_right_edge)
 
 pytestmark = pytest.mark.browser
 
@@ -273,19 +274,8 @@ def test_a_stroke_past_the_cut_edge_of_a_filled_surface_stops(pw, server):
         surface = box(page, "#surface")
         pen = Pen(page)
         y = surface["y"] + 40
-        x = surface["x"] + surface["width"] - 30
-        seq0 = page.evaluate("window.tactilize.seq")
-        pen._send("mousePressed", x, y, 1)
         # 30 px inside, then 30 px into the part of the map the cut hides.
-        while x < surface["x"] + surface["width"] + 30:
-            x += 2
-            pen._send("mouseMoved", x, y, 1)
-            time.sleep(0.004)
-        page.wait_for_function(
-            "() => { const d = window.tactilize.lastDrive; return d && d.seq >= window.tactilize.seq && d.down && !d.inside && !d.on; }",
-            timeout=5_000,
-        )
-        drives = page.evaluate(f"window.tactilize.drives.filter(d => d.seq > {seq0})")
+        drives, x = stroke_across_the_right_edge(page, pen, surface, y, beyond_px=30)
         assert any(d["on"] and d["inside"] for d in drives)
         pen.lift(x, y)
 
