@@ -92,7 +92,8 @@ def browser():
 def opened_page(browser, server, init_script=None, **context_args):
     """The pen page, loaded and connected, in a fresh browser context; on leaving,
     the page must have thrown no error.  ``init_script`` runs before the page's own."""
-    ctx = browser.new_context(viewport={"width": 1400, "height": 900}, **context_args)
+    context_args.setdefault("viewport", {"width": 1400, "height": 900})
+    ctx = browser.new_context(**context_args)
     if init_script:
         ctx.add_init_script(init_script)
     pg = ctx.new_page()

@@ -11,7 +11,6 @@ the page received: ``navigator.vibrate`` is recorded by an init script.
 
 from __future__ import annotations
 
-import contextlib
 import os
 import shutil
 import time
@@ -20,7 +19,7 @@ import numpy as np
 import pytest
 
 from test_browser import (  # noqa: F401  (server: a fixture)
-    CHROMIUM, CHROMIUM_ARGS, DEFAULT_MM_PER_PX, Pen, pick, server, stroke_across_the_right_edge)
+    CHROMIUM, CHROMIUM_ARGS, DEFAULT_MM_PER_PX, Pen, opened_page, pick, server, stroke_across_the_right_edge)
 
 pytestmark = pytest.mark.browser
 
@@ -59,23 +58,9 @@ def phone_args(p, viewport=PHONE_VIEWPORT):
     return d
 
 
-@contextlib.contextmanager
 def opened(pw, server, *, init_script=None, **context_args):
-    _, browser = pw
-    ctx = browser.new_context(**context_args)
-    if init_script:
-        ctx.add_init_script(init_script)
-    pg = ctx.new_page()
-    errors: list[str] = []
-    pg.on("pageerror", lambda e: errors.append(str(e)))
-    try:
-        pg.goto(server)
-        pg.wait_for_selector("body[data-ready=true]", timeout=30_000)
-        pg.wait_for_function("window.tactilize.settings !== null", timeout=30_000)
-        yield pg
-    finally:
-        ctx.close()
-    assert not errors, errors
+    """test_browser's pen page in a fresh context of this module's browser (any viewport, device)."""
+    return opened_page(pw[1], server, init_script, **context_args)
 
 
 class Finger:
