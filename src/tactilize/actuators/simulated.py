@@ -424,6 +424,18 @@ class SimulatedOutput(OutputBase):
                 ch.heat.anchor(ch.ctrl.martensite_fraction)
         marks.append((at_us, at_us + dur_us, level * amps, _STATE_CODE[ch.ctrl.state]))
 
+    def _start_pulse(self, ch: _Channel, s: int, width_us: int, step: int, t0_us: int, cursor: int,
+                     rec: list, marks: list) -> int:
+        """Switch a pulse of ``width_us`` [us] on at offset ``s`` of this step; what does not fit in
+        the step is carried into the next.  Returns the step offset [us] where the pulse's part ends."""
+        x0 = ch.model.displacement_m
+        on = min(width_us, step - s)
+        self._piece(ch, on, 1.0, rec, marks, cursor + s)
+        ch.open_pulse = ((t0_us + cursor + s) * 1e-6, x0, ch.model.displacement_m)
+        if width_us > on:
+            ch.carry_us = width_us - on
+        return s + on
+
     def _close_pulse(self, ch: _Channel) -> None:
         """The next pulse starts (or the train stops): the last pulse's own peak is known."""
         if ch.open_pulse is not None:
@@ -479,13 +491,7 @@ class SimulatedOutput(OutputBase):
                 if width_us <= 0:
                     pos = s
                     continue
-                x0 = ch.model.displacement_m
-                on = min(width_us, step - s)
-                self._piece(ch, on, 1.0, rec, marks, cursor + s)
-                ch.open_pulse = ((t0_us + cursor + s) * 1e-6, x0, ch.model.displacement_m)
-                if width_us > on:
-                    ch.carry_us = width_us - on
-                pos = s + on
+                pos = self._start_pulse(ch, s, width_us, step, t0_us, cursor, rec, marks)
             self._piece(ch, step - pos, ctrl.bias_level if ctrl.state != "warming" or ctrl.warming_allowed() else 0.0,
                         rec, marks, cursor + pos)
             cursor += step

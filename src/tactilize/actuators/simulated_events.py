@@ -92,13 +92,7 @@ def run_event_block(out: Any, ch: Any, starts: list[tuple[int, Drive]], step: in
             ch.events_dropped += 1
             continue
         ch.events_fired += 1
-        x0 = ch.model.displacement_m
-        on = min(width_us, step - s)
-        out._piece(ch, on, 1.0, rec, marks, cursor + s)
-        ch.open_pulse = ((t0_us + cursor + s) * 1e-6, x0, ch.model.displacement_m)
-        if width_us > on:
-            ch.carry_us = width_us - on
-        pos = s + on
+        pos = out._start_pulse(ch, s, width_us, step, t0_us, cursor, rec, marks)
     level = ctrl.bias_level if ctrl.state != "warming" or ctrl.warming_allowed() else 0.0
     out._piece(ch, step - pos, level, rec, marks, cursor + pos)
     if not starts:
