@@ -307,7 +307,15 @@ ANDROID_BAD = {
     "android.envelope-points": lambda d: d["waveform_envelopes"][0].update(control_points=_wcp(d) * 17),
     "android.envelope-segments": _set(lambda d: _wcp(d)[0], "duration_ms", 10),
     "android.basic-ends-at-zero": _set(lambda d: d["basic_envelopes"][0]["control_points"][-1], "intensity", 0.3),
+    "android.composition-fields": lambda d: d.update(compositions=[_composition(primitive="PRIMITIVE_BUZZ")]),
+    "android.composition-values": lambda d: d.update(compositions=[_composition(scale=1.2)]),
 }
+
+def _composition(**primitive):
+    """A composition of one click, its primitive's fields replaced by ``primitive``."""
+    p = {"primitive": "PRIMITIVE_CLICK", "scale": 0.8, "delay_ms": 0, "t_ms": 0, **primitive}
+    return {"start_ms": 0, "delay_type": "DELAY_TYPE_RELATIVE_START_OFFSET", "primitives": [p]}
+
 
 BAD = {"hjif": HJIF_BAD, "haptic": HAPTIC_BAD, "ahap": AHAP_BAD, "android": ANDROID_BAD}
 

@@ -20,6 +20,12 @@ and (AHAP sharpness and frequency)):
 * Intensity of a continuous event is the pulse train's fundamental relative to
   a 10 % duty train (:func:`~.timeline.intensity_from_drive`); sharpness maps
   the pulse frequency linearly onto 0..1 over 65..300 Hz.
+* A stroke over a surface (``tl.events``, the ``surface`` rendering) plays its
+  bumps instead (:mod:`.events`): one transient per bump at least 20 ms from its
+  neighbours (a phone's actuator plays them apart), intensity from the bump's
+  strength, sharpness from the bump's own frequency; closer bumps make one
+  continuous event per run, intensity and sharpness curves following the bumps'
+  intensity and rate.
 
 References
 ----------
@@ -30,12 +36,14 @@ References
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 from ..drive import Drive
+from .events import PHONE_TRANSIENT_S, event_intensity, plan_events, run_points
 from .timeline import (
     CONTROL_STEP_S,
     SHARPNESS_LOW_HZ,
+    ControlPoint,
     DriveTimeline,
     control_points,
     sharpness_from_frequency,
@@ -89,26 +97,35 @@ def _chunks(pts: list[tuple[float, float]]) -> list[list[tuple[float, float]]]:
         i += n - 1
 
 
+def _continuous(events: list[dict[str, Any]], curves: list[dict[str, Any]], a: float, b: float, end_s: float,
+                points: Callable[[float, float], list[ControlPoint]]) -> None:
+    """Continuous events over [a, b) [s] (30 s pieces) following ``points(start, end)``, then neutral curves."""
+    t = a
+    while t < b - 1e-9:
+        e1 = min(t + AHAP_MAX_EVENT_S, b)
+        pts = points(t, e1)
+        intensity = max(p.amplitude for p in pts)
+        sharp = sharpness_from_frequency(pts[0].frequency_hz)
+        events.append(_event(t, "HapticContinuous", intensity, sharp, e1 - t))
+        ipts = [(p.t_s, p.amplitude / intensity if intensity > 0 else 0.0) for p in pts]
+        spts = [(p.t_s, sharpness_from_frequency(p.frequency_hz) - sharp) for p in pts]
+        for pid, series in (("HapticIntensityControl", ipts), ("HapticSharpnessControl", spts)):
+            curves.extend(_curve(pid, c[0][0], c) for c in _chunks(series))
+        t = e1
+    if b < end_s - 1e-9:
+        curves.append(_curve("HapticIntensityControl", b, [(b, 1.0)]))
+        curves.append(_curve("HapticSharpnessControl", b, [(b, 0.0)]))
+
+
 def ahap_document(tl: DriveTimeline, kind: str = "profile", channel: int = 0, step_s: float = CONTROL_STEP_S) -> dict[str, Any]:
     """The AHAP document (a dict) of one channel of a timeline (see the module docstring)."""
+    if tl.events is not None:
+        return _surface_document(tl, step_s)
     events: list[dict[str, Any]] = []
     curves: list[dict[str, Any]] = []
     for a, b in continuous_spans(tl, kind, channel):
-        t = a
-        while t < b - 1e-9:
-            e1 = min(t + AHAP_MAX_EVENT_S, b)
-            pts = control_points(tl, kind, channel, step_s, start_s=t, end_s=e1)
-            intensity = max(p.amplitude for p in pts)
-            sharp = sharpness_from_frequency(pts[0].frequency_hz)
-            events.append(_event(t, "HapticContinuous", intensity, sharp, e1 - t))
-            ipts = [(p.t_s, p.amplitude / intensity if intensity > 0 else 0.0) for p in pts]
-            spts = [(p.t_s, sharpness_from_frequency(p.frequency_hz) - sharp) for p in pts]
-            for pid, series in (("HapticIntensityControl", ipts), ("HapticSharpnessControl", spts)):
-                curves.extend(_curve(pid, c[0][0], c) for c in _chunks(series))
-            t = e1
-        if b < tl.end_s - 1e-9:
-            curves.append(_curve("HapticIntensityControl", b, [(b, 1.0)]))
-            curves.append(_curve("HapticSharpnessControl", b, [(b, 0.0)]))
+        _continuous(events, curves, a, b, tl.end_s,
+                    lambda t0, t1: control_points(tl, kind, channel, step_s, start_s=t0, end_s=t1))
     for p in tl.pulses(kind, channel):
         if p.drive.pulse_frequency_hz < SHARPNESS_LOW_HZ:
             tap_sharpness = sharpness_from_frequency(1.0 / max(p.width_s, 1e-6))
@@ -123,6 +140,25 @@ def ahap_document(tl: DriveTimeline, kind: str = "profile", channel: int = 0, st
         desc = f"stroke of {tl.end_s:g} s, {len(tl.t_s)} frames, {kind} drive of channel {channel}"
         if meta.get("image"):
             desc += f", {meta['image']}"
+    return {"Version": 1.0, "Metadata": {"Project": "tactilize", "Description": desc}, "Pattern": events + curves}
+
+
+def _surface_document(tl: DriveTimeline, step_s: float) -> dict[str, Any]:
+    """A stroke's bumps: a transient per bump a phone plays apart, continuous events where they come faster."""
+    plan = plan_events(tl.events or (), PHONE_TRANSIENT_S, tl.end_s)
+    events: list[dict[str, Any]] = []
+    curves: list[dict[str, Any]] = []
+    for run in plan.runs:
+        _continuous(events, curves, run.start_s, run.end_s, tl.end_s,
+                    lambda t0, t1, run=run: run_points(run, t0, t1, step_s))
+    for ev in plan.transients:
+        events.append(_event(ev.t_s, "HapticTransient", event_intensity(ev.strength),
+                             sharpness_from_frequency(ev.frequency_hz)))
+    events.sort(key=lambda e: e["Event"]["Time"])
+    desc = (f"stroke of {tl.end_s:g} s over a surface: {len(plan.transients)} bumps as transients, "
+            f"{len(plan.runs)} continuous stretches where bumps come closer than {PHONE_TRANSIENT_S * 1e3:g} ms")
+    if tl.meta.get("image"):
+        desc += f", {tl.meta['image']}"
     return {"Version": 1.0, "Metadata": {"Project": "tactilize", "Description": desc}, "Pattern": events + curves}
 
 

@@ -26,6 +26,10 @@ One JSON document a developer pastes in (docs/references.md, section 6
 ``kotlin``
     A short snippet that builds the effects.
 
+A stroke over a surface (``tl.events``) gets the bumps instead, in
+compositions of primitives and envelopes played at their times
+(:mod:`.android_events`).
+
 References
 ----------
 .. [1] docs/references.md, section 6 (Android waveform).
@@ -42,6 +46,7 @@ from ..drive import Drive
 from .timeline import (
     CONTROL_STEP_S,
     SHARPNESS_LOW_HZ,
+    ControlPoint,
     DriveTimeline,
     control_points,
     intensity_from_drive,
@@ -76,7 +81,11 @@ def _fallback(tl: DriveTimeline, kind: str, channel: int) -> tuple[list[int], li
             # A pulse shorter than 1 ms still plays for 1 ms: the finest Android allows.
             e = max(s + 1, int(round((p.t_s + p.width_s) * 1e3)))
             level[s : min(e, total_ms)] = max(1, int(round(255 * p.amplitude)))
-    level = level[:total_ms] if total_ms > 0 else level
+    return _run_lengths(level[:total_ms] if total_ms > 0 else level)
+
+
+def _run_lengths(level: np.ndarray) -> tuple[list[int], list[int]]:
+    """createWaveform timings [ms] and amplitudes of a level per millisecond."""
     edges = np.flatnonzero(np.diff(level)) + 1
     starts = np.concatenate(([0], edges))
     ends = np.concatenate((edges, [level.size]))
@@ -87,9 +96,8 @@ def _pieces(points: list[dict[str, Any]], n: int) -> list[list[dict[str, Any]]]:
     return [points[i : i + n] for i in range(0, len(points), n)] or [[]]
 
 
-def android_document(tl: DriveTimeline, kind: str = "profile", channel: int = 0, step_s: float = CONTROL_STEP_S) -> dict[str, Any]:
-    """The Android document of one channel of a timeline (see the module docstring)."""
-    pts = control_points(tl, kind, channel, step_s)
+def _envelopes(pts: list[ControlPoint]) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[dict[str, Any]]]:
+    """Control points as the flat list, the waveform envelopes and the basic envelopes (module docstring)."""
     # Segments in whole ms, measured between rounded times so they never drift.
     ms = [int(round(p.t_s * 1e3)) for p in pts]
     flat = [
@@ -99,7 +107,7 @@ def android_document(tl: DriveTimeline, kind: str = "profile", channel: int = 0,
     ]
     if len(pts) == 1 or (flat and all(f["duration_ms"] == 0 for f in flat)):
         flat = [{"amplitude": round(pts[0].amplitude, 4), "frequency_hz": round(pts[0].frequency_hz, 3),
-                 "duration_ms": max(ms[-1], 1)}]
+                 "duration_ms": max(ms[-1] - ms[0], 1)}]
     per = ANDROID_LIMITS["max_control_points"]
     waveform = []
     f0 = pts[0].frequency_hz
@@ -115,6 +123,17 @@ def android_document(tl: DriveTimeline, kind: str = "profile", channel: int = 0,
             # ...and back to zero over the shortest segment allowed.
             cps.append({"intensity": 0.0, "sharpness": cps[-1]["sharpness"], "duration_ms": ANDROID_LIMITS["min_segment_ms"]})
         basic.append({"initial_sharpness": cps[0]["sharpness"] if cps else 0.0, "control_points": cps})
+    return flat, waveform, basic
+
+
+def android_document(tl: DriveTimeline, kind: str = "profile", channel: int = 0, step_s: float = CONTROL_STEP_S) -> dict[str, Any]:
+    """The Android document of one channel of a timeline (see the module docstring)."""
+    if tl.events is not None:
+        from .android_events import android_surface_document
+
+        return android_surface_document(tl, step_s)
+    pts = control_points(tl, kind, channel, step_s)
+    flat, waveform, basic = _envelopes(pts)
     timings, amps = _fallback(tl, kind, channel)
     return {
         "timings_ms": timings,

@@ -18,6 +18,11 @@ control grid; where it is slower each pulse is a short amplitude bump with an
 :data:`HAPTIC_LOW_HZ` .. :data:`HAPTIC_HIGH_HZ` (the example range of section
 6) and clipped; the metadata states the mapping so a reader can undo it.
 
+A stroke over a surface (``tl.events``) plays its bumps (:mod:`.events`): an
+emphasis per bump at least 20 ms from its neighbours (its amplitude the bump's
+intensity, its frequency the bump's own), and the envelopes of a continuous run
+(intensity, rate as frequency) where bumps come closer.
+
 References
 ----------
 .. [1] docs/references.md, section 6 (Meta Haptics).
@@ -27,6 +32,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from .events import PHONE_TRANSIENT_S, event_intensity, plan_events, run_points
 from .timeline import CONTROL_STEP_S, SHARPNESS_LOW_HZ, DriveTimeline, control_points
 
 __all__ = ["haptic_document", "HAPTIC_LOW_HZ", "HAPTIC_HIGH_HZ", "haptic_frequency", "haptic_hz"]
@@ -66,18 +72,29 @@ def haptic_document(tl: DriveTimeline, kind: str = "profile", channel: int = 0, 
             point["emphasis"] = {"amplitude": round(a, 4), "frequency": round(haptic_frequency(f_hz), 5)}
         entries.append((t, prio, point, {"time": t, "frequency": round(haptic_frequency(f_hz), 5)}))
 
-    for a, b in continuous_spans(tl, kind, channel):
-        pts = control_points(tl, kind, channel, step_s, start_s=a, end_s=b)
+    def run(b: float, pts: list[Any]) -> None:
         for i, p in enumerate(pts):
             # the run's last value just before its end, then down to zero at the end
             t = p.t_s if i < len(pts) - 1 or len(pts) == 1 else max(p.t_s - END_S, pts[i - 1].t_s + END_S)
             add(t, p.amplitude, p.frequency_hz, 1)
         add(b, 0.0, pts[-1].frequency_hz, 0)
-    for p in tl.pulses(kind, channel):
-        if p.drive.pulse_frequency_hz < SHARPNESS_LOW_HZ:
-            f = p.drive.pulse_frequency_hz
-            add(p.t_s, p.amplitude, f, 2, emphasis=True)
-            add(p.t_s + min(TAP_S, 0.5 * p.drive.period_s), 0.0, f, 0)
+
+    if tl.events is not None:
+        # A stroke over a surface: an emphasis per bump a phone plays apart, envelopes where they come faster.
+        plan = plan_events(tl.events, PHONE_TRANSIENT_S, tl.end_s)
+        for r in plan.runs:
+            run(r.end_s, run_points(r, step_s=step_s))
+        for ev in plan.transients:
+            add(ev.t_s, event_intensity(ev.strength), ev.frequency_hz, 2, emphasis=True)
+            add(ev.t_s + TAP_S, 0.0, ev.frequency_hz, 0)
+    else:
+        for a, b in continuous_spans(tl, kind, channel):
+            run(b, control_points(tl, kind, channel, step_s, start_s=a, end_s=b))
+        for p in tl.pulses(kind, channel):
+            if p.drive.pulse_frequency_hz < SHARPNESS_LOW_HZ:
+                f = p.drive.pulse_frequency_hz
+                add(p.t_s, p.amplitude, f, 2, emphasis=True)
+                add(p.t_s + min(TAP_S, 0.5 * p.drive.period_s), 0.0, f, 0)
     entries.sort(key=lambda e: (e[0], -e[1]))
     amp: list[dict[str, Any]] = []
     freq: list[dict[str, Any]] = []
@@ -89,7 +106,8 @@ def haptic_document(tl: DriveTimeline, kind: str = "profile", channel: int = 0, 
     if not amp or amp[0]["time"] > 0:
         amp.insert(0, {"time": 0.0, "amplitude": 0.0})
         freq.insert(0, {"time": 0.0, "frequency": freq[0]["frequency"] if freq else 0.0})
-    desc = (f"tactilize: {kind} drive, channel {channel}, {tl.end_s:g} s; "
+    what = "bumps of a stroke over a surface" if tl.events is not None else f"{kind} drive, channel {channel}"
+    desc = (f"tactilize: {what}, {tl.end_s:g} s; "
             f"frequency 0..1 = {HAPTIC_LOW_HZ:g}..{HAPTIC_HIGH_HZ:g} Hz")
     return {
         "version": {"major": 1, "minor": 0, "patch": 0},

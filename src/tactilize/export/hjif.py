@@ -14,6 +14,12 @@ Vibrotactile perception; one channel per actuator (the pen's two); in each,
   (the taps), its keyframe carrying the tap's amplitude and the train's
   pulse frequency [Hz].
 
+A stroke over a surface (``tl.events``) plays its bumps (:mod:`.events`): a
+``Transient`` effect per bump at least 22 ms from its neighbours (the reference
+synthesiser's transient), its keyframe the bump's intensity and own frequency
+[Hz, at least 1]; a ``VectorialWave`` effect per run of closer bumps, keyframes
+of their intensity and rate [Hz] on the 20 ms grid.
+
 Every document keeps the rules of :mod:`.conformance.hjif` (the MPEG reference
 reader's): ``frequency_modulation`` is a whole number of hertz (the reader
 drops any other number, and a band without a frequency plays silence); the
@@ -32,8 +38,9 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
-from typing import Any
+from typing import Any, Callable
 
+from .events import HJIF_TRANSIENT_S, event_intensity, plan_events, run_points
 from .timeline import CONTROL_STEP_S, SHARPNESS_LOW_HZ, DriveTimeline, control_points
 
 __all__ = ["hjif_document", "HJIF_TIMESCALE", "HJIF_VERSION", "HJIF_MAX_EFFECT_TICKS"]
@@ -87,30 +94,45 @@ def _keyframes(pts: list[Any], pos: int) -> list[dict[str, Any]]:
 def _channel(tl: DriveTimeline, kind: str, c: int, step_s: float) -> dict[str, Any]:
     from .ahap import continuous_spans
 
-    effects = []
+    effects: list[dict[str, Any]] = []
     freqs: list[int] = []
-    for a0, b0 in continuous_spans(tl, kind, c):
+
+    def wave(a0: float, b0: float, points: Callable[[float, float], list[Any]]) -> None:
         for a, b in _pieces(a0, b0):
             pos = _ticks(a)
-            keyframes = _keyframes(control_points(tl, kind, c, step_s, start_s=a, end_s=b), pos)
+            keyframes = _keyframes(points(a, b), pos)
             effects.append({"id": len(effects), "effect_type": "Basis", "position": pos, "phase": 0.0,
                             "base_signal": "Sine", "keyframes": keyframes})
-            freqs += [k["frequency_modulation"] for k in keyframes]
-    taps = []
+            freqs.extend(k["frequency_modulation"] for k in keyframes)
+
+    taps: list[dict[str, Any]] = []
     tap_f: list[int] = []
-    for p in tl.pulses(kind, c):
-        f = p.drive.pulse_frequency_hz
-        if f < SHARPNESS_LOW_HZ:
-            taps.append({
-                "id": len(taps),
-                "effect_type": "Basis",
-                "position": _ticks(p.t_s),
-                "phase": 0.0,
-                "base_signal": "Sine",
-                "keyframes": [{"relative_position": 0, "amplitude_modulation": round(p.amplitude, 4),
-                               "frequency_modulation": _hz(f)}],
-            })
-            tap_f.append(_hz(f))
+
+    def tap(t_s: float, amplitude: float, f: float) -> None:
+        taps.append({
+            "id": len(taps),
+            "effect_type": "Basis",
+            "position": _ticks(t_s),
+            "phase": 0.0,
+            "base_signal": "Sine",
+            "keyframes": [{"relative_position": 0, "amplitude_modulation": round(amplitude, 4),
+                           "frequency_modulation": _hz(f)}],
+        })
+        tap_f.append(_hz(f))
+
+    if tl.events is not None:
+        # A stroke over a surface: a transient per bump the reference synthesiser plays apart.
+        plan = plan_events(tl.events, HJIF_TRANSIENT_S, tl.end_s)
+        for r in plan.runs:
+            wave(r.start_s, r.end_s, lambda a, b, r=r: run_points(r, a, b, step_s))
+        for ev in plan.transients:
+            tap(ev.t_s, event_intensity(ev.strength), max(ev.frequency_hz, 1.0))
+    else:
+        for a0, b0 in continuous_spans(tl, kind, c):
+            wave(a0, b0, lambda a, b: control_points(tl, kind, c, step_s, start_s=a, end_s=b))
+        for p in tl.pulses(kind, c):
+            if p.drive.pulse_frequency_hz < SHARPNESS_LOW_HZ:
+                tap(p.t_s, p.amplitude, p.drive.pulse_frequency_hz)
     bands = []
     if effects:
         lo, hi = _band_limits(freqs)

@@ -279,8 +279,10 @@ def run_stroke(stroke: Stroke, texture_map: Any, profile: Any, output: Any = "si
         synthetic stroke longer than the picture).
     surface : SurfaceModel, optional
         The picture as a surface, for a profile whose rendering is ``surface``
-        (docs/surfaces.md): the simulated wire plays its pulse events, and the
-        rows hold the equivalent drive of each frame's window.
+        (docs/surfaces.md): the simulated wire plays its pulse events, the
+        rows hold the equivalent drive of each frame's window, and the result's
+        ``events`` every bump the whole stroke crosses (:func:`.events.stroke_bump_events`),
+        which the parametric formats play.
     """
     from ..pen import _Recorder
 
@@ -337,9 +339,15 @@ def run_stroke(stroke: Stroke, texture_map: Any, profile: Any, output: Any = "si
     for r in kept:
         dedup[r[0]] = r
     kept = sorted(dedup.values(), key=lambda r: r[0])
+    events = None
+    if surface is not None and getattr(profile, "rendering", "steady") == "surface":
+        from .events import stroke_bump_events
+
+        events = stroke_bump_events(stroke, surface, origin_s=origin, end_s=end)
     return DriveTimeline(
         tuple(r[0] for r in kept), end,
         tuple(r[1] for r in kept), tuple(r[2] for r in kept),
         tuple(r[3] for r in kept), tuple(r[4] for r in kept), tuple(r[5] for r in kept),
         {"samples": len(stroke), "source": stroke.source, **(meta or {})},
+        events,
     )

@@ -138,6 +138,9 @@ class DriveTimeline:
         Pen position per row [m] (y down); NaN for a steady drive.
     meta : dict
         What made it (image, profile, stroke file...), for the documents.
+    events : tuple of BumpEvent, or None
+        The surface rendering's bumps along the stroke (:mod:`.events`), which
+        the parametric formats play instead of the rows; None for a steady rendering.
     """
 
     t_s: tuple[float, ...]
@@ -148,6 +151,7 @@ class DriveTimeline:
     x_m: tuple[float, ...]
     y_m: tuple[float, ...]
     meta: dict[str, Any] = field(default_factory=dict)
+    events: tuple[Any, ...] | None = None
 
     def __post_init__(self) -> None:
         n = len(self.t_s)

@@ -1,14 +1,16 @@
 """The rules the Android export's document must keep so that each part builds on a device.
 
 ``timings_ms``/``amplitudes``/``repeat`` go to ``VibrationEffect.createWaveform``;
-``waveform_envelopes`` to ``WaveformEnvelopeBuilder`` and ``basic_envelopes``
-to ``BasicEnvelopeBuilder``.  Stated in docs/references.md, section 6
-(Android waveform) and (Android envelopes).
+``waveform_envelopes`` to ``WaveformEnvelopeBuilder``, ``basic_envelopes``
+to ``BasicEnvelopeBuilder`` and ``compositions`` (a stroke over a surface) to
+``VibrationEffect.startComposition``.  Stated in docs/references.md, section 6
+(Android waveform), (Android envelopes) and (Android compositions).
 
 References
 ----------
 .. [1] docs/references.md, section 6 (Android waveform).
 .. [2] docs/references.md, section 6 (Android envelopes).
+.. [3] docs/references.md, section 6 (Android compositions).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ __all__ = ["ANDROID_RULES", "check_android"]
 
 _WAVE = "docs/references.md, section 6 (Android waveform)"
 _ENV = "docs/references.md, section 6 (Android envelopes)"
+_COMP = "docs/references.md, section 6 (Android compositions)"
 
 ANDROID_RULES = rule_table(_WAVE, [
     ("android.root", "an object with arrays timings_ms, amplitudes, waveform_envelopes, basic_envelopes and an integer repeat"),
@@ -35,8 +38,17 @@ ANDROID_RULES = rule_table(_WAVE, [
     ("android.envelope-points", "each envelope has 1..16 control points"),
     ("android.envelope-segments", "each control point's duration is 20..1000 ms"),
     ("android.basic-ends-at-zero", "a basic envelope ends at intensity 0"),
-], sources={k: _ENV for k in ("android.envelope-fields", "android.envelope-values", "android.envelope-points",
-                              "android.envelope-segments", "android.basic-ends-at-zero")})
+    ("android.composition-fields", "compositions, if given, is an array of objects with an integer start_ms >= 0, "
+                                   "a known delay_type and an array primitives of objects with a known primitive, "
+                                   "a number scale and an integer delay_ms"),
+    ("android.composition-values", "a primitive's scale is 0..1 and its delay_ms >= 0"),
+], sources={**{k: _ENV for k in ("android.envelope-fields", "android.envelope-values", "android.envelope-points",
+                                 "android.envelope-segments", "android.basic-ends-at-zero")},
+            **{k: _COMP for k in ("android.composition-fields", "android.composition-values")}})
+
+_PRIMITIVES = {"PRIMITIVE_CLICK", "PRIMITIVE_TICK", "PRIMITIVE_LOW_TICK", "PRIMITIVE_THUD", "PRIMITIVE_SPIN",
+               "PRIMITIVE_QUICK_RISE", "PRIMITIVE_SLOW_RISE", "PRIMITIVE_QUICK_FALL"}
+_DELAY_TYPES = {"DELAY_TYPE_PAUSE", "DELAY_TYPE_RELATIVE_START_OFFSET"}
 
 #: What an envelope's control points hold, by kind: the value fields and the initial field.
 _KINDS = {
@@ -64,7 +76,25 @@ def check_android(doc: Any) -> list[Violation]:
     for key, (fields, initial) in _KINDS.items():
         for path, env in ck.items(doc, key, ""):
             _envelope(ck, env, path, fields, initial, key == "basic_envelopes")
+    if "compositions" in doc:
+        _compositions(ck, doc["compositions"])
     return ck.violations
+
+
+def _compositions(ck: Checker, comps: Any) -> None:
+    ok = isinstance(comps, list) and all(
+        isinstance(c, dict) and is_int(c.get("start_ms")) and c["start_ms"] >= 0 and c.get("delay_type") in _DELAY_TYPES
+        and isinstance(c.get("primitives"), list)
+        and all(isinstance(p, dict) and p.get("primitive") in _PRIMITIVES and is_num(p.get("scale"))
+                and is_int(p.get("delay_ms")) for p in c["primitives"])
+        for c in comps)
+    if not ck.need(ok, "android.composition-fields", "compositions", "needs start_ms, delay_type and primitives "
+                   "of a known primitive, a number scale and an integer delay_ms"):
+        return
+    for i, c in enumerate(comps):
+        bad = [(p["scale"], p["delay_ms"]) for p in c["primitives"] if not (0 <= p["scale"] <= 1 and p["delay_ms"] >= 0)]
+        ck.need(not bad, "android.composition-values", at(at("compositions", i), "primitives"),
+                f"(scale, delay_ms) {bad[:3]} out of range")
 
 
 def _envelope(ck: Checker, env: Any, path: str, fields: tuple[str, str], initial: str, basic: bool) -> None:

@@ -1,0 +1,214 @@
+"""A stroke's bumps as the parametric exports play them: a transient per bump, or a continuous stretch.
+
+A profile whose rendering is ``surface`` fires one pulse per bump the tip crosses
+(docs/surfaces.md).  An export knows the whole stroke, so it takes those events
+from the whole path at once (:func:`stroke_bump_events`: the pure path of
+:func:`tactilize.surface.events.stroke_events`, with each crossing's own pressure),
+not from the pen server's prediction ahead.  Each event also carries the bump's
+own frequency, from how long the tip takes to cross it.
+
+:func:`plan_events` splits the events for a format whose player has a shortest
+interval between two transients it can play apart (``min_interval_s``): bumps
+at least that far from their neighbours become one transient each; a run of
+closer bumps becomes one continuous stretch whose intensity and rate follow the
+bumps (:func:`run_points`).  The intervals come from the players:
+:data:`PHONE_TRANSIENT_S` for a phone's actuator (AHAP, Android, ``.haptic``),
+the MPEG reference synthesiser's transient for ``.hjif`` (:data:`HJIF_TRANSIENT_S`).
+
+Rules, stated once (docs/surfaces.md, "Exports"):
+
+* intensity of a bump of strength s > 0 is ``INTENSITY_FLOOR ** (1 - s)``: the
+  strength is a place in a felt band spaced in decibels, as on the wire; the least
+  felt bump plays 20 dB below full intensity.  A bump of strength 0 (pressure 0)
+  plays nothing.
+* a bump's frequency is ``1 / (2 d)`` with d the time the tip spends above half
+  the bump's prominence: the fundamental of a raised cosine crossed in 2 d.  AHAP
+  sharpness maps it over 65 .. 300 Hz, as every frequency here.
+* a continuous stretch runs from its first bump to its last plus one mean interval
+  (never into the next bump); its points sit on the phone formats' 20 ms control
+  grid, the rate as frequency.
+
+Units: SI (s, Hz); strength and intensity 0 .. 1.
+
+References
+----------
+.. [1] docs/references.md, section 6 (phone transients).
+.. [2] docs/references.md, section 6 (MPEG-I synthesiser).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, NamedTuple, Sequence
+
+import numpy as np
+
+from .timeline import CONTROL_STEP_S, ControlPoint, _simplify
+
+__all__ = [
+    "BumpEvent",
+    "Run",
+    "EventPlan",
+    "stroke_bump_events",
+    "plan_events",
+    "run_points",
+    "event_intensity",
+    "PHONE_TRANSIENT_S",
+    "HJIF_TRANSIENT_S",
+    "INTENSITY_FLOOR",
+]
+
+#: Shortest interval [s] at which a phone's actuator plays two transients apart: an
+#: LRA's click lasts 10 .. 20 ms (docs/references.md, section 6 (phone transients)).
+PHONE_TRANSIENT_S = 0.020
+#: The MPEG reference synthesiser plays every transient as two cycles in 22 ms
+#: (docs/references.md, section 6 (MPEG-I synthesiser)).
+HJIF_TRANSIENT_S = 0.022
+#: Intensity of the least felt bump (strength 0+): 20 dB below full.
+INTENSITY_FLOOR = 0.1
+
+
+class BumpEvent(NamedTuple):
+    """One bump crossed, as an export plays it.
+
+    Attributes
+    ----------
+    t_s : float
+        When the tip crosses it [s], from the export's start.
+    strength : float
+        The surface rendering's strength, 0 .. 1 (:class:`tactilize.surface.PulseEvent`).
+    frequency_hz : float
+        The bump's own frequency [Hz]: 1 / (2 x the time spent above half its prominence).
+    clamped : tuple of str
+        As the PulseEvent's (``cluster``, ``rate_only``, ``merged``).
+    """
+
+    t_s: float
+    strength: float
+    frequency_hz: float
+    clamped: tuple[str, ...] = ()
+
+
+class Run(NamedTuple):
+    """Bumps too close for separate transients: one continuous stretch [start_s, end_s) [s]."""
+
+    start_s: float
+    end_s: float
+    events: tuple[BumpEvent, ...]
+
+
+class EventPlan(NamedTuple):
+    """What a format plays: ``transients`` (one per bump) and ``runs`` (continuous stretches)."""
+
+    transients: tuple[BumpEvent, ...]
+    runs: tuple[Run, ...]
+    min_interval_s: float
+
+
+def event_intensity(strength: float) -> float:
+    """Intensity 0 .. 1 of a bump of ``strength`` (0 for none; see the module docstring)."""
+    s = min(1.0, max(0.0, float(strength)))
+    return 0.0 if s <= 0.0 else INTENSITY_FLOOR ** (1.0 - s)
+
+
+def _pressures(stroke: Any, t: np.ndarray) -> list[float | None]:
+    """Each crossing's pressure, interpolated between the samples that have one (None where none do)."""
+    known = [(ts, p) for ts, p in zip(stroke.t_s, stroke.pressure) if p is not None]
+    if not known:
+        return [None] * len(t)
+    kt, kp = np.array([k[0] for k in known]), np.array([k[1] for k in known])
+    return [float(v) for v in np.interp(t, kt, kp)]
+
+
+def stroke_bump_events(stroke: Any, surface: Any, *, origin_s: float = 0.0,
+                       end_s: float = math.inf) -> tuple[BumpEvent, ...]:
+    """Every bump ``stroke`` crosses on ``surface``, timed from ``origin_s`` [s], those in [0, ``end_s``).
+
+    Parameters
+    ----------
+    stroke : Stroke
+        Samples: times [s], positions [display m], pressures or None.
+    surface : SurfaceModel, CompositeSurface or a mirrored one
+        Anything :func:`tactilize.surface.crossings_along` reads.
+    origin_s : float
+        Stroke time [s] of the export's 0.
+    end_s : float
+        Length of the export [s].
+    """
+    from scipy.signal import peak_widths
+
+    from ..surface.bumps import crossings_along, resample_path
+    from ..surface.events import place_events, strengths
+
+    if len(stroke.t_s) < 2:
+        return ()
+    path = resample_path(stroke.t_s, stroke.x_m, stroke.y_m, surface.step_m)
+    c = crossings_along(surface, *path)
+    if c.t_s.size == 0:
+        return ()
+    press = _pressures(stroke, c.t_s)
+    strength = [strengths([p], [f], pr)[0] for p, f, pr in zip(c.prominence.tolist(), c.floor.tolist(), press)]
+    # Each bump's time above half its prominence, read on the same profile the crossings came from.
+    h = surface.regions(path[1], path[2])[0]
+    idx = np.searchsorted(path[3], c.s_m)
+    _, _, left, right = peak_widths(h, idx, rel_height=0.5)
+    grid = np.arange(h.size)
+    half_s = np.interp(right, grid, path[0]) - np.interp(left, grid, path[0])
+    freq = {float(t): 1.0 / (2.0 * d) if d > 0 else 0.0 for t, d in zip(c.t_s.tolist(), half_s.tolist())}
+    out = []
+    for ev in place_events(c.t_s, strength):
+        t = ev.t_s - origin_s
+        if 0.0 <= t < end_s:
+            out.append(BumpEvent(t, ev.strength, freq.get(ev.t_s, 0.0), ev.clamped))
+    return tuple(out)
+
+
+def plan_events(events: Sequence[BumpEvent], min_interval_s: float, end_s: float = math.inf) -> EventPlan:
+    """Split ``events`` into transients and continuous runs for a player's ``min_interval_s`` [s].
+
+    Consecutive events closer than ``min_interval_s`` form a run; an event at
+    least that far from both neighbours is a transient (none for strength 0).
+    """
+    ev = sorted(events, key=lambda e: e.t_s)
+    groups: list[list[BumpEvent]] = []
+    for e in ev:
+        if groups and e.t_s - groups[-1][-1].t_s < min_interval_s:
+            groups[-1].append(e)
+        else:
+            groups.append([e])
+    transients: list[BumpEvent] = []
+    runs: list[Run] = []
+    for i, g in enumerate(groups):
+        if len(g) == 1:
+            if event_intensity(g[0].strength) > 0:
+                transients.append(g[0])
+            continue
+        mean_iv = (g[-1].t_s - g[0].t_s) / (len(g) - 1)
+        nxt = groups[i + 1][0].t_s if i + 1 < len(groups) else math.inf
+        end = min(g[-1].t_s + mean_iv, nxt, end_s)
+        if end > g[0].t_s:
+            runs.append(Run(g[0].t_s, end, tuple(g)))
+    return EventPlan(tuple(transients), tuple(runs), float(min_interval_s))
+
+
+def run_points(run: Run, start_s: float | None = None, end_s: float | None = None,
+               step_s: float = CONTROL_STEP_S) -> list[ControlPoint]:
+    """A run's intensity and rate [Hz] on the control grid over [start_s, end_s] (the whole run by default).
+
+    Grid times are whole steps from ``start_s`` plus the end (a last interval
+    shorter than a step merges into the one before); points a line already gives
+    are dropped, as for the steady drive (:func:`~.timeline.control_points`).
+    """
+    from ..surface.events import local_rate_hz
+
+    a = run.start_s if start_s is None else start_s
+    b = run.end_s if end_s is None else end_s
+    t = np.array([e.t_s for e in run.events])
+    inten = np.array([event_intensity(e.strength) for e in run.events])
+    rate = local_rate_hz(t)
+    n = max(1, int(math.floor((b - a) / step_s + 1e-9)))
+    times = [a + k * step_s for k in range(n)] + [b]
+    if len(times) > 2 and times[-1] - times[-2] < step_s - 1e-9:
+        del times[-2]
+    pts = [ControlPoint(float(x), float(np.interp(x, t, inten)), float(np.interp(x, t, rate))) for x in times]
+    return _simplify(pts, 0.005, 0.01, 1.0)
