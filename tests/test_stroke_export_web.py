@@ -44,6 +44,24 @@ def test_export_route_answers_the_file(client):
     assert max(p.frequency_hz for p in track.points) > max([p.frequency_hz for p in slow.points] + [0.0])
 
 
+def test_export_route_plays_the_bumps_of_the_surface_rendering(client):
+    """With the surface profile the route exports the texture's bumps (issue 26), as the library does offline."""
+    from tactilize.export import parse_stroke, run_stroke
+    from tactilize.export.events import HJIF_TRANSIENT_S, plan_events
+    from tactilize.mapping import Profile
+
+    rows = _rows(v_mm_s=15.0, n=240)
+    r = client.post("/api/export/stroke", json={"texture": "corduroy", "format": "hjif", "samples": rows,
+                                                "profile": "surface"})
+    assert r.status_code == 200, r.text
+    entry = client.app.state.tactilize.texture("corduroy")
+    stroke = parse_stroke(rows, "<stroke>", entry.map.width_m, entry.map.height_m)
+    tl = run_stroke(stroke, entry.map, Profile.preset("surface"), surface=entry.surface)
+    plan = plan_events(tl.events, HJIF_TRANSIENT_S, tl.end_s)
+    track = read_hjif(r.content)
+    assert plan.transients and [round(t.t_s, 3) for t in track.taps] == [round(e.t_s, 3) for e in plan.transients]
+
+
 @pytest.mark.parametrize(
     "body, status, fault",
     [

@@ -2,7 +2,8 @@
 
 The stroke runs through the pen server's path (:func:`tactilize.export.run_stroke`):
 tracker, texture map, profile, and the simulated SMA wire's controller and
-envelope; the chosen format is rendered from the drive over time.
+envelope; the chosen format is rendered from the drive over time, or, for the
+``surface`` rendering, the parametric formats from the bumps the stroke crosses.
 """
 
 from __future__ import annotations
@@ -72,4 +73,19 @@ def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
         f"wrote {path} ({fmt}, {tl.end_s:g} s, {len(tl.t_s)} frames, {doc['drive_changes']} drive changes, "
         f"{opt['drive_kind']} drive): {doc['min_frequency_hz']:.1f} .. {doc['max_frequency_hz']:.1f} Hz"
     )
+    if tl.events is not None:
+        doc.update(_event_summary(tl, fmt))
+        if "transients" in doc:
+            text += f"; {doc['bumps']} bumps: {doc['transients']} transients, {doc['continuous_runs']} continuous stretches"
     return doc, text
+
+
+def _event_summary(tl: Any, fmt: str) -> dict[str, Any]:
+    """How a parametric format plays the stroke's bumps: transients and continuous stretches."""
+    from ..export.events import HJIF_TRANSIENT_S, PHONE_TRANSIENT_S, plan_events
+
+    out: dict[str, Any] = {"bumps": len(tl.events)}
+    if fmt in ("ahap", "android", "haptic", "hjif"):
+        plan = plan_events(tl.events, HJIF_TRANSIENT_S if fmt == "hjif" else PHONE_TRANSIENT_S, tl.end_s)
+        out.update(transients=len(plan.transients), continuous_runs=len(plan.runs))
+    return out

@@ -36,6 +36,7 @@ References
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Any, Callable
 
 from ..drive import Drive
@@ -150,7 +151,7 @@ def _surface_document(tl: DriveTimeline, step_s: float) -> dict[str, Any]:
     curves: list[dict[str, Any]] = []
     for run in plan.runs:
         _continuous(events, curves, run.start_s, run.end_s, tl.end_s,
-                    lambda t0, t1, run=run: run_points(run, t0, t1, step_s))
+                    partial(run_points, run, step_s=step_s))
     for ev in plan.transients:
         events.append(_event(ev.t_s, "HapticTransient", event_intensity(ev.strength),
                              sharpness_from_frequency(ev.frequency_hz)))

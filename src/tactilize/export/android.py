@@ -96,8 +96,27 @@ def _pieces(points: list[dict[str, Any]], n: int) -> list[list[dict[str, Any]]]:
     return [points[i : i + n] for i in range(0, len(points), n)] or [[]]
 
 
+def _silent_frequencies(pts: list[ControlPoint]) -> list[ControlPoint]:
+    """Points where the drive is off (0 Hz) take the frequency of the nearest point that is on.
+
+    An envelope's frequencies must be above 0 Hz; at amplitude 0 the frequency
+    plays nothing, so the neighbour's keeps the ramps between points short.
+    """
+    on = [p.frequency_hz for p in pts if p.frequency_hz > 0]
+    if len(on) == len(pts):
+        return pts
+    f = on[0] if on else SHARPNESS_LOW_HZ
+    out = []
+    for p in pts:
+        if p.frequency_hz > 0:
+            f = p.frequency_hz
+        out.append(p if p.frequency_hz > 0 else ControlPoint(p.t_s, p.amplitude, f))
+    return out
+
+
 def _envelopes(pts: list[ControlPoint]) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[dict[str, Any]]]:
     """Control points as the flat list, the waveform envelopes and the basic envelopes (module docstring)."""
+    pts = _silent_frequencies(pts)
     # Segments in whole ms, measured between rounded times so they never drift.
     ms = [int(round(p.t_s * 1e3)) for p in pts]
     flat = [

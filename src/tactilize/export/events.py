@@ -156,7 +156,7 @@ def stroke_bump_events(stroke: Any, surface: Any, *, origin_s: float = 0.0,
     half_s = np.interp(right, grid, path[0]) - np.interp(left, grid, path[0])
     freq = {float(t): 1.0 / (2.0 * d) if d > 0 else 0.0 for t, d in zip(c.t_s.tolist(), half_s.tolist())}
     out = []
-    for ev in place_events(c.t_s, strength):
+    for ev in place_events(c.t_s.tolist(), strength):
         t = ev.t_s - origin_s
         if 0.0 <= t < end_s:
             out.append(BumpEvent(t, ev.strength, freq.get(ev.t_s, 0.0), ev.clamped))

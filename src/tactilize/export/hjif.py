@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
+from functools import partial
 from typing import Any, Callable
 
 from .events import HJIF_TRANSIENT_S, event_intensity, plan_events, run_points
@@ -124,7 +125,7 @@ def _channel(tl: DriveTimeline, kind: str, c: int, step_s: float) -> dict[str, A
         # A stroke over a surface: a transient per bump the reference synthesiser plays apart.
         plan = plan_events(tl.events, HJIF_TRANSIENT_S, tl.end_s)
         for r in plan.runs:
-            wave(r.start_s, r.end_s, lambda a, b, r=r: run_points(r, a, b, step_s))
+            wave(r.start_s, r.end_s, partial(run_points, r, step_s=step_s))
         for ev in plan.transients:
             tap(ev.t_s, event_intensity(ev.strength), max(ev.frequency_hz, 1.0))
     else:

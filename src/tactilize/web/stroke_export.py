@@ -12,7 +12,8 @@ Routes (mounted by :func:`tactilize.web.app.create_app`)
 The stroke runs through the same path as ``tactilize export --stroke``
 (:func:`tactilize.export.run_stroke`): the server's tracker, the texture's
 map at its displayed size, the profile, a fresh simulated SMA wire (the
-server's own output is not disturbed).
+server's own output is not disturbed), and for the ``surface`` rendering the
+texture's surface, whose bumps the parametric formats play.
 """
 
 from __future__ import annotations
@@ -54,7 +55,9 @@ def _export(state: Any, body: dict[str, Any]) -> tuple[bytes, Any, str]:
     tmap = entry.map
     stroke = parse_stroke(rows, "stroke", tmap.width_m, tmap.height_m)
     meta = {"image": entry.name, "profile": profile.name}
-    tl = run_stroke(stroke, tmap, profile, meta=meta)
+    # The surface rendering's bumps go into the parametric formats (docs/surfaces.md, "Exports").
+    surface = entry.surface if getattr(profile, "rendering", "steady") == "surface" else None
+    tl = run_stroke(stroke, tmap, profile, meta=meta, surface=surface)
     data = render(tl, spec.name, drive=kind, **meta)
     return data, spec, f"stroke-{entry.id}{spec.suffix}"
 
