@@ -234,3 +234,13 @@ def test_a_steady_stroke_that_starts_where_the_drive_is_off_exports_to_android()
     freqs = [c["frequency_hz"] for w in doc["waveform_envelopes"] for c in w["control_points"]]
     assert min(freqs) == 120.0 and doc["waveform_envelopes"][0]["initial_frequency_hz"] == 120.0
     assert doc["waveform_envelopes"][0]["control_points"][0]["amplitude"] == 0.0  # silent while the drive is off
+
+
+def test_the_wire_drive_of_a_surface_stroke_stays_a_drive_over_time(synthetic):
+    """``--drive wire`` asks for what the simulated wire applied: the rows, not the bumps."""
+    import dataclasses
+
+    rows_only = dataclasses.replace(synthetic, events=None)
+    for fmt in ("ahap", "android", "haptic", "hjif"):
+        assert render(synthetic, fmt, drive="wire") == render(rows_only, fmt, drive="wire")
+        assert render(synthetic, fmt) != render(rows_only, fmt)

@@ -73,10 +73,12 @@ def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
         f"wrote {path} ({fmt}, {tl.end_s:g} s, {len(tl.t_s)} frames, {doc['drive_changes']} drive changes, "
         f"{opt['drive_kind']} drive): {doc['min_frequency_hz']:.1f} .. {doc['max_frequency_hz']:.1f} Hz"
     )
-    if tl.events is not None:
+    if tl.plays_events(opt["drive_kind"]):
         doc.update(_event_summary(tl, fmt))
         if "transients" in doc:
-            text += f"; {doc['bumps']} bumps: {doc['transients']} transients, {doc['continuous_runs']} continuous stretches"
+            n = doc["continuous_runs"]
+            text += (f"; {doc['bumps']} bumps: {doc['transients']} transients, "
+                     f"{n} continuous stretch{'' if n == 1 else 'es'}")
     return doc, text
 
 

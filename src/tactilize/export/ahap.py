@@ -120,7 +120,7 @@ def _continuous(events: list[dict[str, Any]], curves: list[dict[str, Any]], a: f
 
 def ahap_document(tl: DriveTimeline, kind: str = "profile", channel: int = 0, step_s: float = CONTROL_STEP_S) -> dict[str, Any]:
     """The AHAP document (a dict) of one channel of a timeline (see the module docstring)."""
-    if tl.events is not None:
+    if tl.plays_events(kind):
         return _surface_document(tl, step_s)
     events: list[dict[str, Any]] = []
     curves: list[dict[str, Any]] = []

@@ -147,7 +147,7 @@ def _envelopes(pts: list[ControlPoint]) -> tuple[list[dict[str, Any]], list[dict
 
 def android_document(tl: DriveTimeline, kind: str = "profile", channel: int = 0, step_s: float = CONTROL_STEP_S) -> dict[str, Any]:
     """The Android document of one channel of a timeline (see the module docstring)."""
-    if tl.events is not None:
+    if tl.plays_events(kind):
         from .android_events import android_surface_document
 
         return android_surface_document(tl, step_s)

@@ -79,9 +79,9 @@ def haptic_document(tl: DriveTimeline, kind: str = "profile", channel: int = 0, 
             add(t, p.amplitude, p.frequency_hz, 1)
         add(b, 0.0, pts[-1].frequency_hz, 0)
 
-    if tl.events is not None:
+    if tl.plays_events(kind):
         # A stroke over a surface: an emphasis per bump a phone plays apart, envelopes where they come faster.
-        plan = plan_events(tl.events, PHONE_TRANSIENT_S, tl.end_s)
+        plan = plan_events(tl.events or (), PHONE_TRANSIENT_S, tl.end_s)
         for r in plan.runs:
             run(r.end_s, run_points(r, step_s=step_s))
         for ev in plan.transients:
@@ -106,7 +106,7 @@ def haptic_document(tl: DriveTimeline, kind: str = "profile", channel: int = 0, 
     if not amp or amp[0]["time"] > 0:
         amp.insert(0, {"time": 0.0, "amplitude": 0.0})
         freq.insert(0, {"time": 0.0, "frequency": freq[0]["frequency"] if freq else 0.0})
-    what = "bumps of a stroke over a surface" if tl.events is not None else f"{kind} drive, channel {channel}"
+    what = "bumps of a stroke over a surface" if tl.plays_events(kind) else f"{kind} drive, channel {channel}"
     desc = (f"tactilize: {what}, {tl.end_s:g} s; "
             f"frequency 0..1 = {HAPTIC_LOW_HZ:g}..{HAPTIC_HIGH_HZ:g} Hz")
     return {

@@ -121,9 +121,9 @@ def _channel(tl: DriveTimeline, kind: str, c: int, step_s: float) -> dict[str, A
         })
         tap_f.append(_hz(f))
 
-    if tl.events is not None:
+    if tl.plays_events(kind):
         # A stroke over a surface: a transient per bump the reference synthesiser plays apart.
-        plan = plan_events(tl.events, HJIF_TRANSIENT_S, tl.end_s)
+        plan = plan_events(tl.events or (), HJIF_TRANSIENT_S, tl.end_s)
         for r in plan.runs:
             wave(r.start_s, r.end_s, partial(run_points, r, step_s=step_s))
         for ev in plan.transients:
@@ -159,7 +159,8 @@ def hjif_document(tl: DriveTimeline, kind: str = "profile", step_s: float = CONT
     freqs = [d.pulse_frequency_hz for row in tl._rows(kind) for d in row if not d.is_off]
     lo_hz = tl.meta.get("min_frequency_hz", min(freqs) if freqs else 0.0)
     hi_hz = tl.meta.get("max_frequency_hz", max(freqs) if freqs else 1.0)
-    desc = f"tactilize: {kind} drive of a stroke of {tl.end_s:g} s"
+    what = "bumps" if tl.plays_events(kind) else f"{kind} drive"
+    desc = f"tactilize: {what} of a stroke of {tl.end_s:g} s"
     if tl.meta.get("image"):
         desc += f" on {tl.meta['image']}"
     return {

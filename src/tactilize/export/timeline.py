@@ -171,6 +171,11 @@ class DriveTimeline:
         nan = math.nan
         return cls((0.0,), float(duration_s), (drives,), (drives,), (nan,), (nan,), (nan,), dict(meta))
 
+    def plays_events(self, kind: str = "profile") -> bool:
+        """Whether the parametric formats play the surface's bumps: a surface stroke's profile drive
+        (``"wire"``, what the simulated wire applied, stays a drive over time)."""
+        return self.events is not None and kind == "profile"
+
     @property
     def channels(self) -> int:
         return len(self.profile[0])
