@@ -17,6 +17,7 @@ import pytest
 
 from tactilize.drive import Drive
 from tactilize.export import DriveTimeline, read_ahap, read_haptic, read_hjif, render, run_stroke, synthetic_stroke
+from tactilize.export.conformance import check
 from tactilize.export.events import (
     HJIF_TRANSIENT_S,
     INTENSITY_FLOOR,
@@ -70,8 +71,10 @@ def synthetic(field):
 
 
 def _docs(tl):
-    # render() validates every document against its format's rules before it returns the bytes
-    return {f: json.loads(render(tl, f)) for f in ("ahap", "android", "haptic", "hjif")}
+    # render() validates every document against its format's rules before it returns the bytes; so does this
+    docs = {f: json.loads(render(tl, f)) for f in ("ahap", "android", "haptic", "hjif")}
+    assert all(check(doc, f) == [] for f, doc in docs.items())
+    return docs
 
 
 def _match(found, true_t):
