@@ -49,9 +49,12 @@ TOL_S = 0.002
 
 
 def _field():
+    """The bumps on the stroke's line, and as many 5 mm off it (never crossed: they must give nothing)."""
     xs = np.concatenate([SPARSE_X_M, DENSE_X_M])
     radii = np.concatenate([np.full(SPARSE_X_M.size, 1e-3), np.full(DENSE_X_M.size, 0.25e-3)])
-    return bump_field(np.stack([xs, np.full(xs.size, Y_M)], 1), radii, SIZE_M, PITCH_M)
+    off = np.stack([xs + 0.0015, np.full(xs.size, Y_M + 0.005)], 1)
+    centres = np.concatenate([np.stack([xs, np.full(xs.size, Y_M)], 1), off])
+    return bump_field(centres, np.concatenate([radii, radii]), SIZE_M, PITCH_M)
 
 
 @pytest.fixture(scope="module")
