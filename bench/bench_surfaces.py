@@ -172,6 +172,44 @@ def batch_costs(batches: int, rounds: int) -> dict:
     print(f"  surface / perceptual: p50 {res['p50_ratio']:.2f}x")
     verdict = "met" if res["p99_ratio"] <= 1.2 else "MISSED"
     print(f"  p99 RATIO surface / perceptual: {res['p99_ratio']:.2f}x (goal <= 1.2x: {verdict})")
+    res["render_only"] = render_costs(batches * rounds)
+    return res
+
+
+def render_costs(batches: int) -> dict:
+    """The renderer alone (no socket, no wire thread: the same stream through PenRenderer.feed on a
+    simulated wire advanced between batches), both renderings batch by batch alternating [us]."""
+    from tactilize.actuators.simulated import SimulatedOutput
+    from tactilize.data import builtin_map, get_texture
+    from tactilize.pen.renderer import PenRenderer
+    from tactilize.surface import surface_model
+    from tactilize.web.rows import samples_from_css
+
+    tmap, sm = builtin_map("sandpaper"), surface_model(get_texture("sandpaper").image)
+    m_per_px = 25.4e-3 / 96
+    v_px_ms = SPEED_MM_S / (m_per_px * 1e3) / 1e3
+    pens = {p: (PenRenderer(tmap, Profile.preset(p), o, surface=sm), o)
+            for p, o in (("perceptual", SimulatedOutput(start=False)), ("surface", SimulatedOutput(start=False)))}
+    lat: dict[str, list[int]] = {p: [] for p in pens}
+    for k in range(batches):
+        t = 1000.0 + 4.0 * k
+        rows = [[t, 20.0 + (v_px_ms * (t - 1000.0)) % 250.0, 60.0, 0.5]]
+        for p, (pen, out) in pens.items():
+            batch = samples_from_css(rows, m_per_px)
+            t0 = time.perf_counter_ns()
+            pen.feed(batch)
+            lat[p].append(time.perf_counter_ns() - t0)
+            out.advance(0.004)
+    res = {}
+    for p, xs in lat.items():
+        xs.sort()
+        res[p] = {"p50_us": xs[len(xs) // 2] / 1e3, "p99_us": xs[int(0.99 * len(xs))] / 1e3}
+    res["p50_ratio"] = res["surface"]["p50_us"] / res["perceptual"]["p50_us"]
+    res["p99_ratio"] = res["surface"]["p99_us"] / res["perceptual"]["p99_us"]
+    print(f"  the renderer alone ({batches} batches each, alternating):")
+    for p in pens:
+        print(f"    {p:12} p50 {res[p]['p50_us']:8.0f} us   p99 {res[p]['p99_us']:8.0f} us")
+    print(f"    surface / perceptual: p50 {res['p50_ratio']:.2f}x, p99 {res['p99_ratio']:.2f}x")
     return res
 
 

@@ -44,7 +44,7 @@ from ..synthesis import PulseScheduler
 from .base import OutputBase
 from .sma import Circuit, SafetyEnvelope, WireController, WireModel, WireSpec, build_envelope
 from .sma.controller import STATES
-from .simulated_events import event_starts, run_event_block, take_events
+from .simulated_events import event_starts, planned_for_events, relative_events, run_event_block, take_events
 
 if TYPE_CHECKING:
     from .sma.heat import RunningHeat
@@ -240,13 +240,8 @@ class SimulatedOutput(OutputBase):
         if self._closed:
             raise OutputError("<simulated>", "output is closed")
         drives = self._check(equivalent)
-        applied: list[Drive] = []
-        for ch, d in zip(self._chans, drives):
-            # Both pins usually get the same drive: plan it once.
-            same = applied and d is drives[len(applied) - 1]
-            applied.append(d if d.is_off else applied[-1] if same else self._planned(ch, d))
-        rel = [[(float(e.t_s) - now_s, float(e.strength)) for e in evs] for evs in channels]
-        rel += [[] for _ in range(self.channels - len(rel))]
+        applied = planned_for_events(self, drives, now_s)
+        rel = relative_events(channels, now_s, self.channels)
         with self._pending_lock:
             self._pending.append(("events", (drives, rel)))  # type: ignore[arg-type]
         self._drives = applied

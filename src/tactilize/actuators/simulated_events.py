@@ -20,10 +20,47 @@ from typing import Any
 from ..drive import Drive
 from .sma.heat import RunningHeat
 
-__all__ = ["take_events", "event_starts", "run_event_block"]
+__all__ = ["take_events", "event_starts", "run_event_block", "planned_for_events", "relative_events", "REPLAN_S"]
 
 _US = 1_000_000
 _OFF = Drive.off()
+#: The equivalent Drive handed over again unchanged (the same object) is planned again
+#: after this long on the stroke's clock [s] only (the wire's state moves slowly; every
+#: pulse is planned afresh when it plays, this plan is what the page shows).
+REPLAN_S = 0.1
+
+
+def planned_for_events(out: Any, drives: list[Drive], now_s: float) -> list[Drive]:
+    """What :meth:`~tactilize.actuators.simulated.SimulatedOutput.apply` would give for the
+    equivalent ``drives``, planned once per distinct Drive and reused for :data:`REPLAN_S`."""
+    last = getattr(out, "_events_plan", None)
+    if (
+        last is not None
+        and 0.0 <= now_s - last[0] < REPLAN_S
+        and len(last[1]) == len(drives)
+        and all(a is b for a, b in zip(last[1], drives))
+    ):
+        return last[2]
+    applied: list[Drive] = []
+    for ch, d in zip(out._chans, drives):
+        # Both pins usually get the same drive: plan it once.
+        same = applied and d is drives[len(applied) - 1]
+        applied.append(d if d.is_off else applied[-1] if same else out._planned(ch, d))
+    out._events_plan = (now_s, drives, applied)
+    return applied
+
+
+def relative_events(channels: Any, now_s: float, n: int) -> list[list[tuple[float, float]]]:
+    """Per channel of ``n``, ``(t - now_s [s], strength)`` of each event; a list handed to
+    several channels (both pins play the same) is converted once."""
+    rel: list[list[tuple[float, float]]] = []
+    for i, evs in enumerate(channels):
+        if i and evs is channels[i - 1]:
+            rel.append(rel[-1])
+        else:
+            rel.append([(float(e.t_s) - now_s, float(e.strength)) for e in evs])
+    rel += [[] for _ in range(n - len(rel))]
+    return rel
 
 
 def take_events(out: Any, payload: tuple[list[Drive], list[list[tuple[float, float]]]], now: float) -> None:

@@ -20,7 +20,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy.signal import find_peaks  # at import: a first stroke must not wait for it (0.5 s and more)
 
-__all__ = ["Crossings", "resample_path", "crossings_along"]
+__all__ = ["Crossings", "resample_path", "crossings_along", "bumps_in"]
 
 
 class Crossings(NamedTuple):
@@ -109,28 +109,54 @@ def crossings_along(surface: Any, t_s: np.ndarray, x_m: np.ndarray, y_m: np.ndar
         The resampled path (:func:`resample_path`).
     """
     h, ids, floors = surface.regions(x_m, y_m)
-    picked: list[np.ndarray] = []
-    proms: list[np.ndarray] = []
-    if ids.size >= 3 and ids[0] >= 0 and ids[0] == ids[-1] and (ids == ids[0]).all():
-        # One picture all along (the usual case): one search.
-        idx, props = find_peaks(h, prominence=float(floors[0]))
-        if idx.size:
-            picked.append(idx)
-            proms.append(props["prominences"])
-    elif ids.size >= 3:
-        # Runs of one region (a picture); -1 (off every picture) is never searched.
-        edges = np.flatnonzero(np.diff(ids)) + 1
-        starts = np.concatenate(([0], edges))
-        ends = np.concatenate((edges, [ids.size]))
-        for a, b in zip(starts.tolist(), ends.tolist()):
-            if ids[a] < 0 or b - a < 3:
-                continue
-            idx, props = find_peaks(h[a:b], prominence=float(floors[a]))
-            if idx.size:
-                picked.append(idx + a)
-                proms.append(props["prominences"])
-    if not picked:
+    idx, proms = bumps_in(h, ids, floors)
+    if idx.size == 0:
         empty = np.zeros(0)
         return Crossings(empty, empty, empty, empty, empty, empty)
-    idx = np.concatenate(picked)
-    return Crossings(t_s[idx], s_m[idx], x_m[idx], y_m[idx], np.concatenate(proms), floors[idx])
+    return Crossings(t_s[idx], s_m[idx], x_m[idx], y_m[idx], proms, floors[idx])
+
+
+_NONE = (np.zeros(0, dtype=np.intp), np.zeros(0))
+
+
+def bumps_in(h: np.ndarray, ids: np.ndarray, floors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Indices and prominences of the bumps of a profile (the one rule of what a bump is).
+
+    Parameters
+    ----------
+    h : ndarray
+        Tip-filtered heights along the path, at equal steps of arc [luminance units].
+    ids : ndarray of int
+        The region (picture) of each point, -1 off every picture.
+    floors : ndarray
+        The prominence floor at each point.
+
+    Returns
+    -------
+    (indices, prominences) : ndarrays
+        In path order; searched within each run of one region, never across two.
+    """
+    n = ids.size
+    if n < 3:
+        return _NONE
+    first = ids[0]
+    if first >= 0 and ids[-1] == first and (ids == first).all():
+        # One picture all along (the usual case): one search.
+        idx, props = find_peaks(h, prominence=float(floors[0]))
+        return idx, props["prominences"]
+    # Runs of one region (a picture); -1 (off every picture) is never searched.
+    picked: list[np.ndarray] = []
+    proms: list[np.ndarray] = []
+    edges = np.flatnonzero(np.diff(ids)) + 1
+    starts = np.concatenate(([0], edges))
+    ends = np.concatenate((edges, [n]))
+    for a, b in zip(starts.tolist(), ends.tolist()):
+        if ids[a] < 0 or b - a < 3:
+            continue
+        idx, props = find_peaks(h[a:b], prominence=float(floors[a]))
+        if idx.size:
+            picked.append(idx + a)
+            proms.append(props["prominences"])
+    if not picked:
+        return _NONE
+    return np.concatenate(picked), np.concatenate(proms)

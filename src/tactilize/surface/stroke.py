@@ -22,9 +22,10 @@ from bisect import bisect_left
 from collections import deque
 from typing import Any, Iterable
 
-from .bumps import crossings_along, resample_path
+from .bumps import bumps_in
 from .events import PulseEvent, place_events
 from .events import strengths as strengths_of
+from .path import HISTORY_M, PathGrid
 
 __all__ = ["SurfaceStroke", "LOOKAHEAD_S", "HISTORY_M", "LATE_S"]
 
@@ -33,8 +34,6 @@ __all__ = ["SurfaceStroke", "LOOKAHEAD_S", "HISTORY_M", "LATE_S"]
 #: happens, short enough that a stop or a reversal is seen before most of its
 #: predicted crossings would fire.
 LOOKAHEAD_S = 0.025
-#: Path kept behind the pen [m]: a bump's prominence needs the profile around it.
-HISTORY_M = 4e-3
 #: A crossing found this long after its time [s] still plays (at once); older is dropped.
 LATE_S = 0.005
 #: Two crossings within this share of the tip radius of arc are one bump.
@@ -43,6 +42,9 @@ SAME_BUMP_SHARE = 0.5
 MAX_GAP_S = 0.1
 #: Below this speed [m/s] nothing is predicted (a resting pen).
 STILL_SPEED_M_S = 1e-3
+#: The prediction reaches at most this far ahead [m]: a fast hand stroke (1 m/s) for the
+#: look-ahead; a jump the tracker reads as faster must not predict metres of path.
+MAX_AHEAD_M = 0.025
 
 
 class SurfaceStroke:
@@ -59,10 +61,9 @@ class SurfaceStroke:
     def __init__(self, surface: Any, lookahead_s: float = LOOKAHEAD_S) -> None:
         self.surface = surface
         self.lookahead_s = float(lookahead_s)
-        self._t: deque[float] = deque()
-        self._x: deque[float] = deque()
-        self._y: deque[float] = deque()
-        self._s: deque[float] = deque()
+        self._path = PathGrid(surface)
+        tip = getattr(surface, "tip_radius_m", 0.25e-3) / max(getattr(surface, "surface_per_display", 1.0), 1e-12)
+        self._same_m = SAME_BUMP_SHARE * tip
         self._fired: deque[tuple[PulseEvent, float]] = deque(maxlen=256)  # (event, s_m) handed out and due
         self._pending: list[tuple[PulseEvent, float]] = []  # handed out, not yet due: (event, s_m)
         self._last_fired_t: float | None = None
@@ -72,29 +73,21 @@ class SurfaceStroke:
 
     def reset(self) -> None:
         """Forget the stroke (lift, a new picture)."""
-        for q in (self._t, self._x, self._y, self._s):
-            q.clear()
+        self._path.reset()
         self._fired.clear()
         self._pending = []
         self._last_fired_t = None
         self.now_s = None
 
     def _add(self, t: float, x: float, y: float) -> None:
-        if self._t:
-            dt = t - self._t[-1]
+        last = self._path.last
+        if last is not None:
+            dt = t - last[0]
             if dt <= 0:
                 return
             if dt > MAX_GAP_S:
                 self.reset()
-        if not self._t:
-            self._t.append(t), self._x.append(x), self._y.append(y), self._s.append(0.0)
-            return
-        d = math.hypot(x - self._x[-1], y - self._y[-1])
-        self._t.append(t), self._x.append(x), self._y.append(y), self._s.append(self._s[-1] + d)
-        # Keep HISTORY_M of path behind the newest sample (and at least two samples).
-        while len(self._s) > 2 and self._s[-1] - self._s[1] > HISTORY_M:
-            for q in (self._t, self._x, self._y, self._s):
-                q.popleft()
+        self._path.add(t, x, y)
 
     def update(
         self,
@@ -121,55 +114,53 @@ class SurfaceStroke:
             Times [s] on the stroke's clock; an event found up to :data:`LATE_S`
             late is given at the newest sample's time, marked ``late``.
         """
+        isfinite = math.isfinite
         for smp in samples:
-            if math.isfinite(smp.t_s) and math.isfinite(smp.x_m) and math.isfinite(smp.y_m):
+            if isfinite(smp.t_s) and isfinite(smp.x_m) and isfinite(smp.y_m):
                 self._add(smp.t_s, smp.x_m, smp.y_m)
-        if not self._t:
+        path = self._path
+        if path.last is None:
             return []
-        now = self._t[-1]
+        now = path.last[0]
         self.now_s = now
         # What was handed out and is due by now has fired.
         self.newly_fired = 0
-        keep = []
         for ev, s in self._pending:
             if ev.t_s <= now:
                 self.newly_fired += 1
                 self._fired.append((ev, s))
                 self._last_fired_t = ev.t_s if self._last_fired_t is None else max(self._last_fired_t, ev.t_s)
-            else:
-                keep.append((ev, s))
         self._pending = []
-        t, x, y = list(self._t), list(self._x), list(self._y)
         moving = direction_rad is not None and speed_m_s > STILL_SPEED_M_S
-        if moving:
-            dx = speed_m_s * math.cos(direction_rad) * self.lookahead_s
-            dy = -speed_m_s * math.sin(direction_rad) * self.lookahead_s  # y up -> y down
-            t.append(now + self.lookahead_s), x.append(x[-1] + dx), y.append(y[-1] + dy)
-        if len(t) < 2:
+        w = path.window(speed_m_s, direction_rad if moving else None, self.lookahead_s, MAX_AHEAD_M)
+        if w is None:
             return []
-        path = resample_path(t, x, y, self.surface.step_m, self._s[0])
-        c = crossings_along(self.surface, *path)
-        if c.t_s.size == 0:
+        idx, proms = bumps_in(w.h, w.ids, w.floors)
+        if idx.size == 0:
             return []
-        tip = getattr(self.surface, "tip_radius_m", 0.25e-3) / max(getattr(self.surface, "surface_per_display", 1.0), 1e-12)
-        same = SAME_BUMP_SHARE * tip
+        same = self._same_m
         # Fired arcs, in order (arc length only grows), within reach of this window.
-        while self._fired and self._fired[0][1] < self._s[0] - same:
+        start = w.s_at(0)
+        while self._fired and self._fired[0][1] < start - same:
             self._fired.popleft()
         fired_s = sorted(s for _, s in self._fired)
-        times, arcs, strengths = [], [], []
-        st = strengths_of(c.prominence.tolist(), c.floor.tolist(), pressure)
-        for ti, si, gi in zip(c.t_s.tolist(), c.s_m.tolist(), st):
+        late = now - LATE_S
+        times, arcs, prom, floor = [], [], [], []
+        for i, p in zip(idx.tolist(), proms.tolist()):
+            ti = w.t_at(i)
+            if ti <= late:
+                continue  # too late to be felt as this bump
+            si = w.s_at(i)
             k = bisect_left(fired_s, si)
             if (k < len(fired_s) and fired_s[k] - si < same) or (k > 0 and si - fired_s[k - 1] < same):
                 continue
-            if ti <= now - LATE_S:
-                continue  # too late to be felt as this bump
             times.append(max(ti, now))
             arcs.append(si)
-            strengths.append(gi)
+            prom.append(p)
+            floor.append(float(w.floors[i]))
         if not times:
             return []
+        strengths = strengths_of(prom, floor, pressure)
         order = sorted(range(len(times)), key=times.__getitem__)  # stable, as argsort's was
         times = [times[i] for i in order]
         arcs = [arcs[i] for i in order]

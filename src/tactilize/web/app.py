@@ -183,8 +183,14 @@ class ServerState:
         for t in builtin_textures():
             # The PNG and the map are built lazily (warm() does it at startup
             # off the event loop); only cheap metadata here.
-            self.textures[t.id] = _builtin_entry(t)
+            self.textures[t.id] = _builtin_entry(t, self.tip_radius_m)
             self._builtin_ids.append(t.id)
+
+    @property
+    def tip_radius_m(self) -> float:
+        """The stylus tip radius [m] of every surface the server makes: its profile's
+        (``serve --profile``; the presets' default otherwise)."""
+        return float(self.profile.tip_radius_m)
 
     # ----------------------------------------------------------- profiles
 
@@ -230,7 +236,7 @@ class ServerState:
         tmap = texture_map(img)  # now, in the upload's thread: the first stroke must not wait
         from ..surface import surface_model
 
-        surface = surface_model(img)  # likewise (bench/bench_surfaces.py measures it)
+        surface = surface_model(img, tip_radius_m=self.tip_radius_m)  # likewise (bench/bench_surfaces.py measures it)
         entry = TextureEntry(
             tid, name, f"Uploaded picture {name}", img.width_m, img.height_m, img.shape[1], img.shape[0], False,
             lambda: png, lambda: tmap, lambda: surface,
@@ -272,19 +278,19 @@ class ServerState:
         }
 
 
-def _builtin_entry(t: Any) -> TextureEntry:
+def _builtin_entry(t: Any, tip_radius_m: float) -> TextureEntry:
     from ..data import TEXTURE_SIZE_PX, builtin_map
 
     return TextureEntry(
         t.id, t.name, t.description, t.width_m, t.height_m, *TEXTURE_SIZE_PX, True,
-        lambda: t.png, lambda: builtin_map(t.id), lambda: _surface_of(t),
+        lambda: t.png, lambda: builtin_map(t.id), lambda: _surface_of(t, tip_radius_m),
     )
 
 
-def _surface_of(t: Any) -> Any:
+def _surface_of(t: Any, tip_radius_m: float) -> Any:
     from ..surface import surface_model
 
-    return surface_model(t.image)
+    return surface_model(t.image, tip_radius_m=tip_radius_m)
 
 
 def _default_output() -> tuple[Any, str]:
