@@ -17,19 +17,19 @@ from __future__ import annotations
 import json
 import math
 import re
+import threading
 import time
 from typing import Any
 
 from ..errors import RequestError, TactilizeError
 from ..mapping import DriveFeatures
+from ..pen.display import MM_PER_PX_RANGE, display_scale_error
 from .protocols import Protocol
 from .store import ExperimentSession, Store, iso, utcnow
 
 __all__ = ["Flow", "FlowError", "CODE_PATTERN", "OPEN_TRIAL_TTL_S"]
 
 CODE_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,31}$")
-# Plausible screen scales: 0.05 mm/px (a 500 DPI panel) .. 1 mm/px (a projector).
-MM_PER_PX_RANGE = (0.05, 1.0)
 #: How long the open trial of a session is taken from memory (seconds): bounds how long
 #: another process's answer may go unseen by the pen socket's drive.
 OPEN_TRIAL_TTL_S = 1.0
@@ -58,6 +58,8 @@ class Flow:
         self._profiles = {c.id: protocol.profile(c.id) for c in protocol.conditions}
         self._features = {im.id: self._image_features(im) for im in protocol.images}
         self._open_cache: dict[int, tuple[int | None, float]] = {}
+        self._surfaces: dict[str, Any] = {}
+        self._surface_lock = threading.Lock()
 
     # ------------------------------------------------------------ helpers
 
@@ -92,6 +94,25 @@ class Flow:
 
     def image_features(self, image_id: str) -> Any:
         return self._features[image_id]
+
+    def image_surface(self, image_id: str) -> Any:
+        """The surface model of a protocol picture as shown (for a condition whose profile
+        renders ``surface``), made on first use and kept."""
+        with self._surface_lock:
+            surf = self._surfaces.get(image_id)
+            if surf is None:
+                surf = self._surfaces[image_id] = self._make_surface(self.protocol.image(image_id))
+        return surf
+
+    def _make_surface(self, im) -> Any:
+        from ..image import load_image
+        from ..surface import surface_model
+        from .stimuli import PITCH_M, render_array
+
+        if im.path:
+            return surface_model(load_image(self._resolve(im).path))
+        # The stand-in picture the page shows, at its pitch (the page scales it to true size).
+        return surface_model(render_array(im), pitch_m=PITCH_M)
 
     def profile(self, condition_id: str):
         return self._profiles[condition_id]
@@ -176,8 +197,7 @@ class Flow:
             w = data["card_width_px"]
             if isinstance(w, (int, float)) and not isinstance(w, bool) and math.isfinite(w) and w > 0:
                 mm_per_px = card_mm / float(w)
-        if (not isinstance(mm_per_px, (int, float)) or isinstance(mm_per_px, bool) or not math.isfinite(mm_per_px)
-                or not MM_PER_PX_RANGE[0] <= mm_per_px <= MM_PER_PX_RANGE[1]):
+        if display_scale_error(mm_per_px) is not None:  # the pen page's rule
             raise FlowError("calibration", f"screen scale must be {MM_PER_PX_RANGE[0]} .. {MM_PER_PX_RANGE[1]} mm per px "
                             f"(measure the {card_mm} mm card again)", 422)
         if data.get("felt") is not True:

@@ -35,12 +35,19 @@ import uuid
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import partial
-from typing import Any
+import time
+from typing import Any, Callable
 
+from ..drive import Drive
+from ..web.rows import sample_error, samples_from_css
+from .feel import TrialPen
 from .flow import FlowError
 from .samples import writer_for
 
 __all__ = ["StrokeHandler", "pump", "pen_executor", "PEN_THREADS", "in_store_thread", "STORE_THREADS"]
+
+#: Metres per millimetre: the page sends positions in millimetres on the displayed picture.
+M_PER_MM = 1e-3
 
 #: Longest batch id the page may choose (the column's width).
 MAX_BATCH_ID = 64
@@ -111,27 +118,33 @@ class StrokeHandler:
     """Turns pen samples of one session into drives, and logs both.
 
     Positions are millimetres on the displayed image (the page converts CSS
-    pixels with the calibrated scale).  Speed and direction come from the pen
-    page's :class:`~tactilize.pen.StrokeTracker`, one per trial and image, so
-    switching pictures starts a new stroke and a late batch does not disturb
-    the stroke of the open trial.
+    pixels with the calibrated scale, :mod:`tactilize.pen.display`).  Each
+    trial is rendered by ``tactilize serve``'s :class:`~tactilize.pen.PenRenderer`
+    with its condition's profile (:class:`.feel.TrialPen`), one stroke per
+    trial and image, so switching pictures starts a new stroke and a late
+    batch does not disturb the stroke of the open trial.
 
-    When the app has an actuator output (``tactilize serve``'s), the condition's
-    drive is applied to it, the same on every channel as in the paper's pen,
-    and stopped on a lift, an error or the end of the connection.
+    When the app has an actuator output (``tactilize serve``'s), the drives go
+    to it as the pen page sends them: split over the pen's channels, resting in
+    standby on a lift, an error or the end of the connection.
     """
 
     flow: Any
     session: Any
     output: Any = None
-    trackers: dict[tuple[int, str], Any] = field(default_factory=dict)
+    clock: Callable[[], float] = time.monotonic
     trial_cache: dict[int, Any] = field(default_factory=dict)
+    pen: TrialPen = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.pen = TrialPen(self.output, self._now)
+
+    def _now(self) -> float:
+        return self.clock()
 
     def stop(self) -> None:
-        for tr in self.trackers.values():
-            tr.reset()
-        if self.output is not None:
-            self.output.stop()
+        """Every stroke ends; the output rests (standby), as on the pen page."""
+        self.pen.lift()
 
     def _trials(self) -> dict[int, Any]:
         if not self.trial_cache:  # the plan never changes once the session exists
@@ -181,9 +194,6 @@ class StrokeHandler:
         of samples, the future of its write (see :meth:`.SampleWriter.submit`).
         Raises :class:`~.flow.FlowError` for a message refused as a whole.
         """
-        from ..pen import StrokeTracker
-        from ..web.rows import sample_error, samples_from_css
-
         if not isinstance(msg, dict):
             raise FlowError("stroke", "expected a JSON object", 422)
         kind = msg.get("type")
@@ -219,29 +229,31 @@ class StrokeHandler:
                 raise FlowError("stroke", f"trial {idx + 1} is not open yet (a stale page?)", 409, current_trial=current)
         profile = self.flow.profile(trial.condition_id)
         feats = self.flow.image_features(image_id)
-        if len(self.trackers) > 16:  # strokes of trials long answered
-            self.trackers = {k: v for k, v in self.trackers.items() if current is None or k[0] >= current - 1}
-        tracker = self.trackers.setdefault((idx, image_id), StrokeTracker())
-        # The stroke's state after each sample (the speed logged with it), the
-        # drive for the latest only: the page feels one drive per message; the
-        # logged per-sample drives are computed by the writer's thread
-        # (:func:`_logged_rows`), with the same call, so they are the same numbers.
-        # Millimetres are "pixels" of 1 mm for the pen module's converter.
-        taken = []
-        for ps in samples_from_css(samples, 1e-3):
-            tracker.add(ps)
-            st = tracker.state
-            taken.append((ps, st.speed_m_s if st else 0.0, st.direction_rad if st else None))
-        ps, speed, direction = taken[-1]
-        drive = profile.drive(feats, speed_m_s=speed, direction_rad=direction, pressure=ps.pressure)
-        rows = partial(_logged_rows, profile, feats, image_id, taken, drive)
+        if len(self.pen.renderers) > 16:  # strokes of trials long answered
+            self.pen.keep(lambda k: current is None or k[0] >= current - 1)
+        # Millimetres on the displayed picture, to metres.
+        batch_samples = samples_from_css(samples, M_PER_MM)
+        key = (idx, image_id)
+        if idx != current:  # logged under its own trial, not felt: the page has moved on
+            taken = self.pen.track(key, feats, profile, batch_samples)
+            rows = partial(_logged_rows, profile, feats, image_id, taken, None)
+            return None, writer_for(self.flow.store).submit(self.session.id, trial.id, batch, rows)
+        surface = self.flow.image_surface(image_id) if profile.rendering == "surface" else None
+        taken, drive, result = self.pen.feel(key, feats, profile, surface, batch_samples)
+        # The stroke's state after each sample is logged with it; the drive for
+        # the latest only is computed here (the page feels one drive per
+        # message); the other samples' drives are computed by the writer's
+        # thread (:func:`_logged_rows`) with the same call, so they are the same
+        # numbers.  The surface rendering's drive is the window's equivalent,
+        # not the law's for that sample, so the writer computes every row then.
+        steady = profile.rendering != "surface"
+        rows = partial(_logged_rows, profile, feats, image_id, taken, drive if steady else None)
         future = writer_for(self.flow.store).submit(self.session.id, trial.id, batch, rows)
-        if idx != current:
-            return None, future  # logged under its own trial, not felt: the page has moved on
-        if self.output is not None:
-            self.output.apply([drive] * int(self.output.channels))
-        return {"type": "drive", "trial": idx, "image": image_id, "batch": batch, "speed_mm_s": speed * 1e3,
-                "logged": len(taken), "drive": drive.to_dict()}, future
+        if drive is None:
+            drive = Drive.off()
+        return {"type": "drive", "trial": idx, "image": image_id, "batch": batch,
+                "speed_mm_s": (taken[-1][1] if taken else 0.0) * 1e3, "logged": len(taken),
+                "drive": drive.to_dict(), "pulses": result.pulses}, future
 
     def refresh_open_trial(self) -> None:
         """Re-read the open trial if its remembered value expired (after a reply, off the drive's path)."""
@@ -269,14 +281,14 @@ def _logged_rows(profile, feats, image_id: str, taken: list, last_drive) -> list
     Runs in the writer's thread (:meth:`.SampleWriter.submit` takes a callable),
     off the socket's path.  ``taken`` holds ``(sample, speed_m_s, direction_rad)``
     per sample; the last sample's drive was computed for the reply and is
-    ``last_drive``; the others are computed here by the same
+    ``last_drive`` (None: computed here too); the others are computed here by the same
     :meth:`~tactilize.mapping.Profile.drive` call the reply's was, so the log holds
     what answering every sample would have given, exactly.
     """
     rows = []
     n = len(taken)
     for k, (ps, speed, direction) in enumerate(taken):
-        drive = last_drive if k == n - 1 else profile.drive(feats, speed_m_s=speed, direction_rad=direction,
+        drive = last_drive if k == n - 1 and last_drive is not None else profile.drive(feats, speed_m_s=speed, direction_rad=direction,
                                                              pressure=ps.pressure)
         rows.append({"image_id": image_id, "t_s": ps.t_s, "x_m": ps.x_m, "y_m": ps.y_m, "pressure": ps.pressure,
                      "speed_m_s": speed, "pulse_frequency_hz": drive.pulse_frequency_hz,
