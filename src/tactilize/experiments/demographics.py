@@ -26,10 +26,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from sqlalchemy import ForeignKey, Integer, String, select
-from sqlalchemy.orm import Mapped, mapped_column
+from sqlalchemy import select
 
-from .store import Base, ExperimentSession, Participant
+from .tables import ExperimentSession, Participant, ParticipantInfo
 
 __all__ = ["DemographicItem", "parse_demographics", "check_answers", "ParticipantInfo", "record", "all_answers"]
 
@@ -118,16 +117,6 @@ def check_answers(items: tuple[DemographicItem, ...], answers: Any) -> dict[str,
             raise FlowError("demographics", f"{k}: one of {', '.join(d.options)}, or nothing", 422)
         out[k] = str(v)
     return out
-
-
-class ParticipantInfo(Base):
-    """One demographic answer of a session."""
-
-    __tablename__ = "participant_info"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    session_id: Mapped[int] = mapped_column(ForeignKey("sessions.id"), index=True)
-    key: Mapped[str] = mapped_column(String(64))
-    value: Mapped[str] = mapped_column(String(200))
 
 
 def record(store, session_id: int, answers: dict[str, str]) -> None:
