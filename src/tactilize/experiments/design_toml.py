@@ -16,7 +16,14 @@ from typing import Any
 
 from ..errors import ProfileError, check_finite
 from .checks import check_condition
-from .design import PROFILE_ROLES, Condition, DemographicItem, Design, ImageSpec, Question
+from .design import (
+    PROFILE_ROLES,
+    Condition,
+    DemographicItem,
+    Design,
+    ImageSpec,
+    Question,
+)
 from .errors import DesignError
 
 __all__ = [

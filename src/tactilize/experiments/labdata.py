@@ -20,6 +20,7 @@ rules) so that neither module grows past what a reader can hold at once.
 from __future__ import annotations
 
 import json
+import sqlite3
 from pathlib import Path
 from typing import Any
 
@@ -83,8 +84,6 @@ def backup(store, target: str | Path) -> dict[str, Any]:
     TactilizeError
         For a store that is not SQLite, or a target that exists or cannot be written.
     """
-    import sqlite3
-
     url = store.url
     if not url.startswith("sqlite:///"):
         raise TactilizeError(redact_url(url), "backup copies SQLite stores; use the database's own tools "

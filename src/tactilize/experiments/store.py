@@ -130,7 +130,6 @@ class Store:
                                  f"{redact_text(str(exc), url)})") from None
         if self.engine.dialect.name == "sqlite":
             event.listen(self.engine, "connect", _sqlite_pragmas)
-        from . import demographics, labdata, samples  # noqa: F401  (their tables, before create_all)
 
         try:
             Base.metadata.create_all(self.engine)
