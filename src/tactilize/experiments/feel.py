@@ -59,6 +59,10 @@ class _LoggedTracker(StrokeTracker):
         return self.state
 
 
+def _unsplit(drive: Drive, n: int, state: StrokeState | None) -> list[Drive]:
+    return [drive] * n
+
+
 class TrialPen:
     """The renderers of one participant's pen: one per (trial, picture), one output.
 
@@ -84,7 +88,9 @@ class TrialPen:
         self.clock = clock
         self.renderers: dict[tuple[int, str], PenRenderer] = {}
         self._felt: PenRenderer | None = None
-        self._split = default_splitter(output)
+        # Nothing attached: no channel is driven, so the split (a phantom-sensation model
+        # per batch) would be computed for nobody; the reply carries the unsplit drive.
+        self._split = default_splitter(output) if output is not None else _unsplit
         self._drive: Drive | None = None  # the unsplit drive of the latest render
 
     def _splitter(self, drive: Drive, n: int, state: StrokeState | None) -> list[Drive]:
