@@ -87,6 +87,7 @@ class TrialPen:
         self.output = output
         self.clock = clock
         self.renderers: dict[tuple[int, str], PenRenderer] = {}
+        self._trackers: dict[tuple[int, str], _LoggedTracker] = {}  # each renderer's own
         self._felt: PenRenderer | None = None
         # Nothing attached: no channel is driven, so the split (a phantom-sensation model
         # per batch) would be computed for nobody; the reply carries the unsplit drive.
@@ -100,15 +101,17 @@ class TrialPen:
     def _renderer(self, key: tuple[int, str], features: Any, profile: Any, surface: Any) -> PenRenderer:
         r = self.renderers.get(key)
         if r is None:
+            tracker = self._trackers[key] = _LoggedTracker()
             r = self.renderers[key] = PenRenderer(
-                WholePicture(features), profile, self.output, tracker=_LoggedTracker(),
+                WholePicture(features), profile, self.output, tracker=tracker,
                 splitter=self._splitter, clock=self.clock, surface=surface,
             )
         return r
 
     def track(self, key: tuple[int, str], features: Any, profile: Any, samples: list[PenSample]) -> list[Taken]:
         """Follow a batch that is logged, not felt (its trial was answered); the states per sample."""
-        tracker = self._renderer(key, features, profile, None).tracker
+        self._renderer(key, features, profile, None)
+        tracker = self._trackers[key]
         tracker.extend(samples)
         return list(tracker.taken)
 
@@ -135,7 +138,7 @@ class TrialPen:
             self._felt = r
         self._drive = None
         result = r.feed(samples)
-        return list(r.tracker.taken), self._drive, result
+        return list(self._trackers[key].taken), self._drive, result
 
     def lift(self) -> None:
         """The pen left the surface: every stroke restarts, the output rests in standby."""
@@ -146,6 +149,7 @@ class TrialPen:
         """Forget the strokes of the (trial, picture) keys ``predicate`` rejects."""
         for key in [k for k in self.renderers if not predicate(k)]:
             r = self.renderers.pop(key)
+            del self._trackers[key]
             if r is self._felt:
                 r.lift()
                 self._felt = None

@@ -158,7 +158,7 @@ class StrokeHandler:
         if isinstance(idx, bool) or not isinstance(idx, int) or idx not in trials:
             raise FlowError("stroke", "unknown trial", 422)
         trial = trials[idx]
-        if image_id not in trial.image_ids:
+        if not isinstance(image_id, str) or image_id not in trial.image_ids:
             raise FlowError("stroke", f"image {image_id!r} is not part of trial {idx + 1}", 422)
         if not isinstance(samples, list) or not samples or len(samples) > 1000:
             raise FlowError("stroke", "samples must be a list of 1 .. 1000 [t_ms, x_mm, y_mm, pressure]", 422)
