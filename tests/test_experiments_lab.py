@@ -169,12 +169,12 @@ def test_status_into_a_closed_pipe_exits_cleanly(piloted):
 
 
 def test_run_never_prints_the_database_password(tmp_path, monkeypatch):
-    import tactilize.experiments.store as store_mod
+    import tactilize.experiments.web as experiments_web
     import tactilize.web.serve as web_serve
 
     real = Store(str(tmp_path / "s.db"))
     real.url = "postgresql+psycopg://lab:s3cret-pw@db.example/study"
-    monkeypatch.setattr(store_mod, "Store", lambda url=None, **kw: real)
+    monkeypatch.setattr(experiments_web, "Store", lambda url=None, **kw: real)  # the store `run` opens
     monkeypatch.setattr(web_serve, "serve", lambda *a, **k: k["echo"]("serving at http://127.0.0.1:1/"))
     r = _cli("run", "alpha-law", "--db", "ignored")
     assert r.exit_code == 0, r.output

@@ -198,11 +198,11 @@ def test_one_check_for_finite_numbers():
 def test_catalog_and_experiments_share_one_features_value():
     from tactilize.catalog import StoredFeatures
     from tactilize.catalog.reader import Catalog
-    from tactilize.experiments import flow
+    from tactilize.experiments import pictures
     from tactilize.mapping import DriveFeatures, FeaturesForDrive, Profile
 
     assert StoredFeatures is DriveFeatures
-    assert flow.DriveFeatures is DriveFeatures
+    assert pictures.DriveFeatures is DriveFeatures
     # an unknown anisotropy is directional everywhere, as Profile.drive assumes
     assert DriveFeatures(500.0, 0.5).anisotropy == 1.0
     row = {"status": "ok", "spatial_frequency_per_m": 500.0, "spectral_intensity": 0.5, "orientation_deg": 10.0}

@@ -28,6 +28,17 @@ import math
 from itertools import combinations
 from typing import Any
 
+import numpy as np
+
+from .. import __version__
+from ..errors import TactilizeError
+from ..redact import redact_url
+from .demographics import all_answers
+from .design_toml import design_from_toml
+from .errors import DesignError
+from .labdata import excluded_codes, trial_events
+from .store import provenance
+
 __all__ = ["tidy_answers", "analyze", "describe", "friedman", "pairwise_wilcoxon", "export_answers", "export_strokes",
            "CSV_COLUMNS"]
 
@@ -47,15 +58,11 @@ def tidy_answers(store, protocol_name: str | None = None, include_simulated: boo
     -1) are left out unless ``include_practice`` (the exports keep them)."""
     import pandas as pd
 
-    from .. import __version__
-
     rows = [r for r in store.answer_rows(protocol_name) if (include_simulated or not r["simulated"])
             and (include_practice or r["repetition"] >= 0)]
     df = pd.DataFrame(rows, columns=[c for c in CSV_COLUMNS[:-3] if c != "excluded"])
     gaps, comments, excluded = set(), {}, {}
     if hasattr(store, "Session"):
-        from .labdata import excluded_codes, trial_events
-
         excluded = excluded_codes(store)
 
         for e in trial_events(store):
@@ -76,8 +83,6 @@ def tidy_answers(store, protocol_name: str | None = None, include_simulated: boo
 
 def export_answers(store, fmt: str = "csv", protocol_name: str | None = None) -> str:
     """The answers as CSV (tidy, one row per answer) or JSON (with provenance and sessions)."""
-    from .store import provenance
-
     df = tidy_answers(store, protocol_name, include_practice=True)
     if fmt == "csv":
         buf = io.StringIO()
@@ -93,16 +98,12 @@ def export_answers(store, fmt: str = "csv", protocol_name: str | None = None) ->
             "answers": json.loads(df.to_json(orient="records")),
         }
         return json.dumps(doc, indent=2)
-    from ..errors import TactilizeError
-
     raise TactilizeError("--format", f"must be csv or json, got {fmt!r}")
 
 
 def export_strokes(store, fmt: str = "csv", protocol_name: str | None = None) -> str:
     """The stroke log: one row per pen sample with the drive it produced (SI units)."""
     import pandas as pd
-
-    from .store import provenance
 
     sessions = {s["session"]: s for s in store.sessions_overview(protocol_name)}
     rows = [dict(r, participant=sessions[r["session"]]["participant"], protocol=sessions[r["session"]]["protocol"])
@@ -117,21 +118,15 @@ def export_strokes(store, fmt: str = "csv", protocol_name: str | None = None) ->
     if fmt == "json":
         return json.dumps({"provenance": provenance(db=_redact(store.url)), "strokes": json.loads(df.to_json(orient="records"))},
                           indent=2)
-    from ..errors import TactilizeError
-
     raise TactilizeError("--format", f"must be csv or json, got {fmt!r}")
 
 
 def _demographics(store) -> dict:
-    from .demographics import all_answers
-
     return all_answers(store)
 
 
 def _redact(url: str) -> str:
     # The one rule for every database URL shown or written (tactilize.redact).
-    from ..redact import redact_url
-
     return redact_url(url)
 
 
@@ -153,8 +148,6 @@ def _col(row, *names):
 
 def describe(values) -> dict[str, Any]:
     """n, median, q1, q3, IQR, mean, SD (ddof = 1) of one condition's ratings."""
-    import numpy as np
-
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
     if v.size == 0:
@@ -209,7 +202,6 @@ def friedman(cell) -> dict[str, Any] | None:
 
 def pairwise_wilcoxon(cell) -> list[dict[str, Any]]:
     """Wilcoxon signed-rank tests for every pair of conditions, Holm-corrected (pingouin)."""
-    import numpy as np
     import pingouin as pg
 
     wide = _wide(cell)
@@ -247,14 +239,12 @@ def protocol_labels(store_or_df, pnames) -> dict[str, dict[str, str]]:
     out: dict[str, dict[str, str]] = {}
     if not hasattr(store_or_df, "protocol_texts"):
         return out
-    from .protocols import ProtocolError, protocol_from_toml
-
     for pv in store_or_df.protocol_texts():
         if pv["name"] not in pnames:
             continue
         try:
-            proto = protocol_from_toml(pv["text"], source=f"stored {pv['name']}")
-        except ProtocolError:  # a stored text today's checks refuse: ids stay as they are
+            proto = design_from_toml(pv["text"], source=f"stored {pv['name']}")
+        except DesignError:  # a stored text today's checks refuse: ids stay as they are
             continue
         labels = {c.id: c.label for c in proto.conditions}
         labels.update({q.id: q.text for q in proto.questions})
@@ -277,8 +267,6 @@ def analyze(store_or_df, protocol_name: str | None = None, include_simulated: bo
         are plain floats (None for undefined); the labels are the protocol's (the ids
         themselves when only a DataFrame is given).
     """
-    from .store import provenance
-
     if hasattr(store_or_df, "answer_rows"):
         df = tidy_answers(store_or_df, protocol_name, include_simulated)
         df = df[~df["excluded"].astype(bool)]  # excluded by the experimenter's decision (labdata.exclude)

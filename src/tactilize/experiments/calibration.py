@@ -30,8 +30,15 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+import tomli_w
 
+from .. import __version__
 from ..errors import TactilizeError
+from ..mapping import Profile
+from .analysis import tidy_answers
+from .design import PROFILE_ROLES
+from .design_toml import design_from_toml
+from .tables import DesignVersion, utcnow
 
 __all__ = ["fit_personal_profile", "fit_law", "refinement_protocol", "PRIMARY"]
 
@@ -111,10 +118,6 @@ def fit_personal_profile(store, participant: str, base: str | None = None, quest
         The profile and a JSON-ready report (per role: the law, coefficient,
         method, and the ratings it came from).
     """
-    from ..mapping import Profile
-    from .analysis import tidy_answers
-    from .protocols import PROFILE_ROLES, protocol_from_toml
-
     df = tidy_answers(store)
     df = df[df["participant"] == participant]
     if questions:
@@ -123,13 +126,11 @@ def fit_personal_profile(store, participant: str, base: str | None = None, quest
         raise TactilizeError(participant, "no answers from this participant in the store")
     texts = {}
     with store.Session() as s:
-        from .store import ProtocolVersion
-
-        for pv in s.query(ProtocolVersion):
+        for pv in s.query(DesignVersion):
             texts[pv.sha256] = pv.text  # exports carry the full hash (issue 14)
     if base is None:
         newest = df.loc[df["answered_at"].idxmax()]
-        base = protocol_from_toml(texts[newest["protocol_sha256"]], source=f"protocol {newest['protocol']}").base_profile
+        base = design_from_toml(texts[newest["protocol_sha256"]], source=f"protocol {newest['protocol']}").base_profile
     base_profile = Profile.resolve(base)
     data = base_profile.to_dict()
     reports = []
@@ -137,7 +138,7 @@ def fit_personal_profile(store, participant: str, base: str | None = None, quest
     # earlier fit of the same law.
     groups = sorted(df.groupby(["protocol", "protocol_sha256"]), key=lambda g: g[1]["answered_at"].max())
     for (pname, sha), pdf in groups:
-        proto = protocol_from_toml(texts[sha], source=f"protocol {pname}")
+        proto = design_from_toml(texts[sha], source=f"protocol {pname}")
         means = pdf.groupby("condition")["rating"].mean()
         for role in PROFILE_ROLES:
             tables = {c.id: c.overrides.get(role) for c in proto.conditions}
@@ -170,8 +171,6 @@ def fit_personal_profile(store, participant: str, base: str | None = None, quest
 
 
 def _version() -> str:
-    from .. import __version__
-
     return __version__
 
 
@@ -194,14 +193,9 @@ def refinement_protocol(store, participant: str, role: str | None = None, *, spa
     Returns
     -------
     str
-        TOML text; load it with :func:`~tactilize.experiments.protocols.protocol_from_toml`
+        TOML text; load it with :func:`~tactilize.experiments.design_toml.design_from_toml`
         or save it and ``tactilize experiment run FILE``.
     """
-    import tomli_w
-
-    from .protocols import protocol_from_toml
-    from .store import utcnow
-
     if steps < 3 or not 0 < span_octaves <= 3 or repetitions < 1:
         raise TactilizeError("refinement", "needs steps >= 3, 0 < span_octaves <= 3 and repetitions >= 1")
     prof, report = fit_personal_profile(store, participant)
@@ -214,11 +208,9 @@ def refinement_protocol(store, participant: str, role: str | None = None, *, spa
         raise TactilizeError(participant, f"the {fit['role']} law {fit['law']} has no coefficient to refine")
     (key, centre), = fit["coefficient"].items()
     with store.Session() as s:
-        from .store import ProtocolVersion
-
-        source = next(pv for pv in s.query(ProtocolVersion) if pv.sha256.startswith(fit["protocol_sha256"]))
+        source = next(pv for pv in s.query(DesignVersion) if pv.sha256.startswith(fit["protocol_sha256"]))
         source_text, source_sha = source.text, source.sha256
-    src = protocol_from_toml(source_text, source=f"protocol {fit['protocol']}")
+    src = design_from_toml(source_text, source=f"protocol {fit['protocol']}")
     fitted = {f["role"]: prof.to_dict()[f["role"]] for f in current}
     law = dict(fitted[fit["role"]])
     conditions = []
@@ -255,5 +247,5 @@ def refinement_protocol(store, participant: str, role: str | None = None, *, spa
               f"# fitted {fit['role']} law ({law['law']}, {key} = {centre:.4g}), from protocol {src.name} "
               f"({source_sha[:12]}).\n")
     text = header + tomli_w.dumps(doc)
-    protocol_from_toml(text, source="refinement")  # fail here, not in front of the participant
+    design_from_toml(text, source="refinement")  # fail here, not in front of the participant
     return text

@@ -1,6 +1,6 @@
 """The protocol check: a condition the wire would not follow never reaches a participant.
 
-Run by :func:`.protocols.protocol_from_toml` on every condition when a protocol
+Run by :func:`.design_toml.design_from_toml` on every condition when a protocol
 is loaded (``experiment run``, ``simulate``, the built-ins), so a bad law fails
 with one line before anyone sits down.
 """
@@ -9,7 +9,10 @@ from __future__ import annotations
 
 import functools
 
-from .protocols import ProtocolError
+from ..actuators.sma.envelope import default_envelope
+from ..actuators.sma.felt import feel
+from ..mapping import DriveFeatures
+from .errors import DesignError
 
 __all__ = ["check_condition", "CHECK_SPEEDS_M_S", "CHECK_STROKE_S"]
 
@@ -22,8 +25,6 @@ CHECK_SPEEDS_M_S = (0.01, 0.03, 0.06, 0.12, 0.2)
 
 @functools.lru_cache(maxsize=512)
 def _follows(drive) -> bool:
-    from ..actuators.sma.felt import feel
-
     return feel(drive, duration_s=CHECK_STROKE_S).follows
 
 
@@ -40,9 +41,6 @@ def check_condition(proto, cond, source: str) -> None:
     Images given by a picture file are represented by their stated (or default)
     features here; they are measured when the flow starts.
     """
-    from ..actuators.sma.envelope import default_envelope
-    from ..mapping import DriveFeatures
-
     profile = proto.profile(cond.id)
     envelope = default_envelope()
     heard = False
@@ -58,10 +56,10 @@ def check_condition(proto, cond, source: str) -> None:
     # One simulation per condition, on its fastest pulse train: the one the wire is least likely to follow.
     if heard and hardest is not None and not _follows(hardest[1]):
         im_id, mid = hardest
-        raise ProtocolError(source, f"condition {cond.id} ({cond.label}): the wire would not follow its drive on "
+        raise DesignError(source, f"condition {cond.id} ({cond.label}): the wire would not follow its drive on "
                             f"{im_id} at 60 mm/s ({mid.pulse_frequency_hz:.0f} Hz, "
                             f"{mid.pulse_width_s * 1e3:.2f} ms); check its law coefficients")
     if not heard:
-        raise ProtocolError(source, f"condition {cond.id} ({cond.label}) is silent: no pulses at any image and speed "
+        raise DesignError(source, f"condition {cond.id} ({cond.label}) is silent: no pulses at any image and speed "
                             f"{min(CHECK_SPEEDS_M_S) * 1e3:g} .. {max(CHECK_SPEEDS_M_S) * 1e3:g} mm/s after the "
                             "controller and the safety envelope; check its law coefficients")

@@ -1,7 +1,9 @@
 """``tactilize experiment ...``: the command line of the experiments package.
 
 Thin, as the main CLI: parse, call the library, print.  Registered on the main
-group by ``tactilize.cli``.  Errors are :class:`~tactilize.errors.TactilizeError`
+group by ``tactilize.cli``, so it is imported by every ``tactilize`` command:
+each command imports the modules it calls (the store, the web app, the
+analysis) when it runs, and ``tactilize --help`` loads none of them.  Errors are :class:`~tactilize.errors.TactilizeError`
 and become one line and exit status 2 there.
 """
 
@@ -32,9 +34,9 @@ def experiment() -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
 def protocols_cmd(as_json: bool) -> None:
     """List the built-in protocols."""
-    from .protocols import builtin_protocols
+    from .design_toml import builtin_designs
 
-    protos = builtin_protocols()
+    protos = builtin_designs()
     if as_json:
         _emit([p.to_dict() for p in protos])
         return
@@ -67,12 +69,12 @@ def run_cmd(protocols: tuple[str, ...], db_url: str | None, host: str, port: int
     The pages are at /experiment/ (participant) and /experiment/admin
     (experimenter), inside the pen app; the conditions' drives go to --output.
     """
-    from .protocols import load_protocol
+    from .design_toml import load_design
     from .web import serve_flow
 
     if not 0 <= port < 65536:
         raise TactilizeError("--port", f"must be 0 .. 65535, got {port}")
-    serve_flow([load_protocol(p) for p in protocols], db_url, host=host, port=port, admin_token=token, output=output_spec,
+    serve_flow([load_design(p) for p in protocols], db_url, host=host, port=port, admin_token=token, output=output_spec,
                echo=click.echo, warn=lambda s: click.echo(s, err=True))
 
 

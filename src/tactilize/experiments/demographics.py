@@ -15,7 +15,9 @@ Written in the protocol next to its rating questions::
     kind = "choice"
     options = ["left", "right", "both"]
 
-Every item is optional for the participant (an empty answer is stored as
+The items are part of the design (:class:`.design.DemographicItem`, read by
+:func:`.design_toml.parse_demographics`); this module checks and stores a
+participant's answers.  Every item is optional for the participant (an empty answer is stored as
 nothing): a person may decline any of them and still take part.  Answers are
 stored with the session (table ``participant_info``) and exported beside the
 ratings.
@@ -23,68 +25,16 @@ ratings.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Any
 
-from sqlalchemy import ForeignKey, Integer, String, select
-from sqlalchemy.orm import Mapped, mapped_column
+from sqlalchemy import select
 
-from .store import Base, ExperimentSession, Participant
+from .design import DemographicItem
+from .design_toml import parse_demographics
+from .errors import FlowError
+from .tables import ExperimentSession, Participant, ParticipantInfo
 
 __all__ = ["DemographicItem", "parse_demographics", "check_answers", "ParticipantInfo", "record", "all_answers"]
-
-
-@dataclass(frozen=True)
-class DemographicItem:
-    """One optional question: ``kind`` ``integer`` (``minimum`` .. ``maximum``) or ``choice`` (``options``)."""
-
-    id: str
-    text: str
-    kind: str = "choice"
-    minimum: int = 0
-    maximum: int = 150
-    options: tuple[str, ...] = field(default_factory=tuple)
-
-    def to_dict(self) -> dict[str, Any]:
-        d = {"id": self.id, "text": self.text, "kind": self.kind}
-        d.update({"min": self.minimum, "max": self.maximum} if self.kind == "integer" else {"options": list(self.options)})
-        return d
-
-
-def parse_demographics(source: str, items: Any) -> tuple[DemographicItem, ...]:
-    """The ``[[demographics]]`` tables of a protocol, validated (raises ProtocolError)."""
-    from .protocols import ProtocolError
-
-    if items is None:
-        return ()
-    if not isinstance(items, list):
-        raise ProtocolError(source, "demographics must be [[demographics]] tables")
-    out = []
-    for i, it in enumerate(items):
-        where = f"demographics[{i}]"
-        if not isinstance(it, dict):
-            raise ProtocolError(source, f"{where} must be a table")
-        extra = set(it) - {"id", "text", "kind", "min", "max", "options"}
-        if extra:
-            raise ProtocolError(source, f"{where}: unknown key(s) {', '.join(sorted(extra))}")
-        iid, text, kind = it.get("id"), it.get("text"), it.get("kind", "choice")
-        if not isinstance(iid, str) or not iid.isidentifier() or not isinstance(text, str) or not text:
-            raise ProtocolError(source, f"{where} needs an id (letters, digits, _) and a text")
-        if kind == "integer":
-            lo, hi = it.get("min", 0), it.get("max", 150)
-            if not all(isinstance(v, int) and not isinstance(v, bool) for v in (lo, hi)) or lo > hi:
-                raise ProtocolError(source, f"{where}: min and max must be whole numbers, min <= max")
-            out.append(DemographicItem(iid, text, kind, lo, hi))
-        elif kind == "choice":
-            opts = it.get("options")
-            if not isinstance(opts, list) or not opts or not all(isinstance(o, str) and o for o in opts):
-                raise ProtocolError(source, f"{where}: a choice needs options = [\"...\", ...]")
-            out.append(DemographicItem(iid, text, kind, options=tuple(opts)))
-        else:
-            raise ProtocolError(source, f"{where}.kind must be integer or choice, got {kind!r}")
-    if len({d.id for d in out}) != len(out):
-        raise ProtocolError(source, "demographics ids must be unique")
-    return tuple(out)
 
 
 def check_answers(items: tuple[DemographicItem, ...], answers: Any) -> dict[str, str]:
@@ -95,8 +45,6 @@ def check_answers(items: tuple[DemographicItem, ...], answers: Any) -> dict[str,
     FlowError
         (422) For an unknown item, an integer out of range or an unknown option.
     """
-    from .flow import FlowError
-
     if answers is None:
         return {}
     if not isinstance(answers, dict):
@@ -118,16 +66,6 @@ def check_answers(items: tuple[DemographicItem, ...], answers: Any) -> dict[str,
             raise FlowError("demographics", f"{k}: one of {', '.join(d.options)}, or nothing", 422)
         out[k] = str(v)
     return out
-
-
-class ParticipantInfo(Base):
-    """One demographic answer of a session."""
-
-    __tablename__ = "participant_info"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    session_id: Mapped[int] = mapped_column(ForeignKey("sessions.id"), index=True)
-    key: Mapped[str] = mapped_column(String(64))
-    value: Mapped[str] = mapped_column(String(200))
 
 
 def record(store, session_id: int, answers: dict[str, str]) -> None:

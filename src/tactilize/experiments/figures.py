@@ -15,8 +15,16 @@ SVG as vectors.  Matplotlib runs with the Agg backend: no display needed.
 
 from __future__ import annotations
 
+import json
+import textwrap
 from pathlib import Path
 from typing import Any
+
+import numpy as np
+
+from ..errors import TactilizeError
+from .analysis import analyze, protocol_labels, tidy_answers
+from .store import provenance
 
 __all__ = ["COLUMN_WIDTHS_MM", "OKABE_ITO", "PAPER_FIGURE", "figure_data", "protocol_figure", "make_figures", "caption",
            "significance_pairs", "text_boxes"]
@@ -32,8 +40,6 @@ def figure_data(df, protocol_name: str) -> dict[str, Any]:
     condition (the assessment) the x axis is the questions; otherwise it is the
     conditions and each question is a series.
     """
-    import numpy as np
-
     pdf = df[df["protocol"] == protocol_name]
     cell = pdf.groupby(["question", "condition", "participant"], as_index=False, sort=False)["rating"].mean()
     questions = list(dict.fromkeys(pdf["question"]))
@@ -84,8 +90,6 @@ _MM_PER_IN = 25.4
 
 
 def _wrap(text: str, chars: int) -> str:
-    import textwrap
-
     return "\n".join(textwrap.wrap(str(text), max(8, chars), break_long_words=False)) or str(text)
 
 
@@ -128,11 +132,7 @@ def protocol_figure(df, protocol_name: str, labels: dict[str, str] | None = None
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
-    import numpy as np
-
     if width not in COLUMN_WIDTHS_MM:
-        from ..errors import TactilizeError
-
         raise TactilizeError("--figure-width", f"must be one of {', '.join(COLUMN_WIDTHS_MM)}, got {width!r}")
     labels = labels or {}
     data = figure_data(df, protocol_name)
@@ -232,16 +232,10 @@ def make_figures(store_or_df, out_dir: str | Path, protocol_name: str | None = N
     TactilizeError
         When ``out_dir`` cannot be created or written (a file in the way...).
     """
-    import json
-
     import matplotlib
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
-
-    from ..errors import TactilizeError
-    from .analysis import analyze, protocol_labels, tidy_answers
-    from .store import provenance
 
     if hasattr(store_or_df, "answer_rows"):
         df = tidy_answers(store_or_df, protocol_name, include_simulated)

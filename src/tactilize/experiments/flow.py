@@ -14,29 +14,31 @@ synthetic participants (:mod:`.simulate`) both go through this class.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import re
 import time
 from typing import Any
 
-from ..errors import RequestError, TactilizeError
-from ..mapping import DriveFeatures
-from .protocols import Protocol
-from .store import ExperimentSession, Store, iso, utcnow
+from ..errors import TactilizeError
+from ..pen.display import MM_PER_PX_RANGE, display_scale_error
+from . import demographics as demo
+from .design import Design
+from .errors import FlowError
+from .labdata import record_event, stroked_images
+from .pictures import Pictures
+from .samples import writer_for
+from .store import Store
+from .strokes import StrokeHandler
+from .tables import ExperimentSession, iso, utcnow
 
-__all__ = ["Flow", "FlowError", "CODE_PATTERN", "OPEN_TRIAL_TTL_S"]
+__all__ = ["Flow", "FlowError", "StrokeHandler", "CODE_PATTERN", "OPEN_TRIAL_TTL_S"]
 
 CODE_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,31}$")
-# Plausible screen scales: 0.05 mm/px (a 500 DPI panel) .. 1 mm/px (a projector).
-MM_PER_PX_RANGE = (0.05, 1.0)
 #: How long the open trial of a session is taken from memory (seconds): bounds how long
 #: another process's answer may go unseen by the pen socket's drive.
 OPEN_TRIAL_TTL_S = 1.0
-
-
-class FlowError(RequestError):
-    """A request the flow refuses; ``status`` is the HTTP status to answer with."""
 
 
 class Flow:
@@ -44,54 +46,38 @@ class Flow:
 
     Parameters
     ----------
-    protocol : Protocol
+    protocol : Design
+        The experiment's design (a protocol file's).
     store : Store
     admin_token : str, optional
         When set, the experimenter endpoints require it (see :mod:`.web`).
     """
 
-    def __init__(self, protocol: Protocol, store: Store, admin_token: str | None = None):
+    def __init__(self, protocol: Design, store: Store, admin_token: str | None = None):
         self.protocol = protocol
         self.store = store
         self.admin_token = admin_token
         self.protocol_version = store.protocol_version(protocol)
         self._profiles = {c.id: protocol.profile(c.id) for c in protocol.conditions}
-        self._features = {im.id: self._image_features(im) for im in protocol.images}
+        self.pictures = Pictures(protocol)
         self._open_cache: dict[int, tuple[int | None, float]] = {}
 
-    # ------------------------------------------------------------ helpers
-
-    def _resolve(self, im):
-        """The image spec with its path made relative to the protocol file."""
-        if im.path and self.protocol.source.endswith(".toml"):
-            import dataclasses
-            from pathlib import Path
-
-            cand = Path(self.protocol.source).parent / im.path
-            if cand.exists():
-                return dataclasses.replace(im, path=str(cand))
-        return im
-
-    def _image_features(self, im) -> Any:
-        if im.path:
-            from ..features import extract_features
-            from ..image import load_image
-
-            return extract_features(load_image(self._resolve(im).path))
-        return DriveFeatures(im.spatial_frequency_per_m, im.spectral_intensity, im.orientation_deg, im.anisotropy)
+    # ------------------------------------------------------------ pictures and laws
 
     def image_png(self, image_id: str) -> bytes:
         """The picture shown for a protocol image, as PNG bytes."""
-        from .stimuli import render_png
-
         try:
-            spec = self.protocol.image(image_id)
+            return self.pictures.png(image_id)
         except TactilizeError:
             raise FlowError("image", f"no image {image_id!r} in this protocol", 404) from None
-        return render_png(self._resolve(spec))
 
     def image_features(self, image_id: str) -> Any:
-        return self._features[image_id]
+        """The features a protocol image drives with."""
+        return self.pictures.features[image_id]
+
+    def image_surface(self, image_id: str) -> Any:
+        """The surface model of a protocol image as shown (:meth:`.Pictures.surface`)."""
+        return self.pictures.surface(image_id)
 
     def profile(self, condition_id: str):
         return self._profiles[condition_id]
@@ -122,8 +108,6 @@ class Flow:
 
         ``demographics``: optional answers to the protocol's demographic items
         (``{id: value}``; empty values are declined answers)."""
-        from . import demographics as demo
-
         code = self._check_code(code)
         info = demo.check_answers(self.protocol.demographics, demographics)
         if consent is not True:
@@ -133,8 +117,6 @@ class Flow:
             # numbered and analysed apart; a person must not be mistaken for one.
             raise FlowError("participant_id", "IDs starting with SIM- are reserved for simulated participants", 422)
         try:
-            import hashlib
-
             # The consent text may live in its own file: record which text was agreed to.
             consent = {"consent_sha256": hashlib.sha256(self.protocol.consent.encode("utf-8")).hexdigest()}
             sess = self.store.create_session(self.protocol, code, simulated=simulated,
@@ -176,8 +158,7 @@ class Flow:
             w = data["card_width_px"]
             if isinstance(w, (int, float)) and not isinstance(w, bool) and math.isfinite(w) and w > 0:
                 mm_per_px = card_mm / float(w)
-        if (not isinstance(mm_per_px, (int, float)) or isinstance(mm_per_px, bool) or not math.isfinite(mm_per_px)
-                or not MM_PER_PX_RANGE[0] <= mm_per_px <= MM_PER_PX_RANGE[1]):
+        if display_scale_error(mm_per_px) is not None:  # the pen page's rule
             raise FlowError("calibration", f"screen scale must be {MM_PER_PX_RANGE[0]} .. {MM_PER_PX_RANGE[1]} mm per px "
                             f"(measure the {card_mm} mm card again)", 422)
         if data.get("felt") is not True:
@@ -246,9 +227,6 @@ class Flow:
         if self._break_due(sess, current):
             raise FlowError("trial", "a break is due first; reload the page", 409, current_trial=current)
         if self.protocol.require_every_image:
-            from .labdata import stroked_images
-            from .samples import writer_for
-
             # Samples sent before the answer may still be in the writer's queue.
             writer_for(self.store).barrier()
 
@@ -265,8 +243,6 @@ class Flow:
                             "overwritten. Reload to continue.", 409, current_trial=current) from None
         self._open_cache.pop(sess.id, None)
         if status == "recorded" and comment:
-            from .labdata import record_event
-
             record_event(self.store, trial.id, "comment", {"text": comment})
         out = self.state(token)
         out["recorded"] = status
@@ -365,8 +341,6 @@ class Flow:
     def stroke_handler(self, token: str, output: Any = None):
         """A handler for one page's pen WebSocket (:class:`.strokes.StrokeHandler`);
         drives go to ``output`` too when given."""
-        from .strokes import StrokeHandler
-
         handler = StrokeHandler(self, self._session(token), output)
         # Read now, while the socket opens, what the first pen message would
         # otherwise query on the drive's path: the trial plan and the open trial.
@@ -398,11 +372,3 @@ class Flow:
         """True when :meth:`open_trial`'s value of ``sess`` is older than :data:`OPEN_TRIAL_TTL_S`."""
         hit = self._open_cache.get(sess.id)
         return hit is None or time.monotonic() - hit[1] > OPEN_TRIAL_TTL_S
-
-
-def __getattr__(name: str):
-    if name == "StrokeHandler":  # moved to .strokes with the socket it serves
-        from .strokes import StrokeHandler
-
-        return StrokeHandler
-    raise AttributeError(name)

@@ -19,40 +19,31 @@ rules) so that neither module grows past what a reader can hold at once.
 
 from __future__ import annotations
 
-import datetime as dt
 import json
+import sqlite3
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import DateTime, ForeignKey, Integer, String, Text, delete, select
-from sqlalchemy.orm import Mapped, mapped_column
+from sqlalchemy import delete, select
 
 from ..errors import TactilizeError
 from ..redact import redact_url
-from .store import (
+from .tables import (
     Answer,
-    Base,
+    Exclusion,
     ExperimentSession,
     Participant,
+    ParticipantInfo,
+    StrokeBatch,
     StrokeSample,
     Trial,
+    TrialEvent,
     iso,
     utcnow,
 )
 
 __all__ = ["TrialEvent", "Exclusion", "record_event", "trial_events", "stroked_images", "backup", "withdraw", "exclude",
            "excluded_codes", "wide_table"]
-
-
-class TrialEvent(Base):
-    """Something that happened to a trial (``kind``: ``interrupted``), with a JSON detail."""
-
-    __tablename__ = "trial_events"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    trial_id: Mapped[int] = mapped_column(ForeignKey("trials.id"), index=True)
-    kind: Mapped[str] = mapped_column(String(32))
-    detail_json: Mapped[str] = mapped_column(Text, default="{}")
-    at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
 def record_event(store, trial_id: int, kind: str, detail: dict[str, Any] | None = None) -> None:
@@ -93,8 +84,6 @@ def backup(store, target: str | Path) -> dict[str, Any]:
     TactilizeError
         For a store that is not SQLite, or a target that exists or cannot be written.
     """
-    import sqlite3
-
     url = store.url
     if not url.startswith("sqlite:///"):
         raise TactilizeError(redact_url(url), "backup copies SQLite stores; use the database's own tools "
@@ -142,9 +131,6 @@ def withdraw(store, protocol_name: str, code: str) -> dict[str, int]:
         for name, model, col in (("events", TrialEvent, TrialEvent.trial_id), ("answers", Answer, Answer.trial_id),
                                  ("stroke_samples", StrokeSample, StrokeSample.trial_id)):
             counts[name] = s.execute(delete(model).where(col.in_(trial_ids))).rowcount
-        from .demographics import ParticipantInfo
-        from .samples import StrokeBatch
-
         counts["stroke_batches"] = s.execute(delete(StrokeBatch).where(StrokeBatch.session_id.in_(sess_ids))).rowcount
 
         counts["demographics"] = s.execute(delete(ParticipantInfo).where(ParticipantInfo.session_id.in_(sess_ids))).rowcount
@@ -158,17 +144,6 @@ def withdraw(store, protocol_name: str, code: str) -> dict[str, int]:
 
 #: Excluded participants' numbers are moved above this, out of the square's rows.
 PARKED = 1_000_000_000
-
-
-class Exclusion(Base):
-    """A participant excluded from the analysis (their data stay), and the square row they had."""
-
-    __tablename__ = "exclusions"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    participant_id: Mapped[int] = mapped_column(ForeignKey("participants.id"), unique=True)
-    square_number: Mapped[int] = mapped_column(Integer)
-    reason: Mapped[str] = mapped_column(Text, default="")
-    at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
 def exclude(store, protocol_name: str, code: str, reason: str = "") -> dict[str, Any]:

@@ -23,7 +23,6 @@ Rules, and why:
 
 from __future__ import annotations
 
-import datetime as dt
 import logging
 import threading
 from collections.abc import Callable
@@ -31,11 +30,10 @@ from concurrent.futures import Future
 from dataclasses import dataclass, field
 from typing import Any, Union
 
-from sqlalchemy import DateTime, ForeignKey, Integer, String, UniqueConstraint, insert, select, update
+from sqlalchemy import insert, select, update
 from sqlalchemy.exc import IntegrityError
-from sqlalchemy.orm import Mapped, mapped_column
 
-from .store import Base, StrokeSample, Trial, utcnow
+from .tables import StrokeBatch, StrokeSample, Trial, utcnow
 
 __all__ = ["StrokeBatch", "SampleWriter", "writer_for", "MAX_GROUP_ITEMS"]
 
@@ -43,19 +41,6 @@ log = logging.getLogger(__name__)
 
 #: At most this many batches go into one transaction (bounds its statements' size).
 MAX_GROUP_ITEMS = 500
-
-
-class StrokeBatch(Base):
-    """One stored batch of pen samples: the page's id for it, its trial and size."""
-
-    __tablename__ = "stroke_batches"
-    __table_args__ = (UniqueConstraint("session_id", "batch_id", name="uq_stroke_batch"),)
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    session_id: Mapped[int] = mapped_column(ForeignKey("sessions.id"))
-    trial_id: Mapped[int] = mapped_column(ForeignKey("trials.id"), index=True)
-    batch_id: Mapped[str] = mapped_column(String(64))
-    n_samples: Mapped[int] = mapped_column(Integer)
-    received_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
 Rows = Union[list[dict[str, Any]], Callable[[], list[dict[str, Any]]]]

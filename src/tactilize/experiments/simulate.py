@@ -28,13 +28,19 @@ The rating model (stated here, recorded in the store's ``meta`` table):
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from typing import Any, Callable
 
 import numpy as np
 
-from ..errors import RequestError
+from ..errors import RequestError, TactilizeError
+from ..mapping import Profile
+from .design import Design
+from .design_toml import load_design
+from .flow import Flow
+from .store import Store
 
 __all__ = ["simulate", "RATING_MODEL", "ideal_profile", "mismatch"]
 
@@ -56,10 +62,6 @@ RATING_MODEL = {
 
 def ideal_profile(rng: np.random.Generator, base=None):
     """One synthetic person's preferred profile (see the module docstring)."""
-    import dataclasses
-
-    from ..mapping import Profile
-
     base = base or Profile.preset("paper")
 
     def jitter(law, names):
@@ -110,13 +112,8 @@ def simulate(protocol, participants: int, seed: int, db_url: str | None = None, 
         Counts of started, resumed, skipped participants and submitted trials,
         the rating model and the seed.
     """
-    from ..errors import TactilizeError
-    from .flow import Flow
-    from .protocols import Protocol, load_protocol
-    from .store import Store
-
-    if not isinstance(protocol, Protocol):
-        protocol = load_protocol(protocol)
+    if not isinstance(protocol, Design):
+        protocol = load_design(protocol)
     if participants < 1:
         raise TactilizeError("--participants", "must be at least 1")
     if seed < 0:

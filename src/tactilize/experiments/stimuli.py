@@ -14,6 +14,8 @@ import math
 
 import numpy as np
 
+from .design import ImageSpec
+
 __all__ = ["PITCH_M", "render_png", "render_array"]
 
 # Rendered at 0.1 mm per pixel: the finest paper image (4217 /m, 0.24 mm) still has
@@ -62,8 +64,6 @@ def render_array(spec, size_px: tuple[int, int] = SIZE_PX, seed: int = 0) -> np.
 @functools.lru_cache(maxsize=64)
 def _png_cached(key: tuple) -> bytes:
     from PIL import Image
-
-    from .protocols import ImageSpec
 
     spec = ImageSpec(**dict(key))
     arr = render_array(spec)

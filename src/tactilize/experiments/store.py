@@ -1,5 +1,5 @@
-"""The experiment store: SQLAlchemy tables, written so that no answer is ever lost,
-duplicated or overwritten.
+"""The experiment store: the database and its queries, written so that no answer is ever lost,
+duplicated or overwritten (the tables are in :mod:`.tables`).
 
 An SQLite file under the user's data directory by default (see
 :func:`default_db_url`), any SQLAlchemy URL otherwise (``postgresql://...``).
@@ -20,29 +20,35 @@ Durability rules, and why:
 
 from __future__ import annotations
 
-import datetime as dt
 import json
 import platform
 import secrets
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import (
-    Boolean,
-    DateTime,
-    Float,
-    ForeignKey,
-    Integer,
-    String,
-    Text,
-    UniqueConstraint,
-    create_engine,
-    event,
-    func,
-    select,
-)
+import platformdirs
+import sqlalchemy
+from sqlalchemy import create_engine, event, func, select
 from sqlalchemy.exc import IntegrityError
-from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship, sessionmaker
+from sqlalchemy.orm import sessionmaker
+
+from .. import __version__
+from ..errors import TactilizeError
+from ..redact import ambiguous_user, redact_text, redact_url
+from .tables import (
+    SCHEMA_VERSION,
+    Answer,
+    Base,
+    Exclusion,
+    ExperimentSession,
+    Meta,
+    Participant,
+    ProtocolVersion,
+    StrokeSample,
+    Trial,
+    iso,
+    utcnow,
+)
 
 __all__ = [
     "SCHEMA_VERSION",
@@ -58,27 +64,8 @@ __all__ = [
     "StrokeSample",
 ]
 
-SCHEMA_VERSION = 1
-
-
-def utcnow() -> dt.datetime:
-    """Now, in UTC (every stored timestamp is UTC)."""
-    return dt.datetime.now(dt.timezone.utc)
-
-
-def iso(t: dt.datetime | None) -> str | None:
-    """ISO 8601 in UTC with a ``Z``; SQLite hands datetimes back naive, and they are UTC."""
-    if t is None:
-        return None
-    if t.tzinfo is None:
-        t = t.replace(tzinfo=dt.timezone.utc)
-    return t.astimezone(dt.timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
-
-
 def default_db_url() -> str:
     """``sqlite:///<user data dir>/tactilize/experiments.sqlite3`` (the directory is created)."""
-    import platformdirs
-
     root = Path(platformdirs.user_data_dir("tactilize", appauthor=False))
     root.mkdir(parents=True, exist_ok=True)
     return f"sqlite:///{root / 'experiments.sqlite3'}"
@@ -86,10 +73,6 @@ def default_db_url() -> str:
 
 def provenance(**extra: Any) -> dict[str, Any]:
     """Versions of everything that shaped the data (written with every export)."""
-    import sqlalchemy
-
-    from .. import __version__
-
     doc = {
         "tactilize": __version__,
         "python": platform.python_version(),
@@ -99,120 +82,6 @@ def provenance(**extra: Any) -> dict[str, Any]:
     }
     doc.update(extra)
     return doc
-
-
-class Base(DeclarativeBase):
-    pass
-
-
-class Meta(Base):
-    __tablename__ = "meta"
-    key: Mapped[str] = mapped_column(String(64), primary_key=True)
-    value: Mapped[str] = mapped_column(Text)
-
-
-class ProtocolVersion(Base):
-    """One exact protocol text, identified by its SHA-256."""
-
-    __tablename__ = "protocol_versions"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    name: Mapped[str] = mapped_column(String(64), index=True)
-    version: Mapped[str] = mapped_column(String(32))
-    sha256: Mapped[str] = mapped_column(String(64), unique=True)
-    text: Mapped[str] = mapped_column(Text)
-    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
-
-
-class Participant(Base):
-    """A participant of one protocol: the code they were given and their number
-    (1, 2, ... in registration order), which picks their Latin-square row."""
-
-    __tablename__ = "participants"
-    __table_args__ = (
-        UniqueConstraint("protocol_name", "code", name="uq_participant_code"),
-        UniqueConstraint("protocol_name", "number", name="uq_participant_number"),
-    )
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    protocol_name: Mapped[str] = mapped_column(String(64))
-    code: Mapped[str] = mapped_column(String(64))
-    number: Mapped[int] = mapped_column(Integer)
-    simulated: Mapped[bool] = mapped_column(Boolean, default=False)
-    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
-
-
-class ExperimentSession(Base):
-    """One participant's run through one protocol version."""
-
-    __tablename__ = "sessions"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    token: Mapped[str] = mapped_column(String(64), unique=True)
-    participant_id: Mapped[int] = mapped_column(ForeignKey("participants.id"), unique=True)
-    protocol_version_id: Mapped[int] = mapped_column(ForeignKey("protocol_versions.id"))
-    seed: Mapped[int] = mapped_column(Integer)
-    order_json: Mapped[str] = mapped_column(Text)
-    consent_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True))
-    calibration_json: Mapped[str | None] = mapped_column(Text, nullable=True)
-    calibrated_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
-    breaks_done: Mapped[int] = mapped_column(Integer, default=0)
-    provenance_json: Mapped[str] = mapped_column(Text)
-    created_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
-    completed_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
-
-    participant: Mapped[Participant] = relationship()
-    protocol_version: Mapped[ProtocolVersion] = relationship()
-    trials: Mapped[list["Trial"]] = relationship(order_by="Trial.index", back_populates="session")
-
-
-class Trial(Base):
-    __tablename__ = "trials"
-    __table_args__ = (UniqueConstraint("session_id", "index", name="uq_trial_index"),)
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    session_id: Mapped[int] = mapped_column(ForeignKey("sessions.id"), index=True)
-    index: Mapped[int] = mapped_column(Integer)
-    condition_id: Mapped[str] = mapped_column(String(64))
-    repetition: Mapped[int] = mapped_column(Integer)
-    image_ids_json: Mapped[str] = mapped_column(Text)
-    started_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
-    completed_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
-
-    session: Mapped[ExperimentSession] = relationship(back_populates="trials")
-    answers: Mapped[list["Answer"]] = relationship(back_populates="trial", order_by="Answer.id")
-
-    @property
-    def image_ids(self) -> list[str]:
-        return json.loads(self.image_ids_json)
-
-
-class Answer(Base):
-    __tablename__ = "answers"
-    __table_args__ = (UniqueConstraint("trial_id", "question_id", name="uq_answer"),)
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    trial_id: Mapped[int] = mapped_column(ForeignKey("trials.id"), index=True)
-    question_id: Mapped[str] = mapped_column(String(64))
-    rating: Mapped[int] = mapped_column(Integer)
-    answered_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
-    response_time_s: Mapped[float | None] = mapped_column(Float, nullable=True)
-    submission_id: Mapped[str | None] = mapped_column(String(64), nullable=True)
-
-    trial: Mapped[Trial] = relationship(back_populates="answers")
-
-
-class StrokeSample(Base):
-    """One pen sample of a trial and the drive the server answered with (SI units)."""
-
-    __tablename__ = "stroke_samples"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    trial_id: Mapped[int] = mapped_column(ForeignKey("trials.id"), index=True)
-    image_id: Mapped[str] = mapped_column(String(64))
-    t_s: Mapped[float] = mapped_column(Float)
-    x_m: Mapped[float] = mapped_column(Float)
-    y_m: Mapped[float] = mapped_column(Float)
-    pressure: Mapped[float | None] = mapped_column(Float, nullable=True)
-    speed_m_s: Mapped[float] = mapped_column(Float)
-    pulse_frequency_hz: Mapped[float] = mapped_column(Float)
-    pulse_width_s: Mapped[float] = mapped_column(Float)
-    amplitude: Mapped[float] = mapped_column(Float)
-    received_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
 def _sqlite_pragmas(dbapi_conn, _record) -> None:
@@ -240,9 +109,6 @@ class Store:
     """
 
     def __init__(self, url: str | None = None, must_exist: bool = False):
-        from ..errors import TactilizeError
-        from ..redact import ambiguous_user, redact_text, redact_url
-
         url = url or default_db_url()
         if "://" not in url and redact_url(url) != url:
             # user:password@host without a scheme would become a file path, printed whole.
@@ -264,7 +130,6 @@ class Store:
                                  f"{redact_text(str(exc), url)})") from None
         if self.engine.dialect.name == "sqlite":
             event.listen(self.engine, "connect", _sqlite_pragmas)
-        from . import demographics, labdata, samples  # noqa: F401  (their tables, before create_all)
 
         try:
             Base.metadata.create_all(self.engine)
@@ -476,8 +341,6 @@ class Store:
             q = select(ExperimentSession, Participant, ProtocolVersion).join(Participant).join(ProtocolVersion)
             if protocol_name:
                 q = q.where(Participant.protocol_name == protocol_name)
-            from .labdata import Exclusion
-
             excluded = {e.participant_id: e.square_number for e in s.scalars(select(Exclusion))}
             out = []
             for sess, part, pv in s.execute(q.order_by(ExperimentSession.id)):
@@ -566,8 +429,6 @@ class Store:
     def require_protocol(self, name: str | None) -> None:
         """Raise when ``name`` (a ``--protocol`` filter) has no data here: a typo
         must not give an empty export that looks like a result."""
-        from ..errors import TactilizeError
-
         if name is not None and name not in self.protocol_names():
             known = ", ".join(self.protocol_names()) or "none"
             raise TactilizeError(f"--protocol {name}", f"no such protocol in this database (stored: {known})")

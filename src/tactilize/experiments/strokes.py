@@ -1,4 +1,7 @@
-"""The experiment's pen socket: samples in, drives out at once, acknowledgements after the commit.
+"""The experiment's pen messages: samples in, drives out at once, acknowledgements after the commit.
+
+:class:`StrokeHandler` handles one page's messages (the socket that carries
+them is :mod:`.pen_socket`).
 
 Messages from the page (JSON)::
 
@@ -27,75 +30,28 @@ open trial: a late batch is logged, not felt.
 
 from __future__ import annotations
 
-import asyncio
-import json
 import math
-import threading
+import time
 import uuid
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future
 from dataclasses import dataclass, field
 from functools import partial
-from typing import Any
+from typing import Any, Callable
 
-from .flow import FlowError
+from ..drive import Drive
+from ..web.rows import sample_error, samples_from_css
+from .errors import FlowError
+from .feel import TrialPen
+from .labdata import record_event
 from .samples import writer_for
 
-__all__ = ["StrokeHandler", "pump", "pen_executor", "PEN_THREADS", "in_store_thread", "STORE_THREADS"]
+__all__ = ["StrokeHandler", "M_PER_MM", "MAX_BATCH_ID"]
+
+#: Metres per millimetre: the page sends positions in millimetres on the displayed picture.
+M_PER_MM = 1e-3
 
 #: Longest batch id the page may choose (the column's width).
 MAX_BATCH_ID = 64
-
-#: Threads of the pen messages' own executor (:func:`pen_executor`).
-PEN_THREADS = 2
-
-_PEN_LOCK = threading.Lock()
-_PEN_EXECUTOR: ThreadPoolExecutor | None = None
-
-
-#: How many requests of one event loop run their store work at once (:func:`in_store_thread`).
-STORE_THREADS = 4
-
-_STORE_LIMITER: Any = None  # an anyio RunVar: one limiter per event loop, made on first use
-
-
-async def in_store_thread(func, *args):
-    """Run ``func(*args)`` in a worker thread, at most :data:`STORE_THREADS` at a time.
-
-    Starting, calibrating and answering run a dozen ORM queries each, all
-    Python, and an answer also waits for the writer's commit; when twenty
-    participants answer at once, twenty such threads took turns on the
-    interpreter with the event loop and the pen's threads (each turn up to the
-    5 ms switch interval), so the drives waited tens of milliseconds.  A few at
-    a time do the same work in the same total time, and the drive's threads
-    find the interpreter free sooner.
-    """
-    global _STORE_LIMITER
-    import anyio
-    from anyio.lowlevel import RunVar
-
-    if _STORE_LIMITER is None:
-        _STORE_LIMITER = RunVar("tactilize_store_limiter")
-    limiter = _STORE_LIMITER.get(None)
-    if limiter is None:
-        limiter = anyio.CapacityLimiter(STORE_THREADS)
-        _STORE_LIMITER.set(limiter)
-    return await anyio.to_thread.run_sync(partial(func, *args), limiter=limiter)
-
-
-def pen_executor() -> ThreadPoolExecutor:
-    """The executor that turns pen messages into drives, apart from every request that waits on the store.
-
-    Answers, starts and calibrations run in Starlette's thread pool and block on
-    the database (an answer waits for the writer's commit); a pen message queued
-    behind them would wait for their queries.  Its few threads only run
-    :meth:`StrokeHandler.take` for messages that need no query
-    (:meth:`StrokeHandler.needs_store`): a fraction of a millisecond each.
-    """
-    global _PEN_EXECUTOR
-    with _PEN_LOCK:
-        if _PEN_EXECUTOR is None:
-            _PEN_EXECUTOR = ThreadPoolExecutor(PEN_THREADS, thread_name_prefix="tactilize-pen")
-        return _PEN_EXECUTOR
 
 
 def _batch_id(value: Any) -> str:
@@ -111,27 +67,33 @@ class StrokeHandler:
     """Turns pen samples of one session into drives, and logs both.
 
     Positions are millimetres on the displayed image (the page converts CSS
-    pixels with the calibrated scale).  Speed and direction come from the pen
-    page's :class:`~tactilize.pen.StrokeTracker`, one per trial and image, so
-    switching pictures starts a new stroke and a late batch does not disturb
-    the stroke of the open trial.
+    pixels with the calibrated scale, :mod:`tactilize.pen.display`).  Each
+    trial is rendered by ``tactilize serve``'s :class:`~tactilize.pen.PenRenderer`
+    with its condition's profile (:class:`.feel.TrialPen`), one stroke per
+    trial and image, so switching pictures starts a new stroke and a late
+    batch does not disturb the stroke of the open trial.
 
-    When the app has an actuator output (``tactilize serve``'s), the condition's
-    drive is applied to it, the same on every channel as in the paper's pen,
-    and stopped on a lift, an error or the end of the connection.
+    When the app has an actuator output (``tactilize serve``'s), the drives go
+    to it as the pen page sends them: split over the pen's channels, resting in
+    standby on a lift, an error or the end of the connection.
     """
 
     flow: Any
     session: Any
     output: Any = None
-    trackers: dict[tuple[int, str], Any] = field(default_factory=dict)
+    clock: Callable[[], float] = time.monotonic
     trial_cache: dict[int, Any] = field(default_factory=dict)
+    pen: TrialPen = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.pen = TrialPen(self.output, self._now)
+
+    def _now(self) -> float:
+        return self.clock()
 
     def stop(self) -> None:
-        for tr in self.trackers.values():
-            tr.reset()
-        if self.output is not None:
-            self.output.stop()
+        """Every stroke ends; the output rests (standby), as on the pen page."""
+        self.pen.lift()
 
     def _trials(self) -> dict[int, Any]:
         if not self.trial_cache:  # the plan never changes once the session exists
@@ -141,8 +103,6 @@ class StrokeHandler:
     def _reconnected(self, msg: dict) -> dict[str, Any]:
         """The page lost its socket during trial ``msg["trial"]`` and is back: mark
         the trial interrupted (once per reconnection), whatever samples follow."""
-        from .labdata import record_event
-
         idx = msg.get("trial")
         trials = self._trials()
         if isinstance(idx, bool) or not isinstance(idx, int) or idx not in trials:
@@ -181,9 +141,6 @@ class StrokeHandler:
         of samples, the future of its write (see :meth:`.SampleWriter.submit`).
         Raises :class:`~.flow.FlowError` for a message refused as a whole.
         """
-        from ..pen import StrokeTracker
-        from ..web.rows import sample_error, samples_from_css
-
         if not isinstance(msg, dict):
             raise FlowError("stroke", "expected a JSON object", 422)
         kind = msg.get("type")
@@ -201,7 +158,7 @@ class StrokeHandler:
         if isinstance(idx, bool) or not isinstance(idx, int) or idx not in trials:
             raise FlowError("stroke", "unknown trial", 422)
         trial = trials[idx]
-        if image_id not in trial.image_ids:
+        if not isinstance(image_id, str) or image_id not in trial.image_ids:
             raise FlowError("stroke", f"image {image_id!r} is not part of trial {idx + 1}", 422)
         if not isinstance(samples, list) or not samples or len(samples) > 1000:
             raise FlowError("stroke", "samples must be a list of 1 .. 1000 [t_ms, x_mm, y_mm, pressure]", 422)
@@ -219,29 +176,31 @@ class StrokeHandler:
                 raise FlowError("stroke", f"trial {idx + 1} is not open yet (a stale page?)", 409, current_trial=current)
         profile = self.flow.profile(trial.condition_id)
         feats = self.flow.image_features(image_id)
-        if len(self.trackers) > 16:  # strokes of trials long answered
-            self.trackers = {k: v for k, v in self.trackers.items() if current is None or k[0] >= current - 1}
-        tracker = self.trackers.setdefault((idx, image_id), StrokeTracker())
-        # The stroke's state after each sample (the speed logged with it), the
-        # drive for the latest only: the page feels one drive per message; the
-        # logged per-sample drives are computed by the writer's thread
-        # (:func:`_logged_rows`), with the same call, so they are the same numbers.
-        # Millimetres are "pixels" of 1 mm for the pen module's converter.
-        taken = []
-        for ps in samples_from_css(samples, 1e-3):
-            tracker.add(ps)
-            st = tracker.state
-            taken.append((ps, st.speed_m_s if st else 0.0, st.direction_rad if st else None))
-        ps, speed, direction = taken[-1]
-        drive = profile.drive(feats, speed_m_s=speed, direction_rad=direction, pressure=ps.pressure)
-        rows = partial(_logged_rows, profile, feats, image_id, taken, drive)
+        if len(self.pen.renderers) > 16:  # strokes of trials long answered
+            self.pen.keep(lambda k: current is None or k[0] >= current - 1)
+        # Millimetres on the displayed picture, to metres.
+        batch_samples = samples_from_css(samples, M_PER_MM)
+        key = (idx, image_id)
+        if idx != current:  # logged under its own trial, not felt: the page has moved on
+            taken = self.pen.track(key, feats, profile, batch_samples)
+            rows = partial(_logged_rows, profile, feats, image_id, taken, None)
+            return None, writer_for(self.flow.store).submit(self.session.id, trial.id, batch, rows)
+        surface = self.flow.image_surface(image_id) if profile.rendering == "surface" else None
+        taken, drive, result = self.pen.feel(key, feats, profile, surface, batch_samples)
+        # The stroke's state after each sample is logged with it; the drive for
+        # the latest only is computed here (the page feels one drive per
+        # message); the other samples' drives are computed by the writer's
+        # thread (:func:`_logged_rows`) with the same call, so they are the same
+        # numbers.  The surface rendering's drive is the window's equivalent,
+        # not the law's for that sample, so the writer computes every row then.
+        steady = profile.rendering != "surface"
+        rows = partial(_logged_rows, profile, feats, image_id, taken, drive if steady else None)
         future = writer_for(self.flow.store).submit(self.session.id, trial.id, batch, rows)
-        if idx != current:
-            return None, future  # logged under its own trial, not felt: the page has moved on
-        if self.output is not None:
-            self.output.apply([drive] * int(self.output.channels))
-        return {"type": "drive", "trial": idx, "image": image_id, "batch": batch, "speed_mm_s": speed * 1e3,
-                "logged": len(taken), "drive": drive.to_dict()}, future
+        if drive is None:
+            drive = Drive.off()
+        return {"type": "drive", "trial": idx, "image": image_id, "batch": batch,
+                "speed_mm_s": (taken[-1][1] if taken else 0.0) * 1e3, "logged": len(taken),
+                "drive": drive.to_dict(), "pulses": result.pulses}, future
 
     def refresh_open_trial(self) -> None:
         """Re-read the open trial if its remembered value expired (after a reply, off the drive's path)."""
@@ -269,97 +228,16 @@ def _logged_rows(profile, feats, image_id: str, taken: list, last_drive) -> list
     Runs in the writer's thread (:meth:`.SampleWriter.submit` takes a callable),
     off the socket's path.  ``taken`` holds ``(sample, speed_m_s, direction_rad)``
     per sample; the last sample's drive was computed for the reply and is
-    ``last_drive``; the others are computed here by the same
+    ``last_drive`` (None: computed here too); the others are computed here by the same
     :meth:`~tactilize.mapping.Profile.drive` call the reply's was, so the log holds
     what answering every sample would have given, exactly.
     """
     rows = []
     n = len(taken)
     for k, (ps, speed, direction) in enumerate(taken):
-        drive = last_drive if k == n - 1 else profile.drive(feats, speed_m_s=speed, direction_rad=direction,
+        drive = last_drive if k == n - 1 and last_drive is not None else profile.drive(feats, speed_m_s=speed, direction_rad=direction,
                                                              pressure=ps.pressure)
         rows.append({"image_id": image_id, "t_s": ps.t_s, "x_m": ps.x_m, "y_m": ps.y_m, "pressure": ps.pressure,
                      "speed_m_s": speed, "pulse_frequency_hz": drive.pulse_frequency_hz,
                      "pulse_width_s": drive.pulse_width_s, "amplitude": drive.amplitude})
     return rows
-
-
-def _ack(future: Future, batch: str, trial: Any) -> dict[str, Any]:
-    exc = future.exception()
-    if exc is None:
-        return {"type": "ack", "batch": batch, "trial": trial, "stored": future.result()}
-    return {"type": "error", "source": "samples", "status": 503, "batch": batch, "retry": True,
-            "error": "the samples could not be stored yet; the page keeps them and sends them again"}
-
-
-async def pump(ws, handler: StrokeHandler) -> None:
-    """Serve one accepted WebSocket until it closes.
-
-    A message that needs no query runs in :func:`pen_executor`'s threads, not
-    queued behind the requests blocked on the database in the thread pool;
-    one that does (:meth:`StrokeHandler.needs_store`) runs in the thread pool.
-    Neither waits for the samples' commit: the drive goes back as soon as it is
-    computed, and each batch's ``ack`` follows from the writer's thread once its
-    group committed.  One task sends, so answers and acknowledgements never
-    interleave on the socket.
-    """
-    from starlette.concurrency import run_in_threadpool
-    from starlette.websockets import WebSocketDisconnect
-
-    loop = asyncio.get_running_loop()
-    out: asyncio.Queue = asyncio.Queue()
-
-    def post(doc: dict[str, Any]) -> None:  # from the writer's thread
-        try:
-            loop.call_soon_threadsafe(out.put_nowait, doc)
-        except RuntimeError:  # the loop is gone: the page resends what it did not see acknowledged
-            pass
-
-    async def sender() -> None:
-        while (doc := await out.get()) is not None:
-            await ws.send_json(doc)
-
-    sending = asyncio.create_task(sender())
-    refreshing: asyncio.Future | None = None
-    try:
-        while not sending.done():
-            message = await ws.receive()
-            if message["type"] == "websocket.disconnect":
-                return
-            text = message.get("text")
-            if text is None and message.get("bytes") is not None:
-                text = message["bytes"].decode("utf-8", "replace")
-            future = msg = None
-            try:
-                msg = json.loads(text or "")
-                if handler.needs_store(msg):
-                    reply, future = await in_store_thread(handler.take, msg)
-                else:
-                    reply, future = await loop.run_in_executor(pen_executor(), handler.take, msg)
-            except json.JSONDecodeError:
-                reply = {"type": "error", "error": "messages must be JSON", "source": "stroke", "status": 400}
-            except FlowError as exc:
-                reply = {"type": "error", **exc.to_dict(), "status": exc.status}
-                if isinstance(msg, dict) and isinstance(msg.get("batch"), str):
-                    reply["batch"] = msg["batch"]  # refused for good: the page drops it
-            if reply is not None:
-                out.put_nowait(reply)
-            if future is not None:
-                batch, trial = (reply or {}).get("batch") or msg.get("batch"), msg.get("trial")
-                future.add_done_callback(lambda f, b=batch, t=trial: post(_ack(f, b, t)))
-                if (handler.flow.open_trial_due(handler.session)  # the reply is on its way: query now,
-                        and (refreshing is None or refreshing.done())):  # without holding up the next message
-                    refreshing = asyncio.ensure_future(in_store_thread(handler.refresh_open_trial))
-                    # A failed read is retried at the next message; the drive goes on meanwhile.
-                    refreshing.add_done_callback(lambda f: f.cancelled() or f.exception())
-    except WebSocketDisconnect:
-        return
-    finally:
-        out.put_nowait(None)
-        for task in (sending, refreshing):
-            try:
-                if task is not None:
-                    await task
-            except Exception:  # the socket closed under the sender / the store failed: nothing more to tell
-                pass
-        await run_in_threadpool(handler.stop)

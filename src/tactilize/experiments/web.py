@@ -35,19 +35,35 @@ from __future__ import annotations
 
 import hmac
 import json
+import re
 import secrets
+import sys
 from contextlib import asynccontextmanager
 from importlib import resources
 from typing import Any
 
 from fastapi import APIRouter, FastAPI, Request, WebSocket
-from fastapi.responses import FileResponse, JSONResponse, PlainTextResponse, RedirectResponse, Response
+from fastapi.responses import (
+    FileResponse,
+    JSONResponse,
+    PlainTextResponse,
+    RedirectResponse,
+    Response,
+)
 
+from ..redact import redact_url
 from ..web.encode import jsonable
+from ..web.guard import accepted_hosts, install
 from ..web.http import ErrorAnsweringRoute, is_loopback, settle_heap
 from ..web.ownership import TRIAL, page_output
-from .flow import Flow, FlowError
-from .strokes import in_store_thread
+from .analysis import analyze, export_answers
+from .design import Design
+from .design_toml import load_design
+from .errors import FlowError
+from .flow import Flow
+from .pen_socket import in_store_thread, pump
+from .store import Store
+from .visit import Visit
 
 __all__ = ["experiment_router", "create_experiment_app", "serve_flow", "is_loopback", "PREFIX"]
 
@@ -182,8 +198,6 @@ def experiment_router(flow: Flow) -> APIRouter:
             await ws.send_json({"type": "error", **exc.to_dict()})
             await ws.close(code=4404)
             return
-        from .strokes import pump
-
         try:
             await pump(ws, handler)
         finally:
@@ -202,23 +216,17 @@ def experiment_router(flow: Flow) -> APIRouter:
     @router.get("/api/admin/export.csv")
     def admin_csv(request: Request) -> Response:
         require_admin(request)
-        from .analysis import export_answers
-
         return Response(export_answers(flow.store, "csv", flow.protocol.name), media_type="text/csv",
                         headers={"Content-Disposition": f'attachment; filename="{flow.protocol.name}-answers.csv"'})
 
     @router.get("/api/admin/export.json")
     def admin_json(request: Request) -> Response:
         require_admin(request)
-        from .analysis import export_answers
-
         return Response(export_answers(flow.store, "json", flow.protocol.name), media_type="application/json")
 
     @router.get("/api/admin/analysis")
     def admin_analysis(request: Request) -> Response:
         require_admin(request)
-        from .analysis import analyze
-
         return JSONResponse(jsonable(analyze(flow.store, flow.protocol.name)))
 
     return router
@@ -230,8 +238,8 @@ def create_experiment_app(protocol, db_url: str | None = None, admin_token: str 
 
     Parameters
     ----------
-    protocol : Protocol or str
-        A protocol, a built-in name or a TOML path.
+    protocol : Design or str
+        A design, a built-in protocol's name or a protocol TOML path.
     db_url : str, optional
         SQLAlchemy URL or SQLite file path; the default data-directory file if None.
     admin_token : str, optional
@@ -241,26 +249,17 @@ def create_experiment_app(protocol, db_url: str | None = None, admin_token: str 
         Host names the app answers to (:func:`tactilize.web.guard.accepted_hosts`);
         the loopback names by default.
     """
-    from .protocols import Protocol, load_protocol
-    from .store import Store
-
-    if not isinstance(protocol, Protocol):
-        protocol = load_protocol(protocol)
+    if not isinstance(protocol, Design):
+        protocol = load_design(protocol)
     flow = Flow(protocol, Store(db_url), admin_token=admin_token or secrets.token_urlsafe(16))
 
     @asynccontextmanager
     async def lifespan(_app):
-        from ..pen import StrokeTracker  # noqa: F401  (the pen path's modules, imported before the freeze)
-        from ..web.rows import samples_from_css  # noqa: F401
-        from . import strokes  # noqa: F401
-
         settle_heap()  # as the pen app does once warm: full collections skip what lives as long as the server
         yield
 
     app = FastAPI(title=f"tactilize experiment: {protocol.name}", docs_url=None, redoc_url=None, lifespan=lifespan)
     app.state.experiment_flow = flow
-    from ..web.guard import install
-
     install(app, hosts)
     app.include_router(experiment_router(flow))
 
@@ -283,13 +282,7 @@ def serve_flow(protocol, db_url: str | None, host: str = "127.0.0.1", port: int 
     experimenter token is mandatory, on loopback too: one is generated and
     printed when none is given, so the data are never open to another page.
     """
-    import re
-    import sys
-
-    from .protocols import Protocol, load_protocol
-    from .store import Store
-
-    protocols = [p if isinstance(p, Protocol) else load_protocol(p)
+    protocols = [p if isinstance(p, Design) else load_design(p)
                  for p in (protocol if isinstance(protocol, (list, tuple)) else [protocol])]
     protocol = protocols[0]
     if not admin_token:
@@ -297,15 +290,11 @@ def serve_flow(protocol, db_url: str | None, host: str = "127.0.0.1", port: int 
     store = Store(db_url)
     flow = Flow(protocol, store, admin_token=admin_token)
     if len(protocols) > 1:
-        from .visit import Visit
-
         flow = Visit([flow] + [Flow(p, store, admin_token=admin_token) for p in protocols[1:]])
         echo("one visit: " + " -> ".join(p.name for p in protocols))
-    from .analysis import _redact
-
     # The URL may hold a database password: a terminal (and its scrollback) must not.
     echo(f"tactilize experiment: {protocol.name} v{protocol.version} ({protocol.sha256[:12]}), "
-         f"database {_redact(flow.store.url)}")
+         f"database {redact_url(flow.store.url)}")
 
     def relay(line: str) -> None:
         echo(line)
@@ -317,9 +306,7 @@ def serve_flow(protocol, db_url: str | None, host: str = "127.0.0.1", port: int 
     try:
         from ..web.serve import serve as web_serve
     except ImportError:  # a build without the pen app: serve the flow alone
-        import uvicorn
-
-        from ..web.guard import accepted_hosts
+        import uvicorn  # only here: the pen app brings its own server
 
         app = create_experiment_app(protocol, db_url, admin_token, hosts=accepted_hosts(host))
         relay(f"serving at http://{host}:{port}/")

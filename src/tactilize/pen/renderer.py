@@ -151,6 +151,9 @@ class PenRenderer:
         The picture as a surface; a profile whose ``rendering`` is ``surface``
         then fires a pulse per bump crossed (docs/surfaces.md): an output that
         plays events gets them, any other the equivalent drive of the window.
+    clock : callable, optional
+        ``clock() -> seconds``, monotonic, for ``refresh_s`` (:func:`time.monotonic`
+        by default; tests inject one so the resend rule is deterministic).
 
     Notes
     -----
@@ -171,8 +174,10 @@ class PenRenderer:
         resend_rel: float = 0.005,
         refresh_s: float = 0.1,
         surface: Any = None,
+        clock: Callable[[], float] | None = None,
     ) -> None:
         self.texture_map = texture_map
+        self._clock = clock or time.monotonic
         self._surface = _SurfacePath(surface)
         self.profile = profile or Profile.preset("paper")
         self.output = output
@@ -207,6 +212,12 @@ class PenRenderer:
     def set_profile(self, profile: Profile) -> None:
         """Use other laws from the next sample on."""
         self.profile = profile
+
+    def yield_output(self) -> None:
+        """Another renderer drives the same output from now on (the experiments keep one per
+        trial and picture): the next drive this one computes is sent, whatever it sent before;
+        the stroke is kept."""
+        self._sent = None
 
     def lift(self) -> RenderResult:
         """The pen left the surface: forget the stroke and rest the output at once
@@ -294,7 +305,7 @@ class PenRenderer:
             return self._off
         if self.output is None:
             return requested
-        now = time.monotonic()
+        now = self._clock()
         if (
             self._running
             and self._sent is not None

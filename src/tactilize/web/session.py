@@ -90,6 +90,7 @@ from starlette.websockets import WebSocketDisconnect, WebSocketState
 
 from ..errors import TactilizeError
 from ..pen import PenRenderer
+from ..pen.display import MM_PER_PX_RANGE  # the one display-scale rule, shared with the experiments
 from .encode import dumps
 from .rows import sample_error, samples_from_css
 
@@ -112,9 +113,6 @@ MAX_COMPOSITE = 12
 MAX_REPEAT = 64
 #: Period of the wire trace messages [s].
 WIRE_PERIOD_S = 0.05
-#: Bounds on calibration [mm per CSS px]: a CSS pixel is 0.26 mm by definition;
-#: anything outside 0.01 .. 5 mm is a typo, not a screen.
-MM_PER_PX_RANGE = (0.01, 5.0)
 
 
 class _Bad(Exception):
