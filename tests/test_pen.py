@@ -450,7 +450,7 @@ def test_lift_and_hover_rest_the_output_in_standby_where_it_has_one():
             self.calls.append("stop")
 
     from tactilize.pen import PenRenderer, PenSample
-    from tactilize.texturemap import texture_map
+    from tactilize.maps.texturemap import texture_map
     from tactilize.data import get_texture
 
     out = Standing()

@@ -20,7 +20,7 @@ from tactilize.surface import surface_model
 from tactilize.surface.equivalent import equivalent_drive, regularity_of_cv
 from tactilize.surface.events import PulseEvent
 from tactilize.surface.fields import grain_field
-from tactilize.texturemap import texture_map
+from tactilize.maps.texturemap import texture_map
 from tactilize.image import TextureImage
 
 

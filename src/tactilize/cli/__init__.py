@@ -122,7 +122,7 @@ def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, 
         feat = extract_features(img)
         rows.append({"image": path, **img.describe(), **feat.to_dict()})
         if plot_path is not None:
-            from ..texturemap import texture_map
+            from ..maps.texturemap import texture_map
             from .plots import plot_spectrum
 
             plot_spectrum(img, feat, texture_map(img), plots[i])

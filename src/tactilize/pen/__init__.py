@@ -24,7 +24,7 @@ Frames
 ------
 Positions are metres from the picture's top-left corner with y pointing *down*
 (screen coordinates, as pointers report them and as
-:meth:`~tactilize.texturemap.TextureMap.lookup` takes them).  Directions are
+:meth:`~tactilize.maps.texturemap.TextureMap.lookup` takes them).  Directions are
 counter-clockwise from +x with y pointing *up* (the frame of
 ``TextureFeatures.orientation_deg`` and ``Profile.drive``), so a stroke moving up
 the screen has direction +pi/2.

@@ -109,7 +109,7 @@ class TextureEntry:
 
     @property
     def map(self):
-        """The :class:`~tactilize.texturemap.TextureMap` at the displayed size."""
+        """The :class:`~tactilize.maps.texturemap.TextureMap` at the displayed size."""
         if self._map is None:
             with self._lock:
                 if self._map is None:
@@ -216,7 +216,7 @@ class ServerState:
     def add_upload(self, data: bytes, filename: str, width_mm: float | None, dpi: float | None) -> TextureEntry:
         """Validate, analyse and keep an uploaded picture (blocking: run in a thread)."""
         from ..image import load_image
-        from ..texturemap import texture_map
+        from ..maps.texturemap import texture_map
         from ..data import png_bytes
 
         name = Path(filename or "upload").name[:80] or "upload"

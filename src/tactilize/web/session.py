@@ -199,7 +199,7 @@ class PenSession:
                    "take_over)")
 
     def _composite(self, msg: dict[str, Any]) -> dict[str, Any]:
-        from ..composite import CompositeMap
+        from ..maps.composite import CompositeMap
 
         ids, cols = msg.get("ids"), msg.get("cols", 3)
         if not isinstance(ids, list) or not 1 <= len(ids) <= MAX_COMPOSITE or not all(isinstance(i, str) for i in ids):
@@ -295,7 +295,7 @@ class PenSession:
             if self.repeat is None:
                 self.renderer.set_texture(entry.map, entry.surface)
             else:
-                from ..composite import CompositeMap
+                from ..maps.composite import CompositeMap
 
                 cols, rows = self.repeat
                 cmap = CompositeMap.of([entry.map] * (cols * rows), cols)

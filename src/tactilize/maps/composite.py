@@ -4,7 +4,7 @@ The paper's pen demonstration strokes six textures laid side by side, the
 drive following the texture under the pen.  :class:`CompositeMap` puts texture
 maps on a grid of equal cells (each picture at its physical size in the
 top-left of its cell) and looks up the one under the pen, so the pen renderer
-takes it like any :class:`~tactilize.texturemap.TextureMap`.
+takes it like any :class:`~tactilize.maps.texturemap.TextureMap`.
 """
 
 from __future__ import annotations

@@ -15,8 +15,8 @@ from typing import Any, Literal
 
 import numpy as np
 
-from .features import TextureFeatures, analyse_stack, extract_features
-from .image import TextureImage
+from ..features import TextureFeatures, analyse_stack, extract_features
+from ..image import TextureImage
 
 __all__ = ["TextureMap", "texture_map"]
 
