@@ -231,7 +231,7 @@ def pipeline_only(n, batch=4, interval_s=0.004):
     as cold as in the server."""
     from tactilize.actuators.factory import open_output
     from tactilize.web.app import ServerState
-    from tactilize.web.encode import dumps
+    from tactilize.encode import dumps
     from tactilize.web.session import PenSession
     from tactilize.mapping import Profile
 

@@ -31,7 +31,7 @@ from pydantic import BaseModel, Field
 
 from ..drive import Drive
 from ..errors import RequestError
-from ..web.http import ErrorAnsweringRoute
+from ..http import ErrorAnsweringRoute
 from .reader import Catalog
 
 __all__ = ["PREFIX", "catalog_router", "create_catalog_app"]

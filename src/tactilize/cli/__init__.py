@@ -18,7 +18,7 @@ from typing import Any
 import click
 
 from ..errors import TactilizeError, check_finite
-from ..web.encode import dumps
+from ..encode import dumps
 
 BAD_INPUT = 2
 

@@ -28,7 +28,7 @@ break, answers, opening the pen socket) runs in a worker thread, a few at a
 time (:func:`.strokes.in_store_thread`), and the answer route returns only
 after the commit; pen messages have threads of their own (:func:`.strokes.pump`).  A refusal is
 a :class:`~.flow.FlowError` raised by the route, answered with its status and
-``{"error", "source"}`` (:class:`tactilize.web.http.ErrorAnsweringRoute`).
+``{"error", "source"}`` (:class:`tactilize.http.ErrorAnsweringRoute`).
 """
 
 from __future__ import annotations
@@ -43,8 +43,8 @@ from typing import Any
 from fastapi import APIRouter, FastAPI, Request, WebSocket
 from fastapi.responses import FileResponse, JSONResponse, PlainTextResponse, RedirectResponse, Response
 
-from ..web.encode import jsonable
-from ..web.http import ErrorAnsweringRoute, is_loopback, settle_heap
+from ..encode import jsonable
+from ..http import ErrorAnsweringRoute, is_loopback, settle_heap
 from ..web.ownership import TRIAL, page_output
 from .flow import Flow, FlowError
 from .strokes import in_store_thread

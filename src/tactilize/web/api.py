@@ -17,8 +17,8 @@ from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse, Response
 
 from ..errors import ImageError, RequestError
-from .encode import jsonable
-from .http import ErrorAnsweringRoute
+from ..encode import jsonable
+from ..http import ErrorAnsweringRoute
 
 if TYPE_CHECKING:
     from .app import ServerState, TextureEntry

@@ -44,8 +44,8 @@ from fastapi.staticfiles import StaticFiles
 from ..errors import ProfileError, TactilizeError
 from ..mapping import Profile, preset_names
 from .api import MAX_UPLOAD_BYTES, MAX_UPLOAD_PIXELS, api_router
-from .encode import jsonable
-from .http import settle_heap
+from ..encode import jsonable
+from ..http import settle_heap
 from .rows import DEFAULT_M_PER_CSS_PX
 
 __all__ = ["create_app", "ServerState", "TextureEntry", "MAX_UPLOAD_BYTES", "MAX_UPLOAD_PIXELS"]

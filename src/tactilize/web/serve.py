@@ -15,7 +15,7 @@ import webbrowser
 from typing import Any, Callable, Iterable
 
 from ..errors import TactilizeError
-from .http import is_loopback
+from ..http import is_loopback
 
 #: The pen's default profile, as every command's: the surface rendering, a pulse per
 #: bump under the stylus tip (docs/surfaces.md).

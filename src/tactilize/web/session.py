@@ -90,7 +90,7 @@ from starlette.websockets import WebSocketDisconnect, WebSocketState
 
 from ..errors import TactilizeError
 from ..pen import PenRenderer
-from .encode import dumps
+from ..encode import dumps
 from .rows import sample_error, samples_from_css
 
 __all__ = ["websocket_endpoint", "PenSession", "MAX_BATCH", "MAX_PENDING", "MAX_MESSAGE_CHARS", "IDLE_S", "MAX_COMPOSITE"]
