@@ -9,7 +9,8 @@ import pytest
 
 from tactilize.mapping import Drive, Profile
 from tactilize.data import builtin_map
-from tactilize.pen import PenRenderer, PenSample, StrokeTracker, _Recorder, is_trackable
+from tactilize.actuators.recording import RecordingOutput
+from tactilize.pen import PenRenderer, PenSample, StrokeTracker, is_trackable
 from tactilize.web.rows import DEFAULT_M_PER_CSS_PX, sample_error, samples_from_css
 
 
@@ -209,7 +210,7 @@ def corduroy():
 
 
 def make_renderer(tmap, profile="paper"):
-    out = _Recorder()
+    out = RecordingOutput()
     return PenRenderer(tmap, Profile.preset(profile), out, splitter=lambda d, n, s: [d] * n), out
 
 
@@ -276,7 +277,7 @@ def test_clamps_are_reported(corduroy):
 
 
 def test_output_envelope_result_is_what_is_reported(corduroy):
-    class Halving(_Recorder):
+    class Halving(RecordingOutput):
         def apply(self, channels):
             return [d.with_clamp("envelope", pulse_width_s=d.pulse_width_s / 2) for d in channels]
 
@@ -306,7 +307,7 @@ def test_all_rejected_samples_stop():
 
 
 def test_default_split_gives_two_channels(corduroy):
-    out = _Recorder()
+    out = RecordingOutput()
     r = PenRenderer(corduroy, Profile.preset("paper"), out)
     res = r.feed(line_stroke(0.03, 0.5, duration_s=0.1))
     assert len(res.applied) == 2 == len(out.applied[-1])

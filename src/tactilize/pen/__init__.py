@@ -36,7 +36,6 @@ those rows is the web's job (:mod:`tactilize.web.rows`).
 from __future__ import annotations
 
 from .renderer import PenRenderer, RenderResult, default_splitter
-from .renderer import _Recorder as _Recorder  # the server's last-resort output, used by web/
 from .samples import PenSample, is_trackable
 from .tracker import StrokeState, StrokeTracker
 

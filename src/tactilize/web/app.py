@@ -294,10 +294,10 @@ def _default_output() -> tuple[Any, str]:
 
         return open_output("simulated"), "simulated"
     except (ImportError, TactilizeError) as exc:
-        from ..pen import _Recorder
+        from ..actuators.recording import RecordingOutput
 
         log.warning("simulated output unavailable (%s); drives are only recorded", exc)
-        return _Recorder(), "recorder"
+        return RecordingOutput(), "recorder"
 
 
 def _simulated() -> Any:

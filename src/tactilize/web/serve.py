@@ -136,10 +136,10 @@ def serve(
             if output.strip().lower() != "simulated":
                 raise TactilizeError(f"--output {output}", f"not available in this installation ({exc})") from None
             # A partial build without the wire model: still serve the page.
-            from ..pen import _Recorder
+            from ..actuators.recording import RecordingOutput
 
             warn(f"tactilize: warning: the simulated wire is not available ({exc}); drives are only recorded")
-            out = _Recorder()
+            out = RecordingOutput()
             output = "recorder (no simulated wire)"
     except BaseException:
         sock.close()
