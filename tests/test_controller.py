@@ -10,7 +10,8 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from tactilize.actuators.simulated import SimulatedOutput
-from tactilize.actuators.sma import FOLLOW_THRESHOLD_M, Circuit, WireController, WireSpec, build_envelope, feel
+from tactilize.actuators.felt import feel
+from tactilize.actuators.sma import FOLLOW_THRESHOLD_M, Circuit, WireController, WireSpec, build_envelope
 from tactilize.features import extract_features
 from tactilize.mapping import (
     ActuatorLimits,

@@ -3,7 +3,7 @@ follows it, and which textures the finger cannot tell apart.
 
 :func:`profile_report` runs a profile over textures (the built-in ones, or given
 images) and steady strokes at 10 .. 160 mm/s, plays every drive on the simulated
-wire (:func:`tactilize.actuators.sma.feel`), and compares every pair of textures at
+wire (:func:`tactilize.actuators.felt.feel`), and compares every pair of textures at
 equal speed.  ``tactilize profile report`` prints it and draws it.
 
 Two drives are told apart (:func:`distinguishable`) when their pulse frequencies
@@ -211,7 +211,7 @@ def _felt_columns(d: Any, wire: Any, simulate_wire: bool) -> dict[str, Any]:
     """What the simulated wire makes of drive ``d`` (follows, displacement [um], first felt pulse [ms])."""
     if not simulate_wire or d.is_off:
         return {"follows": False, "displacement_pp_um": 0.0, "first_follow_ms": None}
-    from .actuators.sma import feel
+    from .actuators.felt import feel
 
     felt = feel(d, wire)
     return {"follows": felt.follows, "displacement_pp_um": felt.displacement_pp_um,

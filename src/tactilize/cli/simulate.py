@@ -25,7 +25,7 @@ def _wire_and_circuit(opt: dict[str, Any]):
 
 def simulate_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     """A steady stroke on a texture through the pen's whole path (see ``tactilize simulate``)."""
-    from ..actuators.sma import feel
+    from ..actuators.felt import feel
     from ..features import extract_features
     from ..mapping import Profile
 
