@@ -37,8 +37,10 @@ from ..drive import Drive
 class Output(Protocol):
     """Something that turns drives into actuator motion (or sound, or a file)."""
 
-    #: number of channels this output drives
-    channels: int
+    @property
+    def channels(self) -> int:
+        """How many actuators this output drives."""
+        ...
 
     def apply(self, channels: Sequence[Drive]) -> list[Drive]:
         """Set every channel's drive at once.
@@ -60,9 +62,21 @@ class Output(Protocol):
 
     def __exit__(self, *exc: object) -> None: ...
 
-    amplitude_is_intensity: bool
-    connected: bool
-    events: Sequence[tuple[float, str, str]]
+    # Read-only to callers: an output may keep them as plain attributes or properties.
+    @property
+    def amplitude_is_intensity(self) -> bool:
+        """A drive's amplitude is felt intensity (True) or a place in the SMA wire's felt band (False)."""
+        ...
+
+    @property
+    def connected(self) -> bool:
+        """The device answers."""
+        ...
+
+    @property
+    def events(self) -> Sequence[tuple[float, str, str]]:
+        """(time [s], kind, detail) of what happened to the connection."""
+        ...
 
     def standby(self) -> None:
         """Texture off, actuators held ready for the next touch."""
@@ -122,6 +136,14 @@ class OutputBase:
 
     def close(self) -> None:
         self.stop()
+
+    def apply(self, channels: Sequence[Drive]) -> list[Drive]:
+        """Every output implements it (the Output interface)."""
+        raise NotImplementedError
+
+    def stop(self) -> None:
+        """Every output implements it (the Output interface)."""
+        raise NotImplementedError
 
     def _check(self, channels: Sequence[Drive]) -> list[Drive]:
         drives = list(channels)

@@ -62,6 +62,8 @@ def _law(role: str, kind: str):
 class _LawBase:
     kind: ClassVar[str]
     role: ClassVar[str]
+    # Every law is a dataclass (its registration makes it one): what dataclasses.asdict takes.
+    __dataclass_fields__: ClassVar[dict[str, Any]]
 
     def to_dict(self) -> dict[str, Any]:
         return {"law": self.kind, **dataclasses.asdict(self)}

@@ -35,14 +35,19 @@ class FeaturesForDrive(Protocol):
 
     :class:`~tactilize.features.TextureFeatures` has all of it; so has
     :class:`DriveFeatures`, the plain value the catalog and the experiments make
-    from stored numbers.
+    from stored numbers.  Read-only: frozen values satisfy it.
     """
 
-    spatial_frequency_per_m: float
-    spectral_intensity: float
-    orientation_deg: float
-    anisotropy: float
-    periodicity: float
+    @property
+    def spatial_frequency_per_m(self) -> float: ...
+    @property
+    def spectral_intensity(self) -> float: ...
+    @property
+    def orientation_deg(self) -> float: ...
+    @property
+    def anisotropy(self) -> float: ...
+    @property
+    def periodicity(self) -> float: ...
 
 
 @dataclass(frozen=True)
@@ -97,7 +102,7 @@ class Profile:
 
     def drive(
         self,
-        features: Any,
+        features: FeaturesForDrive,
         speed_m_s: float,
         direction_rad: float | None = None,
         pressure: float | None = None,
@@ -290,7 +295,7 @@ MAX_PROFILE_FREQUENCY_HZ = 20_000.0
 # The laws' declared domains, sampled at load: spatial frequency [cycles/m] from
 # a 1 km period to a 1 um one, stroking speed [m/s] from rest to 10 m/s,
 # spectral intensity, pressure and periodicity over [0, 1].
-_DOMAIN = {
+_DOMAIN: dict[str, list[Any]] = {
     "frequency": [10.0**e for e in range(-3, 7)],
     "speed": [0.0, 1e-4, 1e-3, 0.01, 0.06, 0.3, 1.0, 3.0, 10.0],
     "width": [0.0, 0.25, 0.5, 0.75, 1.0],

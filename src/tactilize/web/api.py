@@ -189,16 +189,18 @@ def _spectrum_doc(e: TextureEntry) -> dict[str, Any]:
     return d
 
 
-def _number(text: str | None, name: str) -> float | None:
+def _number(text: object, name: str) -> float | None:
     """A positive form number, or None when absent.
 
     Raises
     ------
     RequestError
-        Not a number, or out of its range (422).
+        Not a number (a file part included), or out of its range (422).
     """
     if text is None or str(text).strip() == "":
         return None
+    if not isinstance(text, str):
+        raise RequestError(name, f"{name} must be a number, got a file", 422)
     try:
         v = float(text)
     except ValueError:

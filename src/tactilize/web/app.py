@@ -248,7 +248,7 @@ class ServerState:
         for tid in self._builtin_ids:
             e = self.textures.get(tid)
             if e is not None:
-                _ = e.png, e.map, e.surface
+                _made = e.png, e.map, e.surface
 
     # ----------------------------------------------------------- stats
 

@@ -190,7 +190,7 @@ def serve(
         if not is_loopback(host):
             for line in context_notes(secure=https):
                 echo(f"tactilize: {line}")
-        if https:
+        if https and ssl_files is not None:
             echo(f"tactilize: HTTPS with a self-signed certificate ({ssl_files[0]}): the browser warns once; see docs/serve.md")
         if open_browser is None:
             open_browser = display_available()

@@ -221,7 +221,7 @@ class WireController:
         f = drive.pulse_frequency_hz
         lo, hi = self.band_j(f)
         pos, outside = self._position(drive, lo, hi)
-        clamped = ("band",) if outside else ()
+        clamped: tuple[str, ...] = ("band",) if outside else ()
         energy = lo * (hi / lo) ** pos if hi > lo > 0 else hi
         power = self.on_power_w if self.closed_loop else self.circuit.power_at(self.spec.resistance_martensite_ohm)
         # The pulse must leave room in its period for the wire to cool.
