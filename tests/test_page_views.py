@@ -13,7 +13,7 @@ from tactilize.maps.composite import CompositeMap
 from tactilize.data import builtin_map, png_bytes
 from tactilize.features import extract_features
 from tactilize.image import load_image
-from tactilize.features.spectrumview import log_spectrum, peak_position_px, spectrum_view
+from tactilize.maps.spectrumview import log_spectrum, peak_position_px, spectrum_view
 from tactilize.maps.texturemap import texture_map
 from tactilize.web import create_app
 from tactilize.web.rows import DEFAULT_M_PER_CSS_PX

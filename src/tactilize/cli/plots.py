@@ -135,10 +135,10 @@ def plot_spectrum(img: Any, features: Any, texture_map: Any, path: str, option: 
     magnitude, DC centred) with the dominant peak marked with f_s [cycles/mm]
     and i_s, and the texture map's f_s per tile [cycles/mm].
 
-    The same data as the pen page's figure (:func:`tactilize.features.spectrumview.spectrum_view`);
+    The same data as the pen page's figure (:func:`tactilize.maps.spectrumview.spectrum_view`);
     returns it without the pixels.
     """
-    from ..features.spectrumview import spectrum_view
+    from ..maps.spectrumview import spectrum_view
 
     plt = _pyplot(option)
     view = spectrum_view(img.pixels, features, texture_map)

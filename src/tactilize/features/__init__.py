@@ -31,10 +31,6 @@ Layout
     spectrum with its strongest bin.  Loaded on the first analysis.
 ``_tamura``
     Tamura coarseness and directionality.
-``spectrumview``
-    The paper's Fig. 5 as data (log spectrum, the dominant peak's position),
-    for the page's spectrum view and ``analyze --plot``; imported by its users,
-    not re-exported here.
 
 References
 ----------

@@ -178,7 +178,7 @@ def _spectrum_doc(e: TextureEntry) -> dict[str, Any]:
 
     from ..data import png_bytes
     from ..image import load_image
-    from ..features.spectrumview import spectrum_view
+    from ..maps.spectrumview import spectrum_view
 
     img = load_image(e.png)
     m = e.map
