@@ -10,7 +10,10 @@ takes it like any :class:`~tactilize.maps.texturemap.TextureMap`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Sequence
+
+from ..features import TextureFeatures
+from .lookup import FeatureLookup
 
 __all__ = ["CompositeMap"]
 
@@ -29,12 +32,12 @@ class CompositeMap:
         Cell width and height [m]: the largest picture's.
     """
 
-    maps: tuple[Any, ...]
+    maps: tuple[FeatureLookup, ...]
     cols: int
     cell_m: tuple[float, float]
 
     @classmethod
-    def of(cls, maps: Sequence[Any], cols: int) -> "CompositeMap":
+    def of(cls, maps: Sequence[FeatureLookup], cols: int) -> "CompositeMap":
         """The grid of ``maps`` with ``cols`` cells a row (cells as large as the largest picture)."""
         if not maps or cols < 1:
             raise ValueError("a composite needs at least one map and one column")
@@ -58,7 +61,7 @@ class CompositeMap:
         """Top-left corner [m] of picture ``index`` on the surface (y down)."""
         return (index % self.cols) * self.cell_m[0], (index // self.cols) * self.cell_m[1]
 
-    def lookup(self, x_m: float, y_m: float) -> Any:
+    def lookup(self, x_m: float, y_m: float) -> TextureFeatures | None:
         """Features under a point of the surface (from its top-left, y down) [m]; None off every picture."""
         cw, ch = self.cell_m
         if not (0.0 <= x_m < self.width_m and 0.0 <= y_m < self.height_m):
