@@ -16,8 +16,18 @@
 
 from __future__ import annotations
 
-from .composite import CompositeMap
-from .lookup import FeatureLookup
-from .texturemap import TextureMap, texture_map
+from typing import Any
 
 __all__ = ["CompositeMap", "FeatureLookup", "TextureMap", "texture_map"]
+
+# name -> module; loaded on first use, so a composite or the protocol alone does
+# not load the FFT stack a texture map needs.
+_EXPORTS = {"CompositeMap": "composite", "FeatureLookup": "lookup", "TextureMap": "texturemap", "texture_map": "texturemap"}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _EXPORTS:
+        from importlib import import_module
+
+        return getattr(import_module(f".{_EXPORTS[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -10,10 +10,11 @@ takes it like any :class:`~tactilize.maps.texturemap.TextureMap`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
-from ..features import TextureFeatures
-from .lookup import FeatureLookup
+if TYPE_CHECKING:  # types only: a composite loads nothing until its maps do
+    from ..features import TextureFeatures
+    from .lookup import FeatureLookup
 
 __all__ = ["CompositeMap"]
 

@@ -10,9 +10,10 @@ Units: metres, from the picture's top-left corner, y pointing down.
 
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
-from ..features import TextureFeatures
+if TYPE_CHECKING:
+    from ..features import TextureFeatures
 
 __all__ = ["FeatureLookup"]
 

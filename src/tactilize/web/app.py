@@ -35,18 +35,22 @@ import threading
 from contextlib import asynccontextmanager
 from importlib import resources
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 from fastapi import APIRouter, FastAPI, WebSocket
 from fastapi.responses import FileResponse, Response
 from fastapi.staticfiles import StaticFiles
 
+from ..actuators.base import Output
 from ..errors import ProfileError, TactilizeError
 from ..mapping import Profile, preset_names
 from .api import MAX_UPLOAD_BYTES, MAX_UPLOAD_PIXELS, api_router
 from ..encode import jsonable
 from ..http import settle_heap
 from .rows import DEFAULT_M_PER_CSS_PX
+
+if TYPE_CHECKING:  # the maps load the FFT stack: not at import
+    from ..maps.texturemap import TextureMap
 
 __all__ = ["create_app", "ServerState", "TextureEntry", "MAX_UPLOAD_BYTES", "MAX_UPLOAD_PIXELS"]
 
@@ -84,7 +88,7 @@ class TextureEntry:
         height_px: int,
         builtin: bool,
         make_png: Callable[[], bytes],
-        make_map: Callable[[], Any],
+        make_map: Callable[[], TextureMap],
         make_surface: Callable[[], Any] | None = None,
     ) -> None:
         self.id, self.name, self.description = id, name, description
@@ -95,7 +99,7 @@ class TextureEntry:
         self._make_surface = make_surface
         self._surface: Any = None
         self._png: bytes | None = None
-        self._map: Any = None
+        self._map: TextureMap | None = None
         self._lock = threading.Lock()
 
     @property
@@ -108,7 +112,7 @@ class TextureEntry:
         return self._png
 
     @property
-    def map(self):
+    def map(self) -> TextureMap:
         """The :class:`~tactilize.maps.texturemap.TextureMap` at the displayed size."""
         if self._map is None:
             with self._lock:
@@ -157,7 +161,7 @@ class ServerState:
         Default size of a CSS pixel [m] until the page sends its calibration.
     """
 
-    def __init__(self, output: Any, profile: Profile, m_per_px: float = DEFAULT_M_PER_CSS_PX, output_name: str = "") -> None:
+    def __init__(self, output: Output, profile: Profile, m_per_px: float = DEFAULT_M_PER_CSS_PX, output_name: str = "") -> None:
         self.output = output
         self.output_name = output_name or type(output).__name__
         self.profile = profile
@@ -172,7 +176,7 @@ class ServerState:
         self.sessions = 0
         #: makes one output per page (a simulated wire), or None: the pages take
         #: turns on ``output`` (web/ownership.py)
-        self.page_output_factory: Callable[[], Any] | None = None
+        self.page_output_factory: Callable[[], Output] | None = None
         from .limits import EXPORTS_ADMITTED, EXPORTS_RUNNING, UPLOADS_ADMITTED, UPLOADS_RUNNING, WorkGate
 
         #: heavy requests, bounded (web/limits.py)
@@ -287,7 +291,7 @@ def _surface_of(t: Any) -> Any:
     return surface_model(t.image)
 
 
-def _default_output() -> tuple[Any, str]:
+def _default_output() -> tuple[Output, str]:
     """The simulated wire through the output factory; a recorder if it is not built yet."""
     try:
         from ..actuators.factory import open_output
@@ -300,14 +304,14 @@ def _default_output() -> tuple[Any, str]:
         return RecordingOutput(), "recorder"
 
 
-def _simulated() -> Any:
+def _simulated() -> Output:
     from ..actuators.factory import open_output
 
     return open_output("simulated")
 
 
 def create_app(
-    output: Any = None,
+    output: Output | None = None,
     profile: Profile | str | None = None,
     *,
     output_name: str | None = None,
@@ -317,7 +321,7 @@ def create_app(
     close_output: bool | None = None,
     hosts: Iterable[str] | None = None,
     max_sockets: int | None = None,
-    page_outputs: Callable[[], Any] | None = None,
+    page_outputs: Callable[[], Output] | None = None,
 ) -> FastAPI:
     """Build the tactile pen application.
 
