@@ -1,4 +1,4 @@
-"""The one protocol every output implements (simulated wire, serial controller, audio).
+"""The Output interface: what every output implements (simulated wire, serial controller, audio).
 
 An output receives one :class:`~tactilize.drive.Drive` per channel (the pen has
 two actuators) with :meth:`Output.apply`, and :meth:`Output.stop` turns every
@@ -35,7 +35,11 @@ from ..drive import Drive
 
 @runtime_checkable
 class Output(Protocol):
-    """Something that turns drives into actuator motion (or sound, or a file)."""
+    """The Output interface: something that turns drives into actuator motion (or sound, or a file).
+
+    A :class:`typing.Protocol`, so any class with these members is an output; subclass
+    :class:`OutputBase` for the defaults.
+    """
 
     @property
     def channels(self) -> int:

@@ -186,7 +186,7 @@ class SimulatedOutput(OutputBase):
         if start:
             self.start()
 
-    # -- the Output protocol
+    # -- the Output interface
 
     @property
     def controllers(self) -> list[WireController]:

@@ -7,7 +7,7 @@
     :class:`CompositeMap`: several pictures' maps side by side as one surface
     (the paper's Fig. 16).
 :mod:`.lookup`
-    :class:`FeatureLookup`, the feature-lookup protocol both satisfy: what the
+    :class:`FeatureLookup`, the feature-lookup interface both satisfy: what the
     pen renderer and the pen server take as the picture under the pen.
 :mod:`.spectrumview`
     The paper's Fig. 5 as data (log spectrum, the dominant peak, the tiles),
@@ -20,7 +20,7 @@ from typing import Any
 
 __all__ = ["CompositeMap", "FeatureLookup", "TextureMap", "texture_map"]
 
-# name -> module; loaded on first use, so a composite or the protocol alone does
+# name -> module; loaded on first use, so a composite or the lookup interface alone does
 # not load the FFT stack a texture map needs.
 _EXPORTS = {"CompositeMap": "composite", "FeatureLookup": "lookup", "TextureMap": "texturemap", "texture_map": "texturemap"}
 

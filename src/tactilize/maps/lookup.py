@@ -1,4 +1,4 @@
-"""The feature-lookup protocol: what the pen renderer and the pen server take as "the picture".
+"""The feature-lookup interface: what the pen renderer and the pen server take as "the picture".
 
 A :class:`~tactilize.maps.texturemap.TextureMap` (one picture's tiles) and a
 :class:`~tactilize.maps.composite.CompositeMap` (several pictures side by side)

@@ -13,7 +13,7 @@ Data moves one way: wire and circuit -> model -> simulation; envelope -> control
 """
 
 from .circuit import Circuit, circuit_names
-from .controller import STATES, PulsePlan, WireController
+from .controller import STATES, ControllerState, PulsePlan, WireController
 from .envelope import DESIGN_AMBIENT_C, ENVELOPE_MARGIN, SafetyEnvelope, build_envelope, default_envelope
 from .model import WireModel, branch_fraction
 from .simulate import (
@@ -50,4 +50,5 @@ __all__ = [
     "WireController",
     "PulsePlan",
     "STATES",
+    "ControllerState",
 ]
