@@ -8,7 +8,8 @@ their own routes with ``create_app(extra_routers=[router])`` or
 
 Modules
 -------
-:mod:`.app`      the application, its routes and shared state
+:mod:`.app`      the application and its routes
+:mod:`.state`    the shared state: the output, the profile, the gallery
 :mod:`.session`  the WebSocket protocol of the pen page
 :mod:`.serve`    binding the socket and running the server
 :mod:`.rows`     the pages' pen sample rows: validation, conversion to SI
