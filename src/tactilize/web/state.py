@@ -152,6 +152,10 @@ class ServerState:
         #: makes one output per page (a simulated wire), or None: the pages take
         #: turns on ``output`` (web/ownership.py)
         self.page_output_factory: Callable[[], Output] | None = None
+        #: the shared output's lease and the pages' idle outputs (web/ownership.py
+        #: makes them on first use; typed there, not here, so this module imports none of it)
+        self.output_lease: Any = None
+        self.page_output_pool: Any = None
         from .limits import EXPORTS_ADMITTED, EXPORTS_RUNNING, UPLOADS_ADMITTED, UPLOADS_RUNNING, WorkGate
 
         #: heavy requests, bounded (web/limits.py)
