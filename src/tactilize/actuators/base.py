@@ -28,9 +28,12 @@ all declared here with what an output that lacks them answers
 
 from __future__ import annotations
 
-from typing import Any, Protocol, Sequence, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, Sequence, runtime_checkable
 
 from ..drive import Drive
+
+if TYPE_CHECKING:  # the surface package loads scipy; outputs only pass its events on
+    from ..surface.events import PulseEvent
 
 
 @runtime_checkable
@@ -111,7 +114,7 @@ class OutputBase:
     #: Plays pulse events itself; outputs that cannot get the equivalent drives.
     plays_events: bool = False
 
-    def play_events(self, channels: Sequence[Sequence[Any]], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
+    def play_events(self, channels: Sequence[Sequence[PulseEvent]], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
         """Per channel, pulse events from ``now_s`` [s, the stroke's clock] on, replacing those
         not yet fired; an output that cannot play events applies ``equivalent``, the steady
         drive of the window (docs/surfaces.md)."""
