@@ -25,10 +25,13 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import asdict, dataclass, field
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 from .drive import Drive
-from .mapping import Profile
+from .mapping import FeaturesForDrive, Profile
+
+if TYPE_CHECKING:
+    from .actuators.sma import WireSpec
 
 __all__ = ["profile_report", "ProfileReport", "distinguishable", "distinguishable_measured", "interval_cv", "SPEEDS_MM_S",
            "FREQUENCY_JND"]
@@ -114,10 +117,10 @@ class ProfileReport:
 
 def profile_report(
     profile: Profile,
-    textures: dict[str, Any] | None = None,
+    textures: Mapping[str, FeaturesForDrive] | None = None,
     speeds_mm_s: Sequence[float] = SPEEDS_MM_S,
     *,
-    wire: Any = None,
+    wire: WireSpec | str | None = None,
     simulate_wire: bool = True,
     images: dict[str, Any] | None = None,
 ) -> ProfileReport:

@@ -13,12 +13,15 @@ from __future__ import annotations
 import math
 import os
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from ..errors import TactilizeError, check_finite
 from ..encode import dumps
+
+if TYPE_CHECKING:  # the wire model loads on the commands that use it
+    from ..actuators.sma import Circuit, WireSpec
 
 BAD_INPUT = 2
 
@@ -330,7 +333,7 @@ def _wire_option(wire: str, length_mm: float | None):
         raise TactilizeError(f"--wire {wire}", exc.fault) from None
 
 
-def _circuit_option(circuit: str, spec: Any):
+def _circuit_option(circuit: str, spec: WireSpec) -> Circuit:
     """The circuit named by ``--circuit`` for a wire, errors naming the option."""
     from ..actuators.sma import Circuit
 
