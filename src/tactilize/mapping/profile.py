@@ -18,7 +18,21 @@ from typing import Any, Protocol, runtime_checkable
 
 from ..drive import Drive
 from ..errors import DriveError, ProfileError, check_finite
-from .laws import ConstantAmplitude, EvenPulses, LinearWidth, LogFrequency, NoDirection, SigmoidSpeed, law_from_dict
+from .laws import (
+    AmplitudeLaw,
+    ConstantAmplitude,
+    DirectionLaw,
+    EvenPulses,
+    FrequencyLaw,
+    LinearWidth,
+    LogFrequency,
+    NoDirection,
+    RegularityLaw,
+    SigmoidSpeed,
+    SpeedLaw,
+    WidthLaw,
+    law_from_dict,
+)
 from .limits import ActuatorLimits
 
 __all__ = ["Profile", "preset_names", "DriveFeatures", "FeaturesForDrive", "RENDERINGS"]
@@ -84,12 +98,12 @@ class Profile:
     """
 
     name: str = "custom"
-    frequency: Any = field(default_factory=LogFrequency)
-    speed: Any = field(default_factory=SigmoidSpeed)
-    width: Any = field(default_factory=LinearWidth)
-    amplitude: Any = field(default_factory=ConstantAmplitude)
-    direction: Any = field(default_factory=NoDirection)
-    regularity: Any = field(default_factory=EvenPulses)
+    frequency: FrequencyLaw = field(default_factory=LogFrequency)
+    speed: SpeedLaw = field(default_factory=SigmoidSpeed)
+    width: WidthLaw = field(default_factory=LinearWidth)
+    amplitude: AmplitudeLaw = field(default_factory=ConstantAmplitude)
+    direction: DirectionLaw = field(default_factory=NoDirection)
+    regularity: RegularityLaw = field(default_factory=EvenPulses)
     limits: ActuatorLimits = field(default_factory=ActuatorLimits)
     description: str = ""
     #: One of :data:`RENDERINGS`; the laws above still give the drive where only
