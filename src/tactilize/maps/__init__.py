@@ -16,7 +16,12 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # what the checker sees; at run time __getattr__ below
+    from .composite import CompositeMap
+    from .lookup import FeatureLookup
+    from .texturemap import TextureMap, texture_map
 
 __all__ = ["CompositeMap", "FeatureLookup", "TextureMap", "texture_map"]
 
