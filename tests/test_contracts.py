@@ -88,3 +88,11 @@ def test_a_circle_between_siblings_breaks_acyclic(copy_root: Path):
     done = _lint(bad, "acyclic")
     assert done.returncode != 0
     assert "BROKEN" in done.stdout
+
+
+def test_ci_checks_contracts_and_types_before_the_tests():
+    lines = [line.strip() for line in (ROOT / ".ci" / "run").read_text().splitlines()]
+    tests_at = next(i for i, line in enumerate(lines) if line.startswith('bash -euo pipefail -c "$cmd"'))
+    assert lines.index("lint-imports") < tests_at and lines.index("mypy") < tests_at
+    # `set -e` stops the run on the first failing check
+    assert "set -euo pipefail" in lines
