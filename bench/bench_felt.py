@@ -31,7 +31,8 @@ import statistics
 import time
 
 import tactilize as tz
-from tactilize.actuators.sma import FOLLOW_THRESHOLD_M, Circuit, WireSpec, feel, simulate_drive
+from tactilize.actuators.felt import feel
+from tactilize.actuators.sma import FOLLOW_THRESHOLD_M, Circuit, WireSpec, simulate_drive
 from tactilize.mapping import preset_names
 from tactilize.data import get_texture, texture_ids
 

@@ -77,7 +77,7 @@ def grains() -> dict[str, TextureImage]:
 def before_rate(img: TextureImage, profile: str) -> float:
     """Pulses per second in the export's samples of a 2 s synthetic stroke (channel 0)."""
     from tactilize.export import run_stroke, synthetic_stroke
-    from tactilize.texturemap import texture_map
+    from tactilize.maps.texturemap import texture_map
 
     tmap = texture_map(img)
     stroke = synthetic_stroke(tmap.width_m, tmap.height_m, SPEED_MM_S * 1e-3, STROKE_S, 0.0)

@@ -230,8 +230,8 @@ def pipeline_only(n, batch=4, interval_s=0.004):
     (simulated) output, serialise the reply.  Paced like a pen, so caches are
     as cold as in the server."""
     from tactilize.actuators.factory import open_output
-    from tactilize.web.app import ServerState
-    from tactilize.web.encode import dumps
+    from tactilize.web.state import ServerState
+    from tactilize.encode import dumps
     from tactilize.web.session import PenSession
     from tactilize.mapping import Profile
 

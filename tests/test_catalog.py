@@ -35,7 +35,7 @@ from tactilize.errors import ImageError
 from tactilize.features import extract_features
 from tactilize.image import load_image
 from tactilize.mapping import Profile
-from tactilize.texturemap import texture_map
+from tactilize.maps.texturemap import texture_map
 
 N_GOOD = 280
 SPEEDS_M_S = (0.03, 0.06, 0.12)

@@ -10,7 +10,8 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from tactilize.actuators.simulated import SimulatedOutput
-from tactilize.actuators.sma import FOLLOW_THRESHOLD_M, Circuit, WireController, WireSpec, build_envelope, feel
+from tactilize.actuators.felt import feel
+from tactilize.actuators.sma import FOLLOW_THRESHOLD_M, Circuit, WireController, WireSpec, build_envelope
 from tactilize.features import extract_features
 from tactilize.mapping import (
     ActuatorLimits,
@@ -153,6 +154,29 @@ def test_states_standby_warming_vibrating_standby_off():
         assert ctrl.state == "off" and ctrl.bias_level == 0.0
         tr = out.traces(5.0)["channels"][0]["state"]
         assert {"warming", "vibrating", "standby", "off"} <= set(tr)
+
+
+def test_states_are_an_enum_with_the_pages_strings():
+    import json
+
+    from tactilize.actuators.sma.controller import STATES, ControllerState
+    from tactilize.encode import dumps
+
+    assert STATES == ("off", "standby", "warming", "vibrating")
+    assert [s.value for s in ControllerState] == list(STATES)
+    with SimulatedOutput(SPEC, channels=1, start=False) as out:
+        ctrl = out.controllers[0]
+        assert ctrl.state is ControllerState.OFF
+        out.apply([Drive(120.0, 3e-4, 1.0, (), 0.5)])
+        out.advance(0.001)
+        assert ctrl.state is ControllerState.WARMING
+        # What the page reads: the same plain strings as before, through both encoders.
+        doc = {"state": out.state(), "traces": out.traces(1.0)}
+        for compact in (True, False):
+            back = json.loads(dumps(doc, compact=compact))
+            assert back["state"][0]["state"] == "warming"
+            assert set(back["traces"]["channels"][0]["state"]) <= set(STATES)
+        assert json.loads(json.dumps({"s": ctrl.state})) == {"s": "warming"}
 
 
 def test_stop_is_off_at_once_and_the_wire_cools():

@@ -20,7 +20,7 @@ from tactilize.export import DriveTimeline, hjif_document, parse_stroke, render,
 from tactilize.export.conformance import RULES, ConformanceError, check, validate
 from tactilize.image import load_image
 from tactilize.mapping import Profile
-from tactilize.texturemap import texture_map
+from tactilize.maps.texturemap import texture_map
 
 from test_export_stroke import DPI, accelerating_rows, two_textures
 

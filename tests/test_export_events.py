@@ -31,7 +31,7 @@ from tactilize.image import load_image
 from tactilize.mapping import Profile
 from tactilize.surface import surface_model
 from tactilize.surface.fields import bump_field
-from tactilize.texturemap import texture_map
+from tactilize.maps.texturemap import texture_map
 
 PITCH_M = 1e-4  # 254 dpi
 DPI = 0.0254 / PITCH_M

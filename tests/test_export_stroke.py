@@ -36,7 +36,7 @@ from tactilize.export import (
 from tactilize.export.haptic import HAPTIC_HIGH_HZ, HAPTIC_LOW_HZ
 from tactilize.image import load_image
 from tactilize.mapping import Profile
-from tactilize.texturemap import texture_map
+from tactilize.maps.texturemap import texture_map
 
 DPI = 100.0
 MM_PER_PX = 25.4 / DPI

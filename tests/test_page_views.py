@@ -9,12 +9,12 @@ import pytest
 from click.testing import CliRunner
 from fastapi.testclient import TestClient
 
-from tactilize.composite import CompositeMap
+from tactilize.maps.composite import CompositeMap
 from tactilize.data import builtin_map, png_bytes
 from tactilize.features import extract_features
 from tactilize.image import load_image
-from tactilize.spectrumview import log_spectrum, peak_position_px, spectrum_view
-from tactilize.texturemap import texture_map
+from tactilize.maps.spectrumview import log_spectrum, peak_position_px, spectrum_view
+from tactilize.maps.texturemap import texture_map
 from tactilize.web import create_app
 from tactilize.web.rows import DEFAULT_M_PER_CSS_PX
 

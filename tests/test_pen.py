@@ -9,7 +9,8 @@ import pytest
 
 from tactilize.mapping import Drive, Profile
 from tactilize.data import builtin_map
-from tactilize.pen import PenRenderer, PenSample, StrokeTracker, _Recorder, is_trackable
+from tactilize.actuators.recording import RecordingOutput
+from tactilize.pen import PenRenderer, PenSample, StrokeTracker, is_trackable
 from tactilize.web.rows import DEFAULT_M_PER_CSS_PX, sample_error, samples_from_css
 
 
@@ -209,7 +210,7 @@ def corduroy():
 
 
 def make_renderer(tmap, profile="paper"):
-    out = _Recorder()
+    out = RecordingOutput()
     return PenRenderer(tmap, Profile.preset(profile), out, splitter=lambda d, n, s: [d] * n), out
 
 
@@ -276,7 +277,7 @@ def test_clamps_are_reported(corduroy):
 
 
 def test_output_envelope_result_is_what_is_reported(corduroy):
-    class Halving(_Recorder):
+    class Halving(RecordingOutput):
         def apply(self, channels):
             return [d.with_clamp("envelope", pulse_width_s=d.pulse_width_s / 2) for d in channels]
 
@@ -306,7 +307,7 @@ def test_all_rejected_samples_stop():
 
 
 def test_default_split_gives_two_channels(corduroy):
-    out = _Recorder()
+    out = RecordingOutput()
     r = PenRenderer(corduroy, Profile.preset("paper"), out)
     res = r.feed(line_stroke(0.03, 0.5, duration_s=0.1))
     assert len(res.applied) == 2 == len(out.applied[-1])
@@ -411,13 +412,15 @@ def test_default_split_is_phantom_only_where_amplitude_is_intensity():
 # ------------------------------------------------------------------- the package
 
 
-def test_names_moved_to_web_rows_stay_importable_from_pen():
+def test_the_pages_rows_are_the_webs_not_the_pens():
+    # The pen sits below the web: no shim re-exports the page's rows from here.
     import tactilize.pen as pen
     from tactilize.web import rows
 
-    assert pen.sample_error is rows.sample_error
-    assert pen.samples_from_css is rows.samples_from_css
-    assert pen.DEFAULT_M_PER_CSS_PX == rows.DEFAULT_M_PER_CSS_PX
+    for name in ("sample_error", "samples_from_css", "DEFAULT_M_PER_CSS_PX"):
+        assert hasattr(rows, name)
+        with pytest.raises(AttributeError):
+            getattr(pen, name)
 
 
 def test_the_pen_does_not_load_the_web_server():
@@ -450,7 +453,7 @@ def test_lift_and_hover_rest_the_output_in_standby_where_it_has_one():
             self.calls.append("stop")
 
     from tactilize.pen import PenRenderer, PenSample
-    from tactilize.texturemap import texture_map
+    from tactilize.maps.texturemap import texture_map
     from tactilize.data import get_texture
 
     out = Standing()

@@ -10,13 +10,13 @@ import pytest
 from fastapi.testclient import TestClient
 
 from tactilize.export import read_ahap, read_hjif
-from tactilize.pen import _Recorder
+from tactilize.actuators.recording import RecordingOutput
 from tactilize.web import create_app
 
 
 @pytest.fixture(scope="module")
 def client():
-    with TestClient(create_app(_Recorder(), "paper", output_name="recorder", warm=False), base_url="http://127.0.0.1") as c:
+    with TestClient(create_app(RecordingOutput(), "paper", output_name="recorder", warm=False), base_url="http://127.0.0.1") as c:
         yield c
 
 

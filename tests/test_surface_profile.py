@@ -15,12 +15,13 @@ from tactilize.actuators.simulated import SimulatedOutput
 from tactilize.drive import Drive
 from tactilize.errors import ProfileError
 from tactilize.mapping import DriveFeatures, Profile
-from tactilize.pen import PenRenderer, PenSample, _Recorder
+from tactilize.actuators.recording import RecordingOutput
+from tactilize.pen import PenRenderer, PenSample
 from tactilize.surface import surface_model
 from tactilize.surface.equivalent import equivalent_drive, regularity_of_cv
 from tactilize.surface.events import PulseEvent
 from tactilize.surface.fields import grain_field
-from tactilize.texturemap import texture_map
+from tactilize.maps.texturemap import texture_map
 from tactilize.image import TextureImage
 
 
@@ -103,7 +104,7 @@ def test_renderer_fires_events_on_the_simulated_wire():
 
 def test_renderer_gives_the_equivalent_drive_to_outputs_without_events():
     img, tmap, sm = _picture()
-    rec = _Recorder()
+    rec = RecordingOutput()
     r = PenRenderer(tmap, Profile.preset("surface"), rec, surface=sm)
     samples = _strokes()
     for k in range(0, len(samples), 4):

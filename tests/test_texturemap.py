@@ -112,3 +112,20 @@ def test_auto_sample_falls_back_to_whole_tiles():
 def test_sample_px_out_of_range_is_refused(bad):
     with pytest.raises(ValueError, match="sample_px"):
         tz.texture_map(_noisy_grating(12.0, 0.0, shape=(256, 256)), tile_px=128, sample_px=bad)
+
+
+def test_maps_are_feature_lookups_and_the_package_loads_lazily():
+    import subprocess
+    import sys
+
+    from tactilize.maps import CompositeMap, FeatureLookup
+
+    tmap = tz.texture_map(tz.load_image(_two_halves(), dpi=DPI), tile_px=64)
+    both = CompositeMap.of([tmap, tmap], cols=2)
+    assert isinstance(tmap, FeatureLookup) and isinstance(both, FeatureLookup)
+    assert not isinstance(object(), FeatureLookup)
+    assert both.lookup(tmap.width_m * 1.5, tmap.height_m * 0.25) == tmap.lookup(tmap.width_m * 0.5, tmap.height_m * 0.25)
+    # The protocol and a composite alone do not load the FFT stack a map needs.
+    code = "import sys, tactilize.maps.lookup, tactilize.maps.composite; print('scipy' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"

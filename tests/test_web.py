@@ -203,7 +203,7 @@ def test_integers_beyond_any_float_are_refused():
 
 
 def test_encoder_writes_nan_as_null_in_both_forms():
-    from tactilize.web.encode import dumps
+    from tactilize.encode import dumps
 
     doc = {"a": float("nan"), "b": [float("inf"), 1.5], "c": np.float32(np.nan), "d": np.arange(2), "e": (1, 2)}
     for compact in (True, False):
@@ -217,7 +217,7 @@ def test_encoder_writes_nan_as_null_in_both_forms():
 def test_cli_and_page_share_the_encoder():
     import tactilize.cli as cli
     import tactilize.experiments.cli as experiments_cli
-    from tactilize.web import encode
+    from tactilize import encode
 
     assert cli.dumps is encode.dumps is session_mod.dumps is experiments_cli.dumps
 
@@ -229,7 +229,7 @@ def test_any_tactilize_error_a_route_raises_is_answered_not_a_500():
     from fastapi import FastAPI
 
     from tactilize.errors import ProfileError, RequestError
-    from tactilize.web.http import ErrorAnsweringRoute
+    from tactilize.http import ErrorAnsweringRoute
 
     router = APIRouter(route_class=ErrorAnsweringRoute)
 

@@ -11,7 +11,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from tactilize.data import png_bytes
-from tactilize.pen import _Recorder
+from tactilize.actuators.recording import RecordingOutput
 from tactilize.web import create_app
 from tactilize.web.limits import MAX_EXPORT_BODY_BYTES, UPLOADS_ADMITTED
 
@@ -20,7 +20,7 @@ LOCAL = "http://127.0.0.1"
 
 @pytest.fixture()
 def app():
-    return create_app(_Recorder(), "paper", warm=False)
+    return create_app(RecordingOutput(), "paper", warm=False)
 
 
 def _png() -> bytes:

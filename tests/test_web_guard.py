@@ -12,7 +12,7 @@ import pytest
 from fastapi.testclient import TestClient
 from starlette.testclient import WebSocketDenialResponse
 
-from tactilize.pen import _Recorder
+from tactilize.actuators.recording import RecordingOutput
 from tactilize.web import create_app
 from tactilize.web.guard import accepted_hosts, host_name
 
@@ -32,7 +32,7 @@ def test_the_accepted_hosts_are_loopback_and_the_bind_address_and_what_an_option
 
 @pytest.fixture()
 def pen():
-    out = _Recorder()
+    out = RecordingOutput()
     with TestClient(create_app(out, "paper", warm=False), base_url=LOCAL) as c:
         yield c, out
 
@@ -80,7 +80,7 @@ def test_state_changing_routes_refuse_another_sites_origin(pen):
 
 
 def test_the_address_given_to_host_is_accepted_so_a_phone_connects():
-    app = create_app(_Recorder(), "paper", warm=False, hosts=accepted_hosts("192.0.2.7"))
+    app = create_app(RecordingOutput(), "paper", warm=False, hosts=accepted_hosts("192.0.2.7"))
     with TestClient(app, base_url="http://192.0.2.7:8765") as c:
         assert c.get("/api/config").status_code == 200
         with c.websocket_connect("ws://192.0.2.7:8765/ws", headers={"Origin": "http://192.0.2.7:8765"}) as ws:
@@ -110,7 +110,7 @@ def test_the_experiment_refuses_rebinding_cross_site_answers_and_sockets(tmp_pat
 
 
 def test_sockets_beyond_the_cap_are_refused_with_503():
-    app = create_app(_Recorder(), "paper", warm=False, max_sockets=2)
+    app = create_app(RecordingOutput(), "paper", warm=False, max_sockets=2)
     with TestClient(app, base_url=LOCAL) as c:
         with c.websocket_connect("ws://127.0.0.1/ws"), c.websocket_connect("ws://127.0.0.1/ws"):
             with pytest.raises(WebSocketDenialResponse) as denied:

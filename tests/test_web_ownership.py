@@ -8,7 +8,7 @@ import json
 import pytest
 from fastapi.testclient import TestClient
 
-from tactilize.pen import _Recorder
+from tactilize.actuators.recording import RecordingOutput
 from tactilize.web import create_app
 from tactilize.web.ownership import PEN, TRIAL, LeasedOutput, OutputLease
 from tactilize.web.rows import DEFAULT_M_PER_CSS_PX
@@ -60,10 +60,10 @@ def test_the_lease_first_stroke_holds_silence_frees_and_a_trial_outranks_the_pen
     clock = Clock()
     lease = OutputLease(idle_s=10.0, clock=clock)
     told = {"a": [], "b": [], "t": []}
-    out = _Recorder()
+    out = RecordingOutput()
     a = LeasedOutput(out, lease, PEN, told["a"].append)
     b = LeasedOutput(out, lease, PEN, told["b"].append)
-    off = _Recorder().apply([])
+    off = RecordingOutput().apply([])
     on = [d.replace(pulse_frequency_hz=20.0, pulse_width_s=0.004) for d in off]
     a.apply(on)
     assert lease.holds(a) and len(out.applied) == 1
@@ -92,7 +92,7 @@ def test_the_lease_first_stroke_holds_silence_frees_and_a_trial_outranks_the_pen
 
 @pytest.fixture()
 def shared():
-    out = _Recorder()
+    out = RecordingOutput()
     app = create_app(out, "paper", warm=False)
     with TestClient(app, base_url=LOCAL) as c:
         yield c, out, app.state.tactilize
@@ -153,7 +153,7 @@ def test_a_trial_holds_the_device_before_the_pen_page(tmp_path):
     from tactilize.experiments.web import experiment_router
 
     flow = Flow(load_protocol("alpha-law"), Store(str(tmp_path / "x.db")))
-    out = _Recorder()
+    out = RecordingOutput()
     app = create_app(out, "paper", warm=False, extra_routers=[experiment_router(flow)])
     token = flow.start("P1", True)["session"]
     state = flow.calibrate(token, {"mm_per_px": 0.25, "felt": True})
@@ -180,10 +180,10 @@ def test_simulated_outputs_are_each_pages_own():
     made = []
 
     def factory():
-        made.append(_Recorder())
+        made.append(RecordingOutput())
         return made[-1]
 
-    shared_out = _Recorder()
+    shared_out = RecordingOutput()
     app = create_app(shared_out, "paper", warm=False, page_outputs=factory)
     with TestClient(app, base_url=LOCAL) as c, c.websocket_connect(WS) as one:
         hello(one)

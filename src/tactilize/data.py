@@ -240,7 +240,7 @@ def get_texture(texture_id: str) -> BuiltinTexture:
 
 @lru_cache(maxsize=None)
 def builtin_map(texture_id: str):
-    """The :class:`~tactilize.texturemap.TextureMap` of a built-in texture (cached)."""
-    from .texturemap import texture_map
+    """The :class:`~tactilize.maps.texturemap.TextureMap` of a built-in texture (cached)."""
+    from .maps.texturemap import texture_map
 
     return texture_map(get_texture(texture_id).image)

@@ -130,8 +130,8 @@ def check_finite(
     TactilizeError
         Of type ``error``: "<what> must be a finite number >= 0 [s], got 'x'".
     """
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-    if ok:
+    ok = False
+    if isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value):
         v = float(value)
         ok = (minimum is None or v >= minimum) and (above is None or v > above) and (maximum is None or v <= maximum)
     if not ok:

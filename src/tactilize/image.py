@@ -117,7 +117,7 @@ class TextureImage:
     @property
     def shape(self) -> tuple[int, int]:
         """(height, width) in pixels."""
-        return (self._levels if self._levels is not None else self._pixels).shape  # type: ignore[union-attr,return-value]
+        return (self._levels if self._levels is not None else self._pixels).shape  # type: ignore[union-attr]
 
     @property
     def width_m(self) -> float:
@@ -177,8 +177,16 @@ def _set_fields(
         object.__setattr__(img, name, value)
 
 
+def pitch_pair(pitch_m: float | tuple[float, float]) -> tuple[float, float]:
+    """(x, y) pixel pitch [m] from one pitch (square pixels) or an (x, y) pair, unchecked."""
+    if isinstance(pitch_m, (tuple, list, np.ndarray)):
+        px, py = pitch_m
+        return px, py
+    return pitch_m, pitch_m
+
+
 def _pitch_pair(pitch_m: float | tuple[float, float], source: str) -> tuple[float, float]:
-    px, py = (pitch_m, pitch_m) if np.isscalar(pitch_m) else tuple(pitch_m)  # type: ignore[misc]
+    px, py = pitch_pair(pitch_m)
     for p in (px, py):
         if not np.isfinite(p) or p <= 0:
             raise ImageError(source, f"pixel pitch must be a positive number of metres, got {p!r}")

@@ -3,7 +3,7 @@ follows it, and which textures the finger cannot tell apart.
 
 :func:`profile_report` runs a profile over textures (the built-in ones, or given
 images) and steady strokes at 10 .. 160 mm/s, plays every drive on the simulated
-wire (:func:`tactilize.actuators.sma.feel`), and compares every pair of textures at
+wire (:func:`tactilize.actuators.felt.feel`), and compares every pair of textures at
 equal speed.  ``tactilize profile report`` prints it and draws it.
 
 Two drives are told apart (:func:`distinguishable`) when their pulse frequencies
@@ -25,10 +25,13 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import asdict, dataclass, field
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 from .drive import Drive
-from .mapping import Profile
+from .mapping import FeaturesForDrive, Profile
+
+if TYPE_CHECKING:
+    from .actuators.sma import WireSpec
 
 __all__ = ["profile_report", "ProfileReport", "distinguishable", "distinguishable_measured", "interval_cv", "SPEEDS_MM_S",
            "FREQUENCY_JND"]
@@ -114,10 +117,10 @@ class ProfileReport:
 
 def profile_report(
     profile: Profile,
-    textures: dict[str, Any] | None = None,
+    textures: Mapping[str, FeaturesForDrive] | None = None,
     speeds_mm_s: Sequence[float] = SPEEDS_MM_S,
     *,
-    wire: Any = None,
+    wire: WireSpec | str | None = None,
     simulate_wire: bool = True,
     images: dict[str, Any] | None = None,
 ) -> ProfileReport:
@@ -211,7 +214,7 @@ def _felt_columns(d: Any, wire: Any, simulate_wire: bool) -> dict[str, Any]:
     """What the simulated wire makes of drive ``d`` (follows, displacement [um], first felt pulse [ms])."""
     if not simulate_wire or d.is_off:
         return {"follows": False, "displacement_pp_um": 0.0, "first_follow_ms": None}
-    from .actuators.sma import feel
+    from .actuators.felt import feel
 
     felt = feel(d, wire)
     return {"follows": felt.follows, "displacement_pp_um": felt.displacement_pp_um,

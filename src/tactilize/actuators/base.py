@@ -1,4 +1,4 @@
-"""The one protocol every output implements (simulated wire, serial controller, audio).
+"""The Output interface: what every output implements (simulated wire, serial controller, audio).
 
 An output receives one :class:`~tactilize.drive.Drive` per channel (the pen has
 two actuators) with :meth:`Output.apply`, and :meth:`Output.stop` turns every
@@ -28,17 +28,26 @@ all declared here with what an output that lacks them answers
 
 from __future__ import annotations
 
-from typing import Any, Protocol, Sequence, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, Sequence, runtime_checkable
 
 from ..drive import Drive
+
+if TYPE_CHECKING:  # the surface package loads scipy; outputs only pass its events on
+    from ..surface.events import PulseEvent
 
 
 @runtime_checkable
 class Output(Protocol):
-    """Something that turns drives into actuator motion (or sound, or a file)."""
+    """The Output interface: something that turns drives into actuator motion (or sound, or a file).
 
-    #: number of channels this output drives
-    channels: int
+    A :class:`typing.Protocol`, so any class with these members is an output; subclass
+    :class:`OutputBase` for the defaults.
+    """
+
+    @property
+    def channels(self) -> int:
+        """How many actuators this output drives."""
+        ...
 
     def apply(self, channels: Sequence[Drive]) -> list[Drive]:
         """Set every channel's drive at once.
@@ -60,9 +69,21 @@ class Output(Protocol):
 
     def __exit__(self, *exc: object) -> None: ...
 
-    amplitude_is_intensity: bool
-    connected: bool
-    events: Sequence[tuple[float, str, str]]
+    # Read-only to callers: an output may keep them as plain attributes or properties.
+    @property
+    def amplitude_is_intensity(self) -> bool:
+        """A drive's amplitude is felt intensity (True) or a place in the SMA wire's felt band (False)."""
+        ...
+
+    @property
+    def connected(self) -> bool:
+        """The device answers."""
+        ...
+
+    @property
+    def events(self) -> Sequence[tuple[float, str, str]]:
+        """(time [s], kind, detail) of what happened to the connection."""
+        ...
 
     def standby(self) -> None:
         """Texture off, actuators held ready for the next touch."""
@@ -93,7 +114,7 @@ class OutputBase:
     #: Plays pulse events itself; outputs that cannot get the equivalent drives.
     plays_events: bool = False
 
-    def play_events(self, channels: Sequence[Sequence[Any]], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
+    def play_events(self, channels: Sequence[Sequence[PulseEvent]], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
         """Per channel, pulse events from ``now_s`` [s, the stroke's clock] on, replacing those
         not yet fired; an output that cannot play events applies ``equivalent``, the steady
         drive of the window (docs/surfaces.md)."""
@@ -122,6 +143,14 @@ class OutputBase:
 
     def close(self) -> None:
         self.stop()
+
+    def apply(self, channels: Sequence[Drive]) -> list[Drive]:
+        """Every output implements it (the Output interface)."""
+        raise NotImplementedError
+
+    def stop(self) -> None:
+        """Every output implements it (the Output interface)."""
+        raise NotImplementedError
 
     def _check(self, channels: Sequence[Drive]) -> list[Drive]:
         drives = list(channels)

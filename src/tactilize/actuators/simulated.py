@@ -43,7 +43,7 @@ from ..drive import Drive
 from ..synthesis import PulseScheduler
 from .base import OutputBase
 from .sma import Circuit, SafetyEnvelope, WireController, WireModel, WireSpec, build_envelope
-from .sma.controller import STATES
+from .sma.controller import STATES, ControllerState
 from .simulated_events import event_starts, planned_for_events, relative_events, run_event_block, take_events
 
 if TYPE_CHECKING:
@@ -54,7 +54,8 @@ __all__ = ["SimulatedOutput"]
 _US = 1_000_000  # schedule resolution: pulse edges at 1 us
 #: Longest piece of constant current [us] per state: the controller reads the
 #: wire after every piece, so warming bursts stop within a quarter millisecond.
-_PIECE_US = {"off": 20_000, "standby": 2_000, "warming": 250, "vibrating": 10_000}
+_PIECE_US = {ControllerState.OFF: 20_000, ControllerState.STANDBY: 2_000, ControllerState.WARMING: 250,
+             ControllerState.VIBRATING: 10_000}
 _STATE_CODE = {name: i for i, name in enumerate(STATES)}
 #: Longest simulated time [us] the real-time thread advances under one hold of the lock.
 _SLICE_US = 5_000
@@ -185,7 +186,7 @@ class SimulatedOutput(OutputBase):
         if start:
             self.start()
 
-    # -- the Output protocol
+    # -- the Output interface
 
     @property
     def controllers(self) -> list[WireController]:
@@ -454,7 +455,7 @@ class SimulatedOutput(OutputBase):
                 ch.open_pulse = (t, x0, ch.model.displacement_m)
         while cursor < n:
             step = min(n - cursor, _PIECE_US[ctrl.state])
-            if ctrl.state == "warming":
+            if ctrl.state == ControllerState.WARMING:
                 # Each burst is short enough that the envelope's bound holds for it alone.
                 step = max(1, min(step, int(ctrl.burst_s() * _US)))
             want = ctrl.drive if ctrl.pulses_on else _OFF
@@ -487,7 +488,7 @@ class SimulatedOutput(OutputBase):
                     pos = s
                     continue
                 pos = self._start_pulse(ch, s, width_us, step, t0_us, cursor, rec, marks)
-            self._piece(ch, step - pos, ctrl.bias_level if ctrl.state != "warming" or ctrl.warming_allowed() else 0.0,
+            self._piece(ch, step - pos, ctrl.bias_level if ctrl.state != ControllerState.WARMING or ctrl.warming_allowed() else 0.0,
                         rec, marks, cursor + pos)
             cursor += step
             if not starts:

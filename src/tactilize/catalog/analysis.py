@@ -151,7 +151,7 @@ def _load(item: CatalogItem, settings: AnalysisSettings) -> TextureImage:
 
 
 def _row_from_image(img: TextureImage, settings: AnalysisSettings) -> dict[str, Any]:
-    from ..texturemap import texture_map
+    from ..maps.texturemap import texture_map
 
     tmap = texture_map(img, sample_px=None if settings.full_map else "auto")
     # The map analyses the whole image as well; reuse it rather than a second FFT.

@@ -31,7 +31,7 @@ from pydantic import BaseModel, Field
 
 from ..drive import Drive
 from ..errors import RequestError
-from ..web.http import ErrorAnsweringRoute
+from ..http import ErrorAnsweringRoute
 from .reader import Catalog
 
 __all__ = ["PREFIX", "catalog_router", "create_catalog_app"]
@@ -168,8 +168,8 @@ def catalog_router(catalog: Catalog | str | os.PathLike, *, prefix: str = PREFIX
     cat = catalog if isinstance(catalog, Catalog) else Catalog(catalog)
     # Routes raise RequestError (404, 409) or any TactilizeError (422): answered as JSON.
     r = APIRouter(prefix=prefix, tags=["catalog"], route_class=ErrorAnsweringRoute)
-    missing = {404: {"model": ErrorMessage, "description": "No product with this id."}}
-    failed = {409: {"model": ErrorMessage, "description": "The product's image could not be analysed."}}
+    missing: dict[int | str, dict[str, Any]] = {404: {"model": ErrorMessage, "description": "No product with this id."}}
+    failed: dict[int | str, dict[str, Any]] = {409: {"model": ErrorMessage, "description": "The product's image could not be analysed."}}
 
     def lookup(product_id: str) -> dict[str, Any]:
         row = cat.get(product_id)

@@ -202,7 +202,7 @@ class Catalog:
 
     def stored_drives(self, row: dict[str, Any]) -> list[tuple[float, Drive]]:
         """(speed [m/s], drive) at the catalog's reference speeds, as the batch stored them."""
-        out = []
+        out: list[tuple[float, Drive]] = []
         if row.get("status") != "ok":
             return out
         for speed in self.speeds_m_s:

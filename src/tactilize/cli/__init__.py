@@ -13,12 +13,15 @@ from __future__ import annotations
 import math
 import os
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from ..errors import TactilizeError, check_finite
-from ..web.encode import dumps
+from ..encode import dumps
+
+if TYPE_CHECKING:  # the wire model loads on the commands that use it
+    from ..actuators.sma import Circuit, WireSpec
 
 BAD_INPUT = 2
 
@@ -122,7 +125,7 @@ def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, 
         feat = extract_features(img)
         rows.append({"image": path, **img.describe(), **feat.to_dict()})
         if plot_path is not None:
-            from ..texturemap import texture_map
+            from ..maps.texturemap import texture_map
             from .plots import plot_spectrum
 
             plot_spectrum(img, feat, texture_map(img), plots[i])
@@ -330,7 +333,7 @@ def _wire_option(wire: str, length_mm: float | None):
         raise TactilizeError(f"--wire {wire}", exc.fault) from None
 
 
-def _circuit_option(circuit: str, spec: Any):
+def _circuit_option(circuit: str, spec: WireSpec) -> Circuit:
     """The circuit named by ``--circuit`` for a wire, errors naming the option."""
     from ..actuators.sma import Circuit
 

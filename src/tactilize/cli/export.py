@@ -18,7 +18,7 @@ def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     from ..export import FORMATS, export, read_stroke, run_stroke, synthetic_stroke
     from ..image import load_image
     from ..mapping import Profile
-    from ..texturemap import texture_map
+    from ..maps.texturemap import texture_map
 
     fmt = opt["fmt"].lower()
     if fmt not in FORMATS:

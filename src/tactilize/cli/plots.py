@@ -10,9 +10,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import TactilizeError
+
+if TYPE_CHECKING:  # types only: the plots load their libraries when drawn
+    from ..features import TextureFeatures
+    from ..image import TextureImage
+    from ..maps.texturemap import TextureMap
 
 __all__ = ["plot_paths", "plot_simulation", "plot_envelope", "plot_profile_report", "plot_spectrum"]
 
@@ -130,15 +135,17 @@ def plot_profile_report(report: Any, path: str, *, jnd: float = 0.2, option: str
     _save(plt, fig, path)
 
 
-def plot_spectrum(img: Any, features: Any, texture_map: Any, path: str, option: str = "--plot") -> dict[str, Any]:
+def plot_spectrum(
+    img: TextureImage, features: TextureFeatures, texture_map: TextureMap | None, path: str, option: str = "--plot"
+) -> dict[str, Any]:
     """The paper's Fig. 5 for one picture: the image, its 2-D spectrum (log
     magnitude, DC centred) with the dominant peak marked with f_s [cycles/mm]
     and i_s, and the texture map's f_s per tile [cycles/mm].
 
-    The same data as the pen page's figure (:func:`tactilize.spectrumview.spectrum_view`);
+    The same data as the pen page's figure (:func:`tactilize.maps.spectrumview.spectrum_view`);
     returns it without the pixels.
     """
-    from ..spectrumview import spectrum_view
+    from ..maps.spectrumview import spectrum_view
 
     plt = _pyplot(option)
     view = spectrum_view(img.pixels, features, texture_map)

@@ -25,7 +25,7 @@ def _wire_and_circuit(opt: dict[str, Any]):
 
 def simulate_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     """A steady stroke on a texture through the pen's whole path (see ``tactilize simulate``)."""
-    from ..actuators.sma import feel
+    from ..actuators.felt import feel
     from ..features import extract_features
     from ..mapping import Profile
 
@@ -167,7 +167,7 @@ def envelope_table(spec: Any, circuit: Any, plot_path: str | None) -> tuple[dict
     env = ctrl.envelope
     power = circuit.power_at(spec.resistance_martensite_ohm)
     freqs = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 150.0, 200.0, 300.0)
-    rows = []
+    rows: list[dict[str, Any]] = []
     for f in freqs:
         lo, hi = ctrl.band_j(f)
         rows.append({

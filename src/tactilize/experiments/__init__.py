@@ -1,8 +1,8 @@
 """The paper's user experiments, ready to run (``tactilize experiment``).
 
 The package keeps the three concerns of an experiment apart, as expyriment does,
-in layers that import one way (each only from those below it; the contract is
-``.importlinter-experiments`` at the repository's root):
+in layers that import one way (each only from those below it; the import contract
+is ``experiments-layers`` in pyproject.toml):
 
 - **web** -- :mod:`.cli`, :mod:`.web` (the participant and experimenter pages),
   :mod:`.pen_socket` (the pen's WebSocket);

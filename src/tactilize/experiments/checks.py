@@ -10,7 +10,7 @@ from __future__ import annotations
 import functools
 
 from ..actuators.sma.envelope import default_envelope
-from ..actuators.sma.felt import feel
+from ..actuators.felt import feel
 from ..mapping import DriveFeatures
 from .errors import DesignError
 
@@ -35,7 +35,7 @@ def check_condition(proto, cond, source: str) -> None:
        the condition's profile and the default safety envelope gives no pulse
        (``k2 = -30`` loads as a law but is 0 Hz everywhere).
     2. The wire: each image's drive at 60 mm/s is played on the simulated
-       paper wire with its controller and envelope (:func:`~tactilize.actuators.sma.felt.feel`),
+       paper wire with its controller and envelope (:func:`~tactilize.actuators.felt.feel`),
        and every pulse must move the pin (one simulation per condition: the
        image whose drive pulses fastest, the hardest to follow).
     Images given by a picture file are represented by their stated (or default)

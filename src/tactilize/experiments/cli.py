@@ -16,7 +16,7 @@ from pathlib import Path
 import click
 
 from ..errors import TactilizeError
-from ..web.encode import dumps
+from ..encode import dumps
 
 DB_HELP = "SQLAlchemy URL or SQLite file (default: experiments.sqlite3 in the user data directory)."
 

@@ -28,7 +28,7 @@ break, answers, opening the pen socket) runs in a worker thread, a few at a
 time (:func:`.strokes.in_store_thread`), and the answer route returns only
 after the commit; pen messages have threads of their own (:func:`.strokes.pump`).  A refusal is
 a :class:`~.flow.FlowError` raised by the route, answered with its status and
-``{"error", "source"}`` (:class:`tactilize.web.http.ErrorAnsweringRoute`).
+``{"error", "source"}`` (:class:`tactilize.http.ErrorAnsweringRoute`).
 """
 
 from __future__ import annotations
@@ -51,10 +51,10 @@ from fastapi.responses import (
     Response,
 )
 
+from ..encode import jsonable
+from ..http import ErrorAnsweringRoute, is_loopback, settle_heap
 from ..redact import redact_url
-from ..web.encode import jsonable
 from ..web.guard import accepted_hosts, install
-from ..web.http import ErrorAnsweringRoute, is_loopback, settle_heap
 from ..web.ownership import TRIAL, page_output
 from .analysis import analyze, export_answers
 from .design import Design

@@ -284,7 +284,7 @@ def run_stroke(stroke: Stroke, texture_map: Any, profile: Any, output: Any = "si
         ``events`` every bump the whole stroke crosses (:func:`.events.stroke_bump_events`),
         which the parametric formats play.
     """
-    from ..pen import _Recorder
+    from ..actuators.recording import RecordingOutput
 
     owned = False
     if output == "simulated":
@@ -292,7 +292,7 @@ def run_stroke(stroke: Stroke, texture_map: Any, profile: Any, output: Any = "si
 
         output, owned = SimulatedOutput(start=False, trace_seconds=0.5, trace_rate_hz=1000.0), True
     elif output is None:
-        output = _Recorder()
+        output = RecordingOutput()
     # Both channels get the profile's drive, as on the SMA wire (the phantom
     # split of audio outputs would leave one channel of a phone file silent).
     if surface is not None and mirror:

@@ -65,14 +65,14 @@ def tamura_features(pixels: np.ndarray, max_side: int = 256) -> dict[str, float]
         best_k = np.where(better, float(size), best_k)
     coarseness = float(best_k.mean()) * factor
 
-    gy, gx = np.gradient(a)
+    gy, gx = map(np.asarray, np.gradient(a))
     g = np.hypot(gx, gy)
     strong = g > max(1e-6, 0.1 * float(g.max()))
     if not strong.any():
         return {"coarseness_px": coarseness, "directionality": 0.0}
     theta = np.mod(np.arctan2(gy[strong], gx[strong]), np.pi)
     hist, edges = np.histogram(theta, bins=16, range=(0, np.pi), weights=g[strong])
-    hist = hist / hist.sum()
+    hist = hist / float(hist.sum())
     centres = 0.5 * (edges[:-1] + edges[1:])
     peak = centres[int(np.argmax(hist))]
     dist = np.abs((centres - peak + np.pi / 2) % np.pi - np.pi / 2)

@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from ..image import pitch_pair
+
 __all__ = ["NO_PEAK", "TextureFeatures"]
 
 
@@ -168,7 +170,7 @@ class TextureFeatures:
 
     def at_pitch(self, pitch_m: float | tuple[float, float]) -> TextureFeatures:
         """The same texture displayed at another pixel pitch [m]; no new FFT."""
-        px, py = (pitch_m, pitch_m) if np.isscalar(pitch_m) else pitch_m  # type: ignore[misc]
+        px, py = pitch_pair(pitch_m)
         if not (px > 0 and py > 0 and math.isfinite(px) and math.isfinite(py)):
             raise ValueError(f"pitch must be positive and finite, got {pitch_m!r}")
         return dataclasses.replace(self, pitch_m=(float(px), float(py)))

@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Protocol
 
 from ..errors import ProfileError, check_finite
 
@@ -39,7 +39,58 @@ __all__ = [
     "PeriodicityRegularity",
     "law_from_dict",
     "law_kinds",
+    "FrequencyLaw",
+    "SpeedLaw",
+    "WidthLaw",
+    "AmplitudeLaw",
+    "DirectionLaw",
+    "RegularityLaw",
 ]
+
+
+# What a Profile holds in each role (any class with these members will do; the
+# ones below are registered by their TOML name).  Arguments are positional.
+class _Law(Protocol):
+    @property
+    def kind(self) -> str: ...
+
+    def to_dict(self) -> dict[str, Any]: ...
+
+
+class FrequencyLaw(_Law, Protocol):
+    """g: the image's spatial frequency [cycles/m] -> a frequency factor [Hz]."""
+
+    def __call__(self, spatial_frequency_per_m: float, /) -> float: ...
+
+
+class SpeedLaw(_Law, Protocol):
+    """alpha: stroking speed [m/s] -> the factor multiplying g."""
+
+    def __call__(self, speed_m_s: float, /) -> float: ...
+
+
+class WidthLaw(_Law, Protocol):
+    """h: spectral intensity in [0, 1] -> pulse width [s]."""
+
+    def __call__(self, spectral_intensity: float, /) -> float: ...
+
+
+class AmplitudeLaw(_Law, Protocol):
+    """Pen pressure in [0, 1] (None: no pressure) -> amplitude in [0, 1]."""
+
+    def __call__(self, pressure: float | None, /) -> float: ...
+
+
+class DirectionLaw(_Law, Protocol):
+    """The speed [m/s] that counts, from the stroke's direction and the texture's wave angle [rad]."""
+
+    def effective_speed(self, speed_m_s: float, direction_rad: float | None, wave_angle_rad: float, /) -> float: ...
+
+
+class RegularityLaw(_Law, Protocol):
+    """Periodicity in [0, 1] -> the pulses' regularity (None: even pulses)."""
+
+    def __call__(self, periodicity: float, /) -> float | None: ...
 
 
 _LAWS: dict[str, dict[str, type]] = {
@@ -62,6 +113,8 @@ def _law(role: str, kind: str):
 class _LawBase:
     kind: ClassVar[str]
     role: ClassVar[str]
+    # Every law is a dataclass (its registration makes it one): what dataclasses.asdict takes.
+    __dataclass_fields__: ClassVar[dict[str, Any]]
 
     def to_dict(self) -> dict[str, Any]:
         return {"law": self.kind, **dataclasses.asdict(self)}

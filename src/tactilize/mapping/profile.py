@@ -18,7 +18,21 @@ from typing import Any, Protocol, runtime_checkable
 
 from ..drive import Drive
 from ..errors import DriveError, ProfileError, check_finite
-from .laws import ConstantAmplitude, EvenPulses, LinearWidth, LogFrequency, NoDirection, SigmoidSpeed, law_from_dict
+from .laws import (
+    AmplitudeLaw,
+    ConstantAmplitude,
+    DirectionLaw,
+    EvenPulses,
+    FrequencyLaw,
+    LinearWidth,
+    LogFrequency,
+    NoDirection,
+    RegularityLaw,
+    SigmoidSpeed,
+    SpeedLaw,
+    WidthLaw,
+    law_from_dict,
+)
 from .limits import ActuatorLimits
 
 __all__ = ["Profile", "preset_names", "DriveFeatures", "FeaturesForDrive", "RENDERINGS"]
@@ -35,14 +49,19 @@ class FeaturesForDrive(Protocol):
 
     :class:`~tactilize.features.TextureFeatures` has all of it; so has
     :class:`DriveFeatures`, the plain value the catalog and the experiments make
-    from stored numbers.
+    from stored numbers.  Read-only: frozen values satisfy it.
     """
 
-    spatial_frequency_per_m: float
-    spectral_intensity: float
-    orientation_deg: float
-    anisotropy: float
-    periodicity: float
+    @property
+    def spatial_frequency_per_m(self) -> float: ...
+    @property
+    def spectral_intensity(self) -> float: ...
+    @property
+    def orientation_deg(self) -> float: ...
+    @property
+    def anisotropy(self) -> float: ...
+    @property
+    def periodicity(self) -> float: ...
 
 
 @dataclass(frozen=True)
@@ -79,12 +98,12 @@ class Profile:
     """
 
     name: str = "custom"
-    frequency: Any = field(default_factory=LogFrequency)
-    speed: Any = field(default_factory=SigmoidSpeed)
-    width: Any = field(default_factory=LinearWidth)
-    amplitude: Any = field(default_factory=ConstantAmplitude)
-    direction: Any = field(default_factory=NoDirection)
-    regularity: Any = field(default_factory=EvenPulses)
+    frequency: FrequencyLaw = field(default_factory=LogFrequency)
+    speed: SpeedLaw = field(default_factory=SigmoidSpeed)
+    width: WidthLaw = field(default_factory=LinearWidth)
+    amplitude: AmplitudeLaw = field(default_factory=ConstantAmplitude)
+    direction: DirectionLaw = field(default_factory=NoDirection)
+    regularity: RegularityLaw = field(default_factory=EvenPulses)
     limits: ActuatorLimits = field(default_factory=ActuatorLimits)
     description: str = ""
     #: One of :data:`RENDERINGS`; the laws above still give the drive where only
@@ -97,7 +116,7 @@ class Profile:
 
     def drive(
         self,
-        features: Any,
+        features: FeaturesForDrive,
         speed_m_s: float,
         direction_rad: float | None = None,
         pressure: float | None = None,
@@ -290,7 +309,7 @@ MAX_PROFILE_FREQUENCY_HZ = 20_000.0
 # The laws' declared domains, sampled at load: spatial frequency [cycles/m] from
 # a 1 km period to a 1 um one, stroking speed [m/s] from rest to 10 m/s,
 # spectral intensity, pressure and periodicity over [0, 1].
-_DOMAIN = {
+_DOMAIN: dict[str, list[Any]] = {
     "frequency": [10.0**e for e in range(-3, 7)],
     "speed": [0.0, 1e-4, 1e-3, 0.01, 0.06, 0.3, 1.0, 3.0, 10.0],
     "width": [0.0, 0.25, 0.5, 0.75, 1.0],

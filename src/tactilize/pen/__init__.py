@@ -24,7 +24,7 @@ Frames
 ------
 Positions are metres from the picture's top-left corner with y pointing *down*
 (screen coordinates, as pointers report them and as
-:meth:`~tactilize.texturemap.TextureMap.lookup` takes them).  Directions are
+:meth:`~tactilize.maps.texturemap.TextureMap.lookup` takes them).  Directions are
 counter-clockwise from +x with y pointing *up* (the frame of
 ``TextureFeatures.orientation_deg`` and ``Profile.drive``), so a stroke moving up
 the screen has direction +pi/2.
@@ -35,10 +35,7 @@ those rows is the web's job (:mod:`tactilize.web.rows`).
 
 from __future__ import annotations
 
-from typing import Any
-
 from .renderer import PenRenderer, RenderResult, default_splitter
-from .renderer import _Recorder as _Recorder  # the server's last-resort output, used by web/
 from .samples import PenSample, is_trackable
 from .tracker import StrokeState, StrokeTracker
 
@@ -50,20 +47,4 @@ __all__ = [
     "RenderResult",
     "PenRenderer",
     "default_splitter",
-    "samples_from_css",
-    "DEFAULT_M_PER_CSS_PX",
-    "sample_error",
 ]
-
-# The page's rows moved to tactilize.web.rows; these names stay importable from
-# here for existing code, loaded on first use so that importing the pen does
-# not import the web package.
-_MOVED_TO_WEB_ROWS = ("DEFAULT_M_PER_CSS_PX", "sample_error", "samples_from_css")
-
-
-def __getattr__(name: str) -> Any:
-    if name in _MOVED_TO_WEB_ROWS:
-        from ..web import rows
-
-        return getattr(rows, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -10,10 +10,9 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Sequence
 
-from ..actuators.base import OutputBase
 from ..drive import Drive
 from ..mapping import Profile
 from ..synthesis import pen_channels
@@ -395,19 +394,3 @@ def _close(a: Sequence[Drive], b: Sequence[Drive], rel: float) -> bool:
         for x, y in zip(a, b)
     )
 
-
-@dataclass
-class _Recorder(OutputBase):
-    """An output that only records (for tests and the server's last resort)."""
-
-    channels: int = 2
-    applied: list[list[Drive]] = field(default_factory=list)
-    stops: int = 0
-
-    def apply(self, channels: Sequence[Drive]) -> list[Drive]:
-        drives = list(channels) + [Drive.off()] * (self.channels - len(channels))
-        self.applied.append(drives)
-        return drives
-
-    def stop(self) -> None:
-        self.stops += 1

@@ -2,7 +2,7 @@
 
 Positions are metres from the picture's top-left corner with y pointing *down*
 (screen coordinates, as pointers report them and as
-:meth:`~tactilize.texturemap.TextureMap.lookup` takes them).  Where the samples
+:meth:`~tactilize.maps.texturemap.TextureMap.lookup` takes them).  Where the samples
 come from (a web page's rows in CSS pixels, a tablet driver, a recording) is the
 caller's business: :mod:`tactilize.web.rows` converts the page's rows.
 """

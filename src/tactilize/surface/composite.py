@@ -1,4 +1,4 @@
-"""Several pictures' surfaces side by side, laid out as :class:`~tactilize.composite.CompositeMap` lays them.
+"""Several pictures' surfaces side by side, laid out as :class:`~tactilize.maps.composite.CompositeMap` lays them.
 
 The six-picture view (the paper's Fig. 16) strokes from one picture into the
 next: :meth:`CompositeSurface.regions` says which picture each point of the path

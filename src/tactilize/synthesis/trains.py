@@ -309,16 +309,16 @@ class PulseScheduler:
             return few, self._width, self._drive.amplitude
         kk = k + np.arange(m, dtype=np.int64)
         if j:
-            place = kk + j * self._table[(self._base + kk) % _JITTER_TABLE]
+            places = kk + j * self._table[(self._base + kk) % _JITTER_TABLE]
             if k == 0:
-                place[0] = self._place(0)
+                places[0] = self._place(0)
         else:
-            place = kk.astype(np.float64)
-        starts = np.floor(a + place * P + 0.5).astype(np.int64)
+            places = kk.astype(np.float64)
+        starts = np.floor(a + places * P + 0.5).astype(np.int64)
         keep = starts < end
         starts = starts[keep]
         self._k = k + starts.size
-        self._last_start = a + float(place[keep][-1]) * P
+        self._last_start = a + float(places[keep][-1]) * P
         self._last_end = int(starts[-1]) + self._width
         return starts - pos, self._width, self._drive.amplitude
 

@@ -8,19 +8,20 @@ their own routes with ``create_app(extra_routers=[router])`` or
 
 Modules
 -------
-:mod:`.app`      the application, its routes and shared state
+:mod:`.app`      the application and its routes
+:mod:`.state`    the shared state: the output, the profile, the gallery
 :mod:`.session`  the WebSocket protocol of the pen page
 :mod:`.serve`    binding the socket and running the server
 :mod:`.rows`     the pages' pen sample rows: validation, conversion to SI
-:mod:`.http`     what the pen app and the experiments share: the error
-                 answer, the loopback rule
-:mod:`.encode`   the one JSON encoder (the pages and the CLI)
 :mod:`.guard`    Host and Origin checks, the socket cap
 :mod:`.ownership` one physical output, many pages
 :mod:`.limits`   bounded uploads and stroke exports
 
 ``create_app`` and ``ServerState`` load the web framework on first use, so
-:mod:`.rows` and :mod:`.encode` stay cheap to import.
+:mod:`.rows` stays cheap to import.  What the pen app shares with the catalog's
+API, the experiments and the CLI lives below it: :mod:`tactilize.http` (the
+error answer, the loopback rule) and :mod:`tactilize.encode` (the one JSON
+encoder).
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The pen app's ``/api`` routes: configuration, the gallery, pictures, features,
 Fig. 5, uploads, profiles and statistics (the route table is in :mod:`.app`).
 
-Every handler reads the shared :class:`~.app.ServerState` from
+Every handler reads the shared :class:`~.state.ServerState` from
 ``request.app.state.tactilize`` and refuses a request by raising
 :class:`~tactilize.errors.RequestError`.
 """
@@ -11,31 +11,27 @@ from __future__ import annotations
 import asyncio
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse, Response
 
 from ..errors import ImageError, RequestError
-from .encode import jsonable
-from .http import ErrorAnsweringRoute
+from ..encode import jsonable
+from ..http import ErrorAnsweringRoute
 
-if TYPE_CHECKING:
-    from .app import ServerState, TextureEntry
+from .limits import MAX_UPLOAD_BYTES, MAX_UPLOAD_PIXELS
+from .state import ServerState, TextureEntry
 
 __all__ = ["api_router", "MAX_UPLOAD_BYTES", "MAX_UPLOAD_PIXELS"]
 
-#: Largest upload accepted [bytes]: a high-quality phone photo fits.
-MAX_UPLOAD_BYTES = 12 * 1024 * 1024
-#: Largest upload accepted [pixels]: 16 Mpx; analysing it takes about a second.
-MAX_UPLOAD_PIXELS = 16 * 1024 * 1024
 #: Room for the multipart framing and the small form fields around the file [bytes].
 _FORM_OVERHEAD = 64 * 1024
 
 
 def api_router() -> APIRouter:
     """The ``/api`` routes of the pen app (listed in :mod:`.app`); the state is
-    ``request.app.state.tactilize``, a :class:`~.app.ServerState`."""
+    ``request.app.state.tactilize``, a :class:`~.state.ServerState`."""
     # Handlers refuse a request by raising RequestError.
     r = APIRouter(prefix="/api", route_class=ErrorAnsweringRoute)
 
@@ -178,7 +174,7 @@ def _spectrum_doc(e: TextureEntry) -> dict[str, Any]:
 
     from ..data import png_bytes
     from ..image import load_image
-    from ..spectrumview import spectrum_view
+    from ..maps.spectrumview import spectrum_view
 
     img = load_image(e.png)
     m = e.map
@@ -189,16 +185,18 @@ def _spectrum_doc(e: TextureEntry) -> dict[str, Any]:
     return d
 
 
-def _number(text: str | None, name: str) -> float | None:
+def _number(text: object, name: str) -> float | None:
     """A positive form number, or None when absent.
 
     Raises
     ------
     RequestError
-        Not a number, or out of its range (422).
+        Not a number (a file part included), or out of its range (422).
     """
     if text is None or str(text).strip() == "":
         return None
+    if not isinstance(text, str):
+        raise RequestError(name, f"{name} must be a number, got a file", 422)
     try:
         v = float(text)
     except ValueError:

@@ -83,7 +83,7 @@ def _this_machine() -> set[str]:
     names = {socket.gethostname().lower()}
     try:
         names.add(socket.getfqdn().lower())
-        names |= {info[4][0].lower() for info in socket.getaddrinfo(socket.gethostname(), None)}
+        names |= {str(info[4][0]).lower() for info in socket.getaddrinfo(socket.gethostname(), None)}
     except OSError:
         pass
     try:

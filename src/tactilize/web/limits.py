@@ -19,7 +19,12 @@ from typing import Any, AsyncIterator, Callable
 from ..errors import RequestError
 
 __all__ = ["WorkGate", "read_body", "UPLOADS_ADMITTED", "UPLOADS_RUNNING", "EXPORTS_ADMITTED", "EXPORTS_RUNNING",
-           "MAX_EXPORT_BODY_BYTES"]
+           "MAX_EXPORT_BODY_BYTES", "MAX_UPLOAD_BYTES", "MAX_UPLOAD_PIXELS"]
+
+#: Largest upload accepted [bytes]: a high-quality phone photo fits.
+MAX_UPLOAD_BYTES = 12 * 1024 * 1024
+#: Largest upload accepted [pixels]: 16 Mpx; analysing it takes about a second.
+MAX_UPLOAD_PIXELS = 16 * 1024 * 1024
 
 #: Uploads inside the server at once (one analysing, one waiting); one more gets 503.
 UPLOADS_ADMITTED = 2

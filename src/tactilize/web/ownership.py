@@ -30,7 +30,9 @@ import threading
 import time
 from typing import Any, Callable, Sequence
 
+from ..actuators.base import Output
 from ..drive import Drive
+from .state import ServerState
 
 __all__ = ["PEN", "TRIAL", "IDLE_RELEASE_S", "OutputLease", "LeasedOutput", "page_output", "lease_of", "close_outputs"]
 
@@ -157,7 +159,7 @@ class LeasedOutput:
 
     _ids = itertools.count(1)
 
-    def __init__(self, output: Any, lease: OutputLease, rank: int = PEN,
+    def __init__(self, output: Output, lease: OutputLease, rank: int = PEN,
                  notify: Callable[[dict[str, Any]], None] | None = None) -> None:
         self.output, self.lease, self.rank = output, lease, int(rank)
         self.id = next(self._ids)
@@ -216,8 +218,9 @@ class LeasedOutput:
 class _OwnOutput:
     """A page's own simulated output, handed back to its pool when the page goes."""
 
-    def __init__(self, output: Any, pool: "_Pool") -> None:
-        self.output, self._pool = output, pool
+    def __init__(self, output: Output, pool: "_Pool") -> None:
+        self.output: Output | None = output
+        self._pool = pool
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self.output, name)
@@ -235,18 +238,18 @@ class _Pool:
     """Simulated outputs no page uses now, kept for the next page (a reload finds
     its wire as warm as it left it, as with one shared wire); never two pages at once."""
 
-    def __init__(self, factory: Callable[[], Any], keep: int = 4) -> None:
+    def __init__(self, factory: Callable[[], Output], keep: int = 4) -> None:
         self.factory, self.keep = factory, keep
-        self._idle: list[Any] = []
+        self._idle: list[Output] = []
         self._lock = threading.Lock()
 
-    def get(self) -> Any:
+    def get(self) -> Output:
         with self._lock:
             if self._idle:
                 return self._idle.pop()
         return self.factory()
 
-    def put(self, out: Any) -> None:
+    def put(self, out: Output) -> None:
         with self._lock:
             if len(self._idle) < self.keep:
                 self._idle.append(out)
@@ -260,19 +263,19 @@ class _Pool:
             out.close()
 
 
-def _close_soon(out: Any) -> None:
+def _close_soon(out: Output) -> None:
     # Off the caller's thread: ending a simulated wire's thread waits up to a tick.
     threading.Thread(target=out.close, name="tactilize-close-output", daemon=True).start()
 
 
-def close_outputs(state: Any) -> None:
+def close_outputs(state: ServerState) -> None:
     """Close the outputs kept for later pages (at the server's shutdown)."""
     pool = getattr(state, "page_output_pool", None)
     if pool is not None:
         pool.close()
 
 
-def lease_of(state: Any) -> OutputLease:
+def lease_of(state: ServerState) -> OutputLease:
     """The lease of the server's shared output (made on first use)."""
     lease = getattr(state, "output_lease", None)
     if lease is None:
@@ -280,7 +283,9 @@ def lease_of(state: Any) -> OutputLease:
     return lease
 
 
-def page_output(state: Any, rank: int = PEN, notify: Callable[[dict[str, Any]], None] | None = None) -> Any:
+def page_output(
+    state: ServerState, rank: int = PEN, notify: Callable[[dict[str, Any]], None] | None = None
+) -> LeasedOutput | _OwnOutput:
     """The output a new page drives.
 
     Parameters

@@ -82,6 +82,6 @@ def samples_from_css(rows: Iterable[Sequence[Any]], m_per_px: float) -> list[Pen
     """
     samples = []
     for t_ms, x_px, y_px, *given in rows:
-        pressure, tilt_x_deg, tilt_y_deg = (*given, *_OPTIONAL_DEFAULTS[len(given) :])
+        pressure, tilt_x_deg, tilt_y_deg = tuple(given) + _OPTIONAL_DEFAULTS[len(given) :]
         samples.append(PenSample(t_ms * 1e-3, x_px * m_per_px, y_px * m_per_px, pressure, tilt_x_deg, tilt_y_deg))
     return samples

@@ -15,7 +15,7 @@ import webbrowser
 from typing import Any, Callable, Iterable
 
 from ..errors import TactilizeError
-from .http import is_loopback
+from ..http import is_loopback
 
 #: The pen's default profile, as every command's: the surface rendering, a pulse per
 #: bump under the stylus tip (docs/surfaces.md).
@@ -136,10 +136,10 @@ def serve(
             if output.strip().lower() != "simulated":
                 raise TactilizeError(f"--output {output}", f"not available in this installation ({exc})") from None
             # A partial build without the wire model: still serve the page.
-            from ..pen import _Recorder
+            from ..actuators.recording import RecordingOutput
 
             warn(f"tactilize: warning: the simulated wire is not available ({exc}); drives are only recorded")
-            out = _Recorder()
+            out = RecordingOutput()
             output = "recorder (no simulated wire)"
     except BaseException:
         sock.close()
@@ -190,7 +190,7 @@ def serve(
         if not is_loopback(host):
             for line in context_notes(secure=https):
                 echo(f"tactilize: {line}")
-        if https:
+        if https and ssl_files is not None:
             echo(f"tactilize: HTTPS with a self-signed certificate ({ssl_files[0]}): the browser warns once; see docs/serve.md")
         if open_browser is None:
             open_browser = display_available()

@@ -90,8 +90,8 @@ from starlette.websockets import WebSocketDisconnect, WebSocketState
 
 from ..errors import TactilizeError
 from ..pen import PenRenderer
+from ..encode import dumps
 from ..pen.display import MM_PER_PX_RANGE  # the one display-scale rule, shared with the experiments
-from .encode import dumps
 from .rows import sample_error, samples_from_css
 
 __all__ = ["websocket_endpoint", "PenSession", "MAX_BATCH", "MAX_PENDING", "MAX_MESSAGE_CHARS", "IDLE_S", "MAX_COMPOSITE"]
@@ -197,7 +197,7 @@ class PenSession:
                    "take_over)")
 
     def _composite(self, msg: dict[str, Any]) -> dict[str, Any]:
-        from ..composite import CompositeMap
+        from ..maps.composite import CompositeMap
 
         ids, cols = msg.get("ids"), msg.get("cols", 3)
         if not isinstance(ids, list) or not 1 <= len(ids) <= MAX_COMPOSITE or not all(isinstance(i, str) for i in ids):
@@ -293,7 +293,7 @@ class PenSession:
             if self.repeat is None:
                 self.renderer.set_texture(entry.map, entry.surface)
             else:
-                from ..composite import CompositeMap
+                from ..maps.composite import CompositeMap
 
                 cols, rows = self.repeat
                 cmap = CompositeMap.of([entry.map] * (cols * rows), cols)

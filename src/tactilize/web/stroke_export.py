@@ -25,7 +25,7 @@ from fastapi import APIRouter, Request
 from fastapi.responses import Response
 
 from ..errors import RequestError
-from .http import ErrorAnsweringRoute
+from ..http import ErrorAnsweringRoute
 from .limits import MAX_EXPORT_BODY_BYTES, read_body
 
 __all__ = ["stroke_export_router", "MAX_STROKE_SAMPLES"]

@@ -7,16 +7,14 @@
 ``simulate``    :func:`simulate`, :func:`simulate_drive`, :func:`steady_cycle`
 ``envelope``    :class:`SafetyEnvelope`: what the wire may get on that circuit, in energy
 ``controller``  :class:`WireController`: felt band, standby, warming, closed loop
-``felt``        :func:`feel`: what the finger gets from a steady stroke
 ==============  ==================================================================
 
 Data moves one way: wire and circuit -> model -> simulation; envelope -> controller.
 """
 
 from .circuit import Circuit, circuit_names
-from .controller import STATES, PulsePlan, WireController
+from .controller import STATES, ControllerState, PulsePlan, WireController
 from .envelope import DESIGN_AMBIENT_C, ENVELOPE_MARGIN, SafetyEnvelope, build_envelope, default_envelope
-from .felt import FeltReport, feel
 from .model import WireModel, branch_fraction
 from .simulate import (
     DEFAULT_DT_S,
@@ -52,6 +50,5 @@ __all__ = [
     "WireController",
     "PulsePlan",
     "STATES",
-    "FeltReport",
-    "feel",
+    "ControllerState",
 ]

@@ -46,6 +46,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
+from enum import StrEnum
 
 from ...drive import Drive
 from .circuit import Circuit
@@ -53,10 +54,28 @@ from .envelope import SafetyEnvelope, build_envelope, drive_jitter
 from .simulate import FOLLOW_THRESHOLD_M
 from .wire import WireSpec
 
-__all__ = ["WireController", "PulsePlan", "STATES"]
+__all__ = ["WireController", "PulsePlan", "ControllerState", "STATES"]
 
-#: The controller's states, as the page shows them.
-STATES = ("off", "standby", "warming", "vibrating")
+
+class ControllerState(StrEnum):
+    """Where a channel's operating point is.
+
+    A :class:`~enum.StrEnum`: each member is its name on the wire and on the page
+    (``"off"``, ...), so traces, JSON and the page's strings are unchanged.
+    """
+
+    #: nothing flows; the wire cools to ambient
+    OFF = "off"
+    #: held just below A_s by the bias: at rest, ready for the next touch
+    STANDBY = "standby"
+    #: a burst brings the wire up to the setpoint before the first pulse
+    WARMING = "warming"
+    #: at the setpoint, the pulses move the pin
+    VIBRATING = "vibrating"
+
+
+#: The controller's states, as the page shows them (in this order: the traces' state codes).
+STATES = tuple(s.value for s in ControllerState)
 
 #: Martensite fraction the loop holds while vibrating.  0.8 sits 1.2 K into the
 #: heating branch: steep enough that a small pulse moves the pin, close enough
@@ -74,9 +93,10 @@ FLOOR_KNEE_HZ = 60.0
 #: the bias, so the loop can always lower the heat.
 PULSE_SHARE = 0.85
 #: The loop's natural frequency [rad/s], critically damped, against the plant's
-#: d xi / dt = -(s / C_eff) dP (s = |d xi / dT| at the setpoint).  15 rad/s is
-#: far faster than the wire's own drift in the band (a few seconds) and the
-#: instability a stiff source adds (about 0.5 /s on the 75 um wire).
+#: d xi / dt = -(s / C_eff) dP (s = |d xi / dT| at the setpoint).  6 rad/s (a
+#: time constant of about 0.17 s) is still an order of magnitude faster than the
+#: wire's own drift in the band (a few seconds) and the instability a stiff
+#: source adds (about 0.5 /s on the 75 um wire).
 LOOP_RATE_RAD_S = 6.0
 #: ...but slower than the one-period mean it reads can follow: rate <= this / period.
 LOOP_RATE_PER_WINDOW = 1.0
@@ -167,7 +187,7 @@ class WireController:
         # The heat that holds the setpoint [W]: a guess from the nominal air, then learnt.
         self.hold_w = sp.conductance_w_k * (self.operating_c - sp.ambient_c)
         self._nominal_hold_w = self.hold_w
-        self.state = "off"
+        self.state: ControllerState = ControllerState.OFF
         self.drive = Drive.off()
         self._standby_until = -math.inf
         # Latest measurements: resistance [ohm] and heat while on [W].
@@ -221,7 +241,7 @@ class WireController:
         f = drive.pulse_frequency_hz
         lo, hi = self.band_j(f)
         pos, outside = self._position(drive, lo, hi)
-        clamped = ("band",) if outside else ()
+        clamped: tuple[str, ...] = ("band",) if outside else ()
         energy = lo * (hi / lo) ** pos if hi > lo > 0 else hi
         power = self.on_power_w if self.closed_loop else self.circuit.power_at(self.spec.resistance_martensite_ohm)
         # The pulse must leave room in its period for the wire to cool.
@@ -239,13 +259,13 @@ class WireController:
     def command(self, drive: Drive, now_s: float) -> None:
         """A new drive from the host: off means the pen lifted (standby for a while)."""
         if drive.is_off:
-            if self.state in ("warming", "vibrating"):
+            if self.state in (ControllerState.WARMING, ControllerState.VIBRATING):
                 self._enter_standby(now_s)
             self.drive = drive
             return
         self.drive = drive
-        if self.state in ("off", "standby"):
-            self.state = "warming"
+        if self.state in (ControllerState.OFF, ControllerState.STANDBY):
+            self.state = ControllerState.WARMING
 
     def standby(self, now_s: float) -> None:
         """Texture off, the wire held ready for ``standby_s`` from now (the pen
@@ -254,12 +274,12 @@ class WireController:
         self._enter_standby(now_s)
 
     def _enter_standby(self, now_s: float) -> None:
-        self.state = "standby"
+        self.state = ControllerState.STANDBY
         self._standby_until = now_s + self.standby_s
 
     def stop(self) -> None:
         """Everything off at once."""
-        self.state = "off"
+        self.state = ControllerState.OFF
         self.drive = Drive.off()
         self.bias_level = 0.0
 
@@ -302,10 +322,10 @@ class WireController:
         period_s = 1.0 / self.drive.pulse_frequency_hz if self.pulses_on else 0.0
         window = max(period_s, 2e-3)
         xi_avg = self._period_mean(now_s, window)
-        if self.state == "standby" and now_s > self._standby_until:
+        if self.state == ControllerState.STANDBY and now_s > self._standby_until:
             self.stop()
-        if self.state == "warming" and self.martensite_fraction <= self.setpoint + WARM_DONE:
-            self.state = "vibrating"
+        if self.state == ControllerState.WARMING and self.martensite_fraction <= self.setpoint + WARM_DONE:
+            self.state = ControllerState.VIBRATING
             # The burst's readings say nothing about the band the wire is now in.
             self._seen.clear()
             self._seen_sum = [0.0, 0.0]
@@ -315,9 +335,9 @@ class WireController:
             rate = min(LOOP_RATE_RAD_S, LOOP_RATE_PER_WINDOW / window)
             gain_p = 2 * rate / self._plant_gain
             gain_i = rate * rate / self._plant_gain
-            if self.state == "vibrating":
+            if self.state == ControllerState.VIBRATING:
                 self.hold_w += gain_i * (xi_avg - self.setpoint) * dt
-            elif self.state == "standby" and xi_avg < 0.995:
+            elif self.state == ControllerState.STANDBY and xi_avg < 0.995:
                 # Blind below A_s, but the resistance moving says the wire is warmer
                 # than meant (hot air): lower the holding heat until it stops.
                 self.hold_w += gain_i * (xi_avg - 0.995) * dt
@@ -327,12 +347,12 @@ class WireController:
     def _bias(self, xi_avg: float, gain_p: float) -> float:
         sp = self.spec
         power = self.on_power_w if self.closed_loop else self.circuit.power_at(sp.resistance_martensite_ohm)
-        if self.state == "off" or power <= 0 or self.martensite_fraction < BIAS_NEEDS_MARTENSITE:
+        if self.state == ControllerState.OFF or power <= 0 or self.martensite_fraction < BIAS_NEEDS_MARTENSITE:
             return 0.0
-        if self.state == "warming":
+        if self.state == ControllerState.WARMING:
             return 1.0
         f = energy = 0.0
-        if self.state == "standby":
+        if self.state == ControllerState.STANDBY:
             want = self.hold_w - sp.conductance_w_k * (self.operating_c - self.standby_c)
         else:
             d = self.drive
@@ -367,4 +387,4 @@ class WireController:
     @property
     def pulses_on(self) -> bool:
         """Texture pulses play only once the wire is in its band."""
-        return self.state == "vibrating" and not self.drive.is_off
+        return self.state == ControllerState.VIBRATING and not self.drive.is_off

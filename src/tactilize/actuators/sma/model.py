@@ -258,18 +258,17 @@ class WireModel:
                     # Linear ODE, exact: T -> Tinf with time constant tau.
                     Tinf = Ta + P / hA
                     step = rem if rem < dt_cap else dt_cap
-                    hit = False
+                    # Where the step ends when it reaches the band's edge (None: it does not).
+                    hit_c: float | None = None
                     if edge is not None and k > 0 and (Tinf - edge) * branch > 0:
                         # The equilibrium lies past the band edge: reach it exactly.
                         t_edge = tau * log((T - Tinf) / (edge - Tinf))
                         if t_edge <= step:
                             step = t_edge if t_edge > 0 else 0.0
-                            hit = True
+                            # Just inside the band, so the next step sees it active.
+                            hit_c = edge + 1e-9 * branch
                     e = exp(-step / tau)
-                    T1 = Tinf + (T - Tinf) * e
-                    if hit:
-                        # Just inside the band, so the next step sees it active.
-                        T1 = edge + 1e-9 * branch
+                    T1 = Tinf + (T - Tinf) * e if hit_c is None else hit_c
                     Ein += P * step
                     Econv += hA * ((Tinf - Ta) * step + (T - Tinf) * tau * (1 - e))
                     T = T1

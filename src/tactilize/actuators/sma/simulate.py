@@ -427,7 +427,8 @@ def steady_cycle(
     per_block = max(1, int(round(0.5 * f)))
     block = [w, period - w] * per_block
     levels = [1.0, bias_level] * per_block
-    prev_mean = prev_xi = None
+    prev_mean: float | None = None
+    prev_xi = 0.0
     settled = False
     mean = T0
     edges: list[tuple[float, float]] = []

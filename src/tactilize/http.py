@@ -1,4 +1,5 @@
-"""What the pen app and the experiments' routes share: the error answer and the loopback rule."""
+"""What every HTTP app shares (the pen app, the catalog's API, the experiments' routes): the error
+answer and the loopback rule.  Below :mod:`tactilize.web`, so the others need not import the pen app."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from fastapi import Request, Response
 from fastapi.responses import JSONResponse
 from fastapi.routing import APIRoute
 
-from ..errors import RequestError, TactilizeError
+from .errors import RequestError, TactilizeError
 
 __all__ = ["is_loopback", "error_response", "ErrorAnsweringRoute", "settle_heap"]
 

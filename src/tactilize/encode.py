@@ -16,7 +16,7 @@ from typing import Any
 try:
     import orjson
 except ImportError:  # pragma: no cover - a dependency, but the json module path is kept
-    orjson = None
+    orjson = None  # type: ignore[assignment]
 
 __all__ = ["jsonable", "dumps"]
 

@@ -16,6 +16,9 @@ from typing import Any
 
 import numpy as np
 
+from ..features import TextureFeatures
+from .texturemap import TextureMap
+
 __all__ = ["log_spectrum", "spectrum_view", "peak_position_px"]
 
 #: Longest side of the spectrum image sent to the page [pixels]: the centre
@@ -59,7 +62,9 @@ def peak_position_px(wave_vector_per_px: tuple[float, float], shape: tuple[int, 
     return (w // 2 + kx * w, h // 2 - ky * h)
 
 
-def spectrum_view(pixels: np.ndarray, features: Any, texture_map: Any = None, max_side: int = MAX_SIDE) -> dict[str, Any]:
+def spectrum_view(
+    pixels: np.ndarray, features: TextureFeatures, texture_map: TextureMap | None = None, max_side: int = MAX_SIDE
+) -> dict[str, Any]:
     """Everything Fig. 5 shows, JSON-ready.
 
     Parameters

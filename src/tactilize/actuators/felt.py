@@ -17,11 +17,12 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import WireError, check_finite
-from ...drive import Drive
-from .circuit import Circuit
-from .simulate import FOLLOW_THRESHOLD_M
-from .wire import WireSpec
+from ..errors import WireError, check_finite
+from ..drive import Drive
+from .simulated import SimulatedOutput
+from .sma.circuit import Circuit
+from .sma.simulate import FOLLOW_THRESHOLD_M
+from .sma.wire import WireSpec
 
 __all__ = ["FeltReport", "feel"]
 
@@ -108,8 +109,6 @@ def feel(
     plant_wire, plant_circuit : optional
         The real wire and circuit when they differ from the configured ones.
     """
-    from ..simulated import SimulatedOutput  # the output imports this package
-
     if not isinstance(drive, Drive):
         raise WireError("<drive>", f"expected a Drive, got {type(drive).__name__}")
     f = drive.pulse_frequency_hz

@@ -4,13 +4,17 @@ The paper's pen demonstration strokes six textures laid side by side, the
 drive following the texture under the pen.  :class:`CompositeMap` puts texture
 maps on a grid of equal cells (each picture at its physical size in the
 top-left of its cell) and looks up the one under the pen, so the pen renderer
-takes it like any :class:`~tactilize.texturemap.TextureMap`.
+takes it like any :class:`~tactilize.maps.texturemap.TextureMap`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Sequence
+
+if TYPE_CHECKING:  # types only: a composite loads nothing until its maps do
+    from ..features import TextureFeatures
+    from .lookup import FeatureLookup
 
 __all__ = ["CompositeMap"]
 
@@ -29,12 +33,12 @@ class CompositeMap:
         Cell width and height [m]: the largest picture's.
     """
 
-    maps: tuple[Any, ...]
+    maps: tuple[FeatureLookup, ...]
     cols: int
     cell_m: tuple[float, float]
 
     @classmethod
-    def of(cls, maps: Sequence[Any], cols: int) -> "CompositeMap":
+    def of(cls, maps: Sequence[FeatureLookup], cols: int) -> "CompositeMap":
         """The grid of ``maps`` with ``cols`` cells a row (cells as large as the largest picture)."""
         if not maps or cols < 1:
             raise ValueError("a composite needs at least one map and one column")
@@ -58,7 +62,7 @@ class CompositeMap:
         """Top-left corner [m] of picture ``index`` on the surface (y down)."""
         return (index % self.cols) * self.cell_m[0], (index // self.cols) * self.cell_m[1]
 
-    def lookup(self, x_m: float, y_m: float) -> Any:
+    def lookup(self, x_m: float, y_m: float) -> TextureFeatures | None:
         """Features under a point of the surface (from its top-left, y down) [m]; None off every picture."""
         cw, ch = self.cell_m
         if not (0.0 <= x_m < self.width_m and 0.0 <= y_m < self.height_m):

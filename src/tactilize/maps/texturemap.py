@@ -10,13 +10,13 @@ position in constant time (one division and an array index).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Any, Literal
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from .features import TextureFeatures, analyse_stack, extract_features
-from .image import TextureImage
+from ..features import TextureFeatures, analyse_stack, extract_features
+from ..image import TextureImage, pitch_pair
 
 __all__ = ["TextureMap", "texture_map"]
 
@@ -48,6 +48,10 @@ class TextureMap:
     shape: tuple[int, int]
     whole: TextureFeatures
     sample_px: int | None = None
+    if TYPE_CHECKING:
+        # lookup()'s constants, set once by __post_init__; at run time not a field
+        # (no init, comparison or repr).
+        _lookup: tuple[float, float, float, float, int, int] = field(init=False)
 
     def __post_init__(self) -> None:
         # lookup() runs for every pen batch: its constants once, computed as it
@@ -96,7 +100,7 @@ class TextureMap:
 
     def at_pitch(self, pitch_m: float | tuple[float, float]) -> "TextureMap":
         """The same map for the picture shown at another pixel pitch [m]; no new FFT."""
-        pair = (pitch_m, pitch_m) if np.isscalar(pitch_m) else tuple(pitch_m)  # type: ignore[misc]
+        pair = pitch_pair(pitch_m)
         return TextureMap(
             tuple(tuple(t.at_pitch(pair) for t in row) for row in self.tiles),
             self.tile_px,
