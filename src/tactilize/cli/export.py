@@ -50,7 +50,13 @@ def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     limits = profile.limits.to_dict()
     tl.meta.setdefault("min_frequency_hz", limits.get("min_frequency_hz", 0.0))
     tl.meta.setdefault("max_frequency_hz", limits.get("max_frequency_hz", 300.0))
-    path = export(tl, opt["out_path"], fmt, drive=opt["drive_kind"], **extra)
+    source: Any = tl
+    if fmt == "wav" and surface is not None and opt["drive_kind"] == "profile":  # the tip's acceleration
+        from ..export.wav import StrokeAcceleration
+
+        origin = 0.0 if opt["stroke_path"] is None else stroke.t_s[0]  # the timeline's t = 0
+        source = StrokeAcceleration(stroke, surface, origin, origin + tl.end_s, mirror=opt["stroke_path"] is None)
+    path = export(source, opt["out_path"], fmt, drive=opt["drive_kind"], **extra)
     feat = tmap.whole
     first = tl.drives(opt["drive_kind"])[0]
     freqs = [d.pulse_frequency_hz for d in tl.drives(opt["drive_kind"]) if not d.is_off]
