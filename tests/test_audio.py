@@ -171,3 +171,67 @@ def test_a_drive_the_synthesiser_refuses_fails_in_the_callers_thread(fake_sd):
             out.apply([Drive(1000.0, 1e-3)])  # pulses as long as the period: they would touch
         x = FakeStream.instances[0].pull(4800)
     assert not x.any()  # nothing was played
+
+
+# ----------------------------------------------------------------- pulse events (the surface rendering)
+
+
+def _grating_events(speed_m_s: float = 0.1, duration_s: float = 1.0):
+    from tactilize.surface import stroke_events, surface_model
+    from tactilize.surface.fields import grating_field
+
+    pitch = 0.26e-3
+    surface = surface_model(grating_field(1000.0, 0.0, (0.3, 0.02), pitch), pitch_m=pitch)
+    t = np.arange(0.0, duration_s, 1 / 240)
+    return stroke_events(surface, t, 5e-3 + speed_m_s * t, np.full(t.size, 10e-3))
+
+
+def test_events_play_as_wavelets_at_the_crossing_rate(fake_sd):
+    from tactilize.synthesis.acceleration import spectral_peak_hz, spectrum
+
+    events = _grating_events(0.1)
+    out = AudioOutput(sample_rate_hz=RATE, envelope=Identity())
+    assert out.plays_events
+    eq = Drive(pulse_frequency_hz=100.0, pulse_width_s=0.001, amplitude=0.5)
+    applied = out.play_events([events, events], 0.0, [eq, eq])
+    assert applied[0] == eq
+    x = FakeStream.instances[-1].pull(RATE)
+    assert np.isfinite(x).all()
+    f, p = spectrum(x[:, 0].astype(float), RATE)
+    assert spectral_peak_hz(f, p) == pytest.approx(100.0, rel=0.03)
+    # Bipolar, as strong as the events (one pulse train would be >= 0), and no steady train under it.
+    strongest = max(e.strength for e in events)
+    assert x[:, 0].min() == pytest.approx(-strongest, abs=0.02) and x[:, 0].max() > 0.1
+    # Each wavelet's trough lands one block after the event's time (the output's lead).
+    trough = int(np.argmin(x[:4800, 0]))
+    first = events[0].t_s * RATE + 256
+    assert abs(trough - first) <= 2
+
+
+def test_a_new_batch_replaces_what_has_not_started(fake_sd):
+    out = AudioOutput(sample_rate_hz=RATE, envelope=Identity())
+    stream = FakeStream.instances[-1]
+    from tactilize.surface.events import PulseEvent
+
+    on = Drive(pulse_frequency_hz=50.0, pulse_width_s=0.001, amplitude=0.5)
+    out.play_events([[PulseEvent(0.005, 1.0), PulseEvent(0.200, 1.0)]] * 2, 0.0, [on, on])
+    first = stream.pull(1024)  # 21 ms: the first wavelet has started
+    out.play_events([[PulseEvent(0.200, 0.5)]] * 2, 1024 / RATE, [on, on])
+    rest = stream.pull(RATE // 2)
+    x = np.concatenate([first, rest])[:, 0]
+    assert x[:3400].min() < -0.99  # the started one played to its end (3 sigma = 34 ms)...
+    # ...the one at 200 ms was replaced by the later batch's weaker one
+    assert x[3400:].min() == pytest.approx(-0.5, abs=0.005)
+    out.stop()
+    assert np.abs(stream.pull(4800)).max() == 0.0
+
+
+def test_a_steady_drive_after_events_drops_them(fake_sd):
+    from tactilize.surface.events import PulseEvent
+
+    out = AudioOutput(sample_rate_hz=RATE, envelope=Identity())
+    on = Drive(pulse_frequency_hz=50.0, pulse_width_s=0.001, amplitude=0.5)
+    out.play_events([[PulseEvent(0.05, 1.0)]] * 2, 0.0, [on, on])
+    out.apply([on, on])
+    x = FakeStream.instances[-1].pull(RATE // 5)
+    assert x.min() >= 0.0  # only the pulse train: no wavelet

@@ -1,0 +1,171 @@
+"""Pulse events as acceleration wavelets: what a voice coil plays in real time.
+
+The real-time outputs (the sound card, the page's audio) get the surface
+rendering's pulse events (docs/surfaces.md), not the stroke's path.  Each event
+is played as the acceleration of the tip over one bump: a bump of Gaussian
+profile (standard deviation sigma_b) crossed at speed v lifts the tip by
+A exp(-(v t)^2 / (2 sigma_b^2)), whose second derivative is a Ricker wavelet
+(the negative second derivative of a Gaussian) of width sigma_t = sigma_b / v:
+
+    w(t) = -(1 - tau^2) exp(-tau^2 / 2),  tau = (t - t_event) / sigma_t
+
+An event does not say its bump's width or the speed; it says when.  The width is
+taken from the interval to the nearest neighbouring event, sigma_t = interval /
+(sqrt(2) pi), so the wavelet's spectral peak, 1 / (sqrt(2) pi sigma_t), is the
+local crossing rate: on a grating or grains (bumps as wide as their spacing) a
+train of these wavelets peaks where the tip's acceleration peaks, at v f_s.
+The width is kept inside the actuator's band (the peak between 20 and 1000 Hz),
+which is also what bounds a lone bump's wavelet.  Amplitude is the event's
+strength (its place in the felt band, pressure included), so the sound card
+plays the same loudness scale as the wire; the WAV export carries the physical
+acceleration, v^2 included (:mod:`.acceleration`).
+
+The wavelet is cut at +-:data:`SPAN_SIGMAS` sigma with a raised-cosine taper over
+the last sigma (the tail there is under 11 % of the peak), so a scheduled
+wavelet starts a bounded time before its event.  ``web/static/pulse-worklet.js``
+draws the same shape.
+
+Units: SI (s, Hz); amplitude in [0, 1] of full scale.
+
+References
+----------
+.. [1] docs/references.md, section 3 (voice-coil band).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, NamedTuple, Sequence
+
+import numpy as np
+
+from .acceleration import VOICE_COIL_BAND_HZ
+
+__all__ = ["Wavelet", "SPAN_SIGMAS", "ricker", "event_wavelets", "wavelet_rows", "render_wavelets", "WaveletPlayer"]
+
+#: The wavelet is drawn over +- this many standard deviations.
+SPAN_SIGMAS = 3.0
+_SQRT2_PI = math.sqrt(2.0) * math.pi
+
+
+class Wavelet(NamedTuple):
+    """One event as a wavelet: centre [s], amplitude [0, 1], width (standard deviation) [s]."""
+
+    t_s: float
+    amplitude: float
+    sigma_s: float
+
+
+def ricker(tau: np.ndarray) -> np.ndarray:
+    """The wavelet's shape at ``tau`` standard deviations from its centre: -1 at the centre,
+    0 beyond :data:`SPAN_SIGMAS`, tapered over the last one."""
+    tau = np.abs(np.asarray(tau, dtype=np.float64))
+    w = -(1.0 - tau * tau) * np.exp(-0.5 * tau * tau)
+    edge = SPAN_SIGMAS - 1.0
+    taper = np.where(tau <= edge, 1.0, 0.5 + 0.5 * np.cos(np.pi * np.clip(tau - edge, 0.0, 1.0)))
+    return np.where(tau < SPAN_SIGMAS, w * taper, 0.0)
+
+
+def _sigma_bounds(band_hz: tuple[float, float]) -> tuple[float, float]:
+    return 1.0 / (_SQRT2_PI * band_hz[1]), 1.0 / (_SQRT2_PI * band_hz[0])
+
+
+def event_wavelets(events: Sequence[Any], previous_t_s: float | None = None,
+                   band_hz: tuple[float, float] = VOICE_COIL_BAND_HZ) -> list[Wavelet]:
+    """One :class:`Wavelet` per pulse event (``t_s``, ``strength``), widths from the intervals.
+
+    Parameters
+    ----------
+    events : sequence of PulseEvent
+        Times [s] increasing.
+    previous_t_s : float, optional
+        Time of the event played before these [s] (its interval counts).
+    band_hz : (float, float)
+        The actuator's band [Hz]: the wavelets' peaks stay inside it.
+    """
+    lo, hi = _sigma_bounds(band_hz)
+    t = [float(e.t_s) for e in events]
+    n = len(t)
+    out = []
+    for i in range(n):
+        gaps = []
+        if i > 0:
+            gaps.append(t[i] - t[i - 1])
+        elif previous_t_s is not None:
+            gaps.append(t[i] - float(previous_t_s))
+        if i + 1 < n:
+            gaps.append(t[i + 1] - t[i])
+        gaps = [g for g in gaps if g > 0]
+        sigma = min(gaps) / _SQRT2_PI if gaps else hi
+        out.append(Wavelet(t[i], float(events[i].strength), min(hi, max(lo, sigma))))
+    return out
+
+
+def wavelet_rows(events: Sequence[Any], now_s: float) -> list[list[float]]:
+    """The page's form of :func:`event_wavelets`: ``[dt_s, amplitude, sigma_s]`` per event,
+    ``dt_s`` from ``now_s`` [s] (the stroke time of the newest pen sample)."""
+    return [[w.t_s - now_s, w.amplitude, w.sigma_s] for w in event_wavelets(events)]
+
+
+def render_wavelets(wavelets: Sequence[Wavelet], t0_s: float, n: int, sample_rate_hz: float) -> np.ndarray:
+    """``n`` samples from ``t0_s`` [s] at ``sample_rate_hz`` [Hz] of the wavelets summed (offline)."""
+    out = np.zeros(n)
+    fs = float(sample_rate_hz)
+    for w in wavelets:
+        half = SPAN_SIGMAS * w.sigma_s
+        a = max(0, int(math.floor((w.t_s - half - t0_s) * fs)))
+        b = min(n, int(math.ceil((w.t_s + half - t0_s) * fs)) + 1)
+        if a < b:
+            tau = (t0_s + np.arange(a, b) / fs - w.t_s) / w.sigma_s
+            out[a:b] += w.amplitude * ricker(tau)
+    return out
+
+
+class WaveletPlayer:
+    """Wavelets scheduled on a frame clock, rendered block by block (the audio thread's side).
+
+    :meth:`replace` drops every wavelet not yet started and schedules new ones; one already
+    started plays to its end, and a new one whose start has passed is moved to start now
+    (the whole wavelet, later, rather than its tail).
+    """
+
+    def __init__(self, sample_rate_hz: float) -> None:
+        self.sample_rate_hz = float(sample_rate_hz)
+        self.frame = 0  # the next frame to render
+        # (start frame, centre frame, amplitude, sigma in frames), by start
+        self._items: list[tuple[int, float, float, float]] = []
+
+    def replace(self, wavelets: Sequence[tuple[float, float, float]]) -> None:
+        """Schedule ``(centre frame, amplitude, sigma [frames])`` triples, replacing those not started."""
+        now = self.frame
+        kept = [it for it in self._items if it[0] < now]
+        for centre, amp, sigma in wavelets:
+            half = SPAN_SIGMAS * sigma
+            start = centre - half
+            if start < now:
+                centre, start = now + half, now
+            kept.append((int(math.floor(start)), float(centre), float(amp), float(sigma)))
+        kept.sort(key=lambda it: it[0])
+        self._items = kept
+
+    def clear(self) -> None:
+        self._items = []
+
+    def render(self, out: np.ndarray) -> None:
+        """Add the next ``len(out)`` frames into ``out``."""
+        n = out.shape[0]
+        f0 = self.frame
+        f1 = f0 + n
+        live = []
+        for start, centre, amp, sigma in self._items:
+            end = centre + SPAN_SIGMAS * sigma
+            if start >= f1:
+                live.append((start, centre, amp, sigma))
+                continue
+            a, b = max(start, f0), min(int(math.ceil(end)) + 1, f1)
+            if a < b:
+                out[a - f0 : b - f0] += amp * ricker((np.arange(a, b) - centre) / sigma)
+            if end >= f1:
+                live.append((start, centre, amp, sigma))
+        self._items = live
+        self.frame = f1
