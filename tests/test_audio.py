@@ -235,3 +235,20 @@ def test_a_steady_drive_after_events_drops_them(fake_sd):
     out.apply([on, on])
     x = FakeStream.instances[-1].pull(RATE // 5)
     assert x.min() >= 0.0  # only the pulse train: no wavelet
+
+
+def test_an_event_re_sent_after_its_wavelet_started_plays_once(fake_sd):
+    """A batch re-sends every event whose time has not come; its wavelet starts 3 sigma before."""
+    from tactilize.surface.events import PulseEvent
+
+    out = AudioOutput(sample_rate_hz=RATE, envelope=Identity())
+    stream = FakeStream.instances[-1]
+    on = Drive(pulse_frequency_hz=50.0, pulse_width_s=0.001, amplitude=0.5)
+    events = [PulseEvent(0.010, 1.0), PulseEvent(0.030, 1.0)]
+    out.play_events([events] * 2, 0.0, [on, on])
+    head = stream.pull(600)  # the first wavelet (centre 15.3 ms, 3 sigma = 13.5 ms) has started
+    out.play_events([events] * 2, 600 / RATE + 0.004, [on, on])  # a later batch, arriving late
+    x = np.concatenate([head, stream.pull(4800)])[:, 0]
+    troughs = np.flatnonzero((x[1:-1] < x[:-2]) & (x[1:-1] <= x[2:]) & (x[1:-1] < -0.9))
+    assert len(troughs) == 2
+    assert np.diff(troughs)[0] == pytest.approx(0.020 * RATE, abs=2)  # where the events are, 20 ms apart

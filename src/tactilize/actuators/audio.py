@@ -100,6 +100,7 @@ class AudioOutput(OutputBase):
         # Wavelets cross to the audio thread as one (version, per-channel triples) tuple, as drives do.
         self._scheduled: tuple[int, tuple[tuple[tuple[float, float, float], ...], ...] | None] = (0, None)
         self._scheduled_version = 0
+        self._offset_frames: float | None = None
         # Drives cross to the audio thread as one (version, drives) tuple:
         # assigning it is atomic, so the callback never sees half an update
         # and never blocks on a lock the caller holds.
@@ -155,6 +156,7 @@ class AudioOutput(OutputBase):
             PulseScheduler(self.sample_rate_hz).set_drive(d)
         self._publish(drives)
         self._scheduled = (self._scheduled[0] + 1, None)  # a steady drive: no events left to play
+        self._offset_frames = None
         return drives
 
     def play_events(self, channels: Sequence[Sequence[Any]], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
@@ -164,7 +166,11 @@ class AudioOutput(OutputBase):
         (for the page's readouts); the pulse train itself is silent while events play."""
         applied = [d if d.is_off else self.envelope.apply(d) for d in self._check(equivalent)]
         fs = self.sample_rate_hz
-        frame = self._wavelets[0].frame + self.block_frames
+        if self._offset_frames is None:
+            # The stroke's clock on the device's, fixed for the stroke, one block ahead: a
+            # batch arriving late then shifts nothing, and an event re-sent lands where it was.
+            self._offset_frames = self._wavelets[0].frame + self.block_frames - now_s * fs
+        frame = self._offset_frames + now_s * fs
         per_channel = []
         for events in list(channels)[: self.channels]:
             per_channel.append(tuple(
@@ -180,6 +186,7 @@ class AudioOutput(OutputBase):
         """Silence every channel (the stream keeps running, playing zeros)."""
         self._publish([Drive.off()] * self.channels)
         self._scheduled = (self._scheduled[0] + 1, None)
+        self._offset_frames = None
 
     def _publish(self, drives: Sequence[Drive]) -> None:
         self._wanted = (self._wanted[0] + 1, tuple(drives))

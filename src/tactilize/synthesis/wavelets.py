@@ -41,7 +41,8 @@ import numpy as np
 
 from .acceleration import VOICE_COIL_BAND_HZ
 
-__all__ = ["Wavelet", "SPAN_SIGMAS", "ricker", "event_wavelets", "wavelet_rows", "render_wavelets", "WaveletPlayer"]
+__all__ = ["Wavelet", "SPAN_SIGMAS", "ricker", "event_wavelets", "wavelet_rows", "render_wavelets", "WaveletPlayer",
+           "SAME_SIGMAS"]
 
 #: The wavelet is drawn over +- this many standard deviations.
 SPAN_SIGMAS = 3.0
@@ -121,30 +122,42 @@ def render_wavelets(wavelets: Sequence[Wavelet], t0_s: float, n: int, sample_rat
     return out
 
 
+#: A new wavelet within this many of its standard deviations of one already started is that
+#: one again (a batch re-sends every event whose time has not come; a wavelet starts
+#: :data:`SPAN_SIGMAS` before it).  Neighbours are sqrt(2) pi sigma apart: never confused.
+SAME_SIGMAS = 1.5
+
+
 class WaveletPlayer:
     """Wavelets scheduled on a frame clock, rendered block by block (the audio thread's side).
 
     :meth:`replace` drops every wavelet not yet started and schedules new ones; one already
-    started plays to its end, and a new one whose start has passed is moved to start now
-    (the whole wavelet, later, rather than its tail).
+    started plays to its end (and is not scheduled again when a batch re-sends it), and a
+    new one whose start has passed is moved to start now (the whole wavelet, later, rather
+    than its tail).
     """
 
     def __init__(self, sample_rate_hz: float) -> None:
         self.sample_rate_hz = float(sample_rate_hz)
         self.frame = 0  # the next frame to render
-        # (start frame, centre frame, amplitude, sigma in frames), by start
-        self._items: list[tuple[int, float, float, float]] = []
+        #: wavelets started so far
+        self.started = 0
+        # [start frame, centre frame, amplitude, sigma in frames, centre asked for], by start
+        self._items: list[tuple[int, float, float, float, float]] = []
 
     def replace(self, wavelets: Sequence[tuple[float, float, float]]) -> None:
         """Schedule ``(centre frame, amplitude, sigma [frames])`` triples, replacing those not started."""
         now = self.frame
         kept = [it for it in self._items if it[0] < now]
+        started = [it[4] for it in kept]
         for centre, amp, sigma in wavelets:
+            if any(abs(c - centre) < SAME_SIGMAS * sigma for c in started):
+                continue
             half = SPAN_SIGMAS * sigma
-            start = centre - half
+            want, start = centre, centre - half
             if start < now:
                 centre, start = now + half, now
-            kept.append((int(math.floor(start)), float(centre), float(amp), float(sigma)))
+            kept.append((int(math.floor(start)), float(centre), float(amp), float(sigma), float(want)))
         kept.sort(key=lambda it: it[0])
         self._items = kept
 
@@ -157,15 +170,18 @@ class WaveletPlayer:
         f0 = self.frame
         f1 = f0 + n
         live = []
-        for start, centre, amp, sigma in self._items:
+        for item in self._items:
+            start, centre, amp, sigma, _ = item
             end = centre + SPAN_SIGMAS * sigma
             if start >= f1:
-                live.append((start, centre, amp, sigma))
+                live.append(item)
                 continue
+            if start >= f0:
+                self.started += 1
             a, b = max(start, f0), min(int(math.ceil(end)) + 1, f1)
             if a < b:
                 out[a - f0 : b - f0] += amp * ricker((np.arange(a, b) - centre) / sigma)
             if end >= f1:
-                live.append((start, centre, amp, sigma))
+                live.append(item)
         self._items = live
         self.frame = f1

@@ -1,20 +1,63 @@
-// AudioWorklet pulse synthesiser: one rectangular pulse train per output channel
-// (left = channel 1, right = channel 2), phase-continuous across drive changes,
-// so a new frequency never produces a click or a skipped pulse.  It plays what the
-// server's drives say, for a voice-coil or LRA actuator on the headphone jack.
+// AudioWorklet synthesiser for a voice-coil or LRA actuator on the headphone jack
+// (left = channel 1, right = channel 2).  Two things play:
+// - the steady rendering's pulse trains: one rectangular train per channel,
+//   phase-continuous across drive changes, so a new frequency never clicks or skips;
+// - the surface rendering's pulse events: each one the acceleration of the tip over
+//   a bump, a wavelet -(1 - tau^2) exp(-tau^2 / 2), tau = (t - t_event) / sigma, cut at
+//   3 sigma with a raised-cosine taper over the last sigma.  The server sets each
+//   wavelet's amplitude and width (tactilize.synthesis.wavelets, docs/surfaces.md,
+//   "Voice coils and the page's audio"); this only draws them.
+
+const SPAN = 3;
+// A new wavelet this many sigmas from one already started is that one, re-sent
+// (tactilize.synthesis.wavelets.SAME_SIGMAS).
+const SAME = 1.5;
+
+function ricker(tau) {
+  const a = Math.abs(tau);
+  if (a >= SPAN) return 0;
+  const w = -(1 - a * a) * Math.exp(-0.5 * a * a);
+  return a <= SPAN - 1 ? w : w * (0.5 + 0.5 * Math.cos(Math.PI * (a - (SPAN - 1))));
+}
 
 class PulseProcessor extends AudioWorkletProcessor {
   constructor() {
     super();
     this.ch = [0, 1].map(() => ({ f: 0, w: 0, a: 0, gain: 0, phase: 0 }));
+    this.wavelets = [];  // {start, centre, amp, sigma} in frames, by start
+    this.played = 0;     // wavelets started so far (the page's tests count them)
     this.port.onmessage = (e) => {
-      const chans = e.data && e.data.channels;
-      if (!Array.isArray(chans)) return;
-      chans.slice(0, 2).forEach((c, i) => {
-        const s = this.ch[i];
-        s.f = c.f > 0 ? c.f : 0; s.w = c.w > 0 ? c.w : 0; s.a = c.a > 0 ? Math.min(1, c.a) : 0;
-      });
+      const d = e.data || {};
+      const chans = d.channels;
+      if (Array.isArray(chans)) {
+        chans.slice(0, 2).forEach((c, i) => {
+          const s = this.ch[i];
+          s.f = c.f > 0 ? c.f : 0; s.w = c.w > 0 ? c.w : 0; s.a = c.a > 0 ? Math.min(1, c.a) : 0;
+        });
+      }
+      if (Array.isArray(d.wavelets)) this.schedule(d.wavelets, +d.at || 0);
+      if (d.clear) this.wavelets = [];
     };
+  }
+
+  /** Replace every wavelet not yet started by rows [dt_s, amplitude, sigma_s], dt from
+   *  `at` (the context's time of the message's newest pen sample); one already started
+   *  is not scheduled again, and one whose start has passed plays whole, from now. */
+  schedule(rows, at) {
+    const now = currentFrame;
+    const kept = this.wavelets.filter((w) => w.start < now);
+    const started = kept.map((w) => w.want);
+    for (const r of rows) {
+      const sigma = r[2] * sampleRate, amp = Math.max(0, Math.min(1, r[1]));
+      if (!(sigma > 0) || !Number.isFinite(r[0])) continue;
+      const want = (at + r[0]) * sampleRate;
+      if (started.some((c) => Math.abs(c - want) < SAME * sigma)) continue;
+      let centre = want, start = centre - SPAN * sigma;
+      if (start < now) { centre = now + SPAN * sigma; start = now; }
+      kept.push({ start: Math.floor(start), centre, want, amp, sigma, counted: false });
+    }
+    kept.sort((a, b) => a.start - b.start);
+    this.wavelets = kept;
   }
 
   process(inputs, outputs) {
@@ -33,6 +76,23 @@ class PulseProcessor extends AudioWorkletProcessor {
         s.phase += dp;
         if (s.phase >= 1) s.phase -= Math.floor(s.phase);
       }
+    }
+    if (this.wavelets.length) {
+      const f0 = currentFrame, f1 = f0 + n;
+      const live = [];
+      for (const w of this.wavelets) {
+        const end = w.centre + SPAN * w.sigma;
+        if (w.start < f1) {
+          if (!w.counted) { w.counted = true; this.played++; this.port.postMessage({ played: this.played, t: w.want / sampleRate }); }
+          const a = Math.max(w.start, f0), b = Math.min(Math.ceil(end) + 1, f1);
+          for (let f = a; f < b; f++) {
+            const v = w.amp * ricker((f - w.centre) / w.sigma);
+            for (let c = 0; c < out.length; c++) out[c][f - f0] += v;
+          }
+        }
+        if (end >= f1) live.push(w);
+      }
+      this.wavelets = live;
     }
     return true;
   }
