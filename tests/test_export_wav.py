@@ -83,3 +83,21 @@ def test_pressure_halves_the_wav(grating_png):
     np.testing.assert_allclose(b, 0.5 * a, atol=1e-9)
     wav = render(StrokeAcceleration(full, surface, 0.0, 0.45), "wav")
     assert wav[:4] == b"RIFF" and len(wav) == 44 + 4 * round(0.45 * 48_000)
+
+
+def test_profile_report_audio_rows_peak_at_v_fs(grating_png):
+    import json
+
+    r = subprocess.run([sys.executable, "-m", "tactilize.cli", "profile", "report", "--image", str(grating_png),
+                        "--width-mm", str(WIDTH_MM), "--no-wire", "--audio", "--json"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    rows = json.loads(r.stdout)["audio"]
+    assert [row["speed_mm_s"] for row in rows] == [10.0, 20.0, 40.0, 60.0, 100.0, 160.0]
+    for row in rows:
+        if row["speed_mm_s"] >= 20:  # 10 mm/s on a 1 mm grating is 10 Hz, below the band
+            assert row["peak_hz"] == pytest.approx(row["speed_mm_s"], rel=0.05)  # v f_s, f_s = 1 /mm
+    rms = {row["speed_mm_s"]: row["rms_full_scale"] for row in rows}
+    assert rms[100.0] / rms[40.0] == pytest.approx(6.25, rel=0.1)  # v^2
+    text = subprocess.run([sys.executable, "-m", "tactilize.cli", "profile", "report", "--image", str(grating_png),
+                           "--width-mm", str(WIDTH_MM), "--no-wire", "--audio"], capture_output=True, text=True)
+    assert "voice coil (the tip's acceleration" in text.stdout

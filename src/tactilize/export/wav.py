@@ -52,22 +52,14 @@ class StrokeAcceleration:
 
     def samples(self, sample_rate_hz: float, channels: int = 2) -> tuple[np.ndarray, int]:
         """(samples (n, channels) in [-1, 1], how many were clipped)."""
-        from ..synthesis.acceleration import tip_acceleration, to_full_scale
+        from ..synthesis.acceleration import Mirrored, tip_acceleration, to_full_scale
 
-        surface = _Mirrored(self.surface) if self.mirror else self.surface
+        surface = Mirrored(self.surface) if self.mirror else self.surface
         pressure = self.stroke.pressure if any(p is not None for p in self.stroke.pressure) else None
         sig = tip_acceleration(surface, self.stroke.t_s, self.stroke.x_m, self.stroke.y_m, pressure,
                                sample_rate_hz=sample_rate_hz, start_s=self.start_s, end_s=self.end_s)
         x, clipped = to_full_scale(sig, self.gain)
         return np.repeat(x[:, None], channels, axis=1), clipped
-
-
-class _Mirrored:
-    """What :func:`~tactilize.synthesis.acceleration.heights_along` folds: the surface and its size."""
-
-    def __init__(self, surface: Any) -> None:
-        self.surface = surface
-        self.w, self.h = surface.width_m, surface.height_m
 
 
 def pcm_wav_signed(x: np.ndarray, sample_rate_hz: int) -> bytes:
