@@ -50,6 +50,7 @@ import weakref
 from typing import Any, NamedTuple, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import SignalError
 
@@ -175,10 +176,10 @@ def _path_spline(t: np.ndarray, xy: np.ndarray) -> Any:
 
 def tip_acceleration(
     surface: Any,
-    t_s: Sequence[float],
-    x_m: Sequence[float],
-    y_m: Sequence[float],
-    pressure: Sequence[float | None] | float | None = None,
+    t_s: ArrayLike,
+    x_m: ArrayLike,
+    y_m: ArrayLike,
+    pressure: Sequence[float | None] | ArrayLike | None = None,
     *,
     sample_rate_hz: float = 48_000.0,
     start_s: float | None = None,
