@@ -252,3 +252,21 @@ def test_an_event_re_sent_after_its_wavelet_started_plays_once(fake_sd):
     troughs = np.flatnonzero((x[1:-1] < x[:-2]) & (x[1:-1] <= x[2:]) & (x[1:-1] < -0.9))
     assert len(troughs) == 2
     assert np.diff(troughs)[0] == pytest.approx(0.020 * RATE, abs=2)  # where the events are, 20 ms apart
+
+
+def test_an_event_fired_on_the_stroke_clock_plays_though_the_device_is_behind(fake_sd):
+    """A batch re-sends only the events whose time has not come on the stroke's clock; one
+    that has come is not in it, and must still play where the device has not reached it."""
+    from tactilize.surface.events import PulseEvent
+
+    out = AudioOutput(sample_rate_hz=RATE, envelope=Identity())
+    stream = FakeStream.instances[-1]
+    on = Drive(pulse_frequency_hz=50.0, pulse_width_s=0.001, amplitude=0.5)
+    events = [PulseEvent(0.010 + 0.020 * k, 1.0) for k in range(4)]  # 20 ms apart
+    out.play_events([events] * 2, 0.0, [on, on])
+    head = stream.pull(600)  # the device is 12.5 ms in: the 30 ms wavelet has not started
+    out.play_events([events[2:]] * 2, 0.035, [on, on])  # the stroke is at 35 ms: two have fired
+    x = np.concatenate([head, stream.pull(4800)])[:, 0]
+    troughs = np.flatnonzero((x[1:-1] < x[:-2]) & (x[1:-1] <= x[2:]) & (x[1:-1] < -0.9))
+    assert len(troughs) == 4
+    assert np.diff(troughs) == pytest.approx([0.020 * RATE] * 3, abs=2)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 import wave
@@ -43,8 +44,12 @@ def _read(path):
 
 def test_synthetic_stroke_wav_is_the_acceleration_peaking_at_v_fs(grating_png, tmp_path):
     out = tmp_path / "s.wav"
-    _cli(grating_png, "--speed", 80, "--duration", 1.0, "--format", "wav", "--width-mm", WIDTH_MM, "-o", out)
+    r = _cli(grating_png, "--speed", 80, "--duration", 1.0, "--format", "wav", "--width-mm", WIDTH_MM, "-o", out,
+             "--json")
+    doc = json.loads(r.stdout)
     x = _read(out)
+    assert doc["signal"] == "tip_acceleration" and doc["clipped_samples"] == 0
+    assert doc["peak_full_scale"] == pytest.approx(np.abs(x).max(), abs=1e-4)
     assert x.shape[0] == 48_000
     assert x[:, 0].min() < -0.01 and x[:, 0].max() > 0.01  # signed: an acceleration, not a pulse train
     np.testing.assert_array_equal(x[:, 0], x[:, 1])

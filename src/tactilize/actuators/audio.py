@@ -98,7 +98,9 @@ class AudioOutput(OutputBase):
         self._wavelets = [WaveletPlayer(self.sample_rate_hz) for _ in range(self.channels)]
         self.block_frames = int(block_frames)
         # Wavelets cross to the audio thread as one (version, per-channel triples) tuple, as drives do.
-        self._scheduled: tuple[int, tuple[tuple[tuple[float, float, float], ...], ...] | None] = (0, None)
+        # (version, per channel (centre frame, amplitude, sigma frames) or None to clear, the
+        # frame of the batch's newest sample)
+        self._scheduled: tuple[int, tuple[tuple[tuple[float, float, float], ...], ...] | None, float] = (0, None, 0.0)
         self._scheduled_version = 0
         self._offset_frames: float | None = None
         # Drives cross to the audio thread as one (version, drives) tuple:
@@ -132,13 +134,13 @@ class AudioOutput(OutputBase):
             for stream, d in zip(self._streams, drives):
                 stream.set_drive(d)
             self._playing_version = version
-        version, wanted = self._scheduled
+        version, wanted, fired_before = self._scheduled
         if version != self._scheduled_version:
             for player, triples in zip(self._wavelets, wanted or ((),) * self.channels):
                 if wanted is None:
                     player.clear()
                 else:
-                    player.replace(triples)
+                    player.replace(triples, fired_before)
             self._scheduled_version = version
         outdata.fill(0.0)
         for c, stream in enumerate(self._streams):
@@ -155,7 +157,7 @@ class AudioOutput(OutputBase):
             # refuse in the audio thread (e.g. pulses so wide they touch).
             PulseScheduler(self.sample_rate_hz).set_drive(d)
         self._publish(drives)
-        self._scheduled = (self._scheduled[0] + 1, None)  # a steady drive: no events left to play
+        self._scheduled = (self._scheduled[0] + 1, None, 0.0)  # a steady drive: no events left to play
         self._offset_frames = None
         return drives
 
@@ -179,13 +181,13 @@ class AudioOutput(OutputBase):
             ))
         per_channel += [()] * (self.channels - len(per_channel))
         self._publish([Drive.off()] * self.channels)
-        self._scheduled = (self._scheduled[0] + 1, tuple(per_channel))
+        self._scheduled = (self._scheduled[0] + 1, tuple(per_channel), frame)
         return applied
 
     def stop(self) -> None:
         """Silence every channel (the stream keeps running, playing zeros)."""
         self._publish([Drive.off()] * self.channels)
-        self._scheduled = (self._scheduled[0] + 1, None)
+        self._scheduled = (self._scheduled[0] + 1, None, 0.0)
         self._offset_frames = None
 
     def _publish(self, drives: Sequence[Drive]) -> None:

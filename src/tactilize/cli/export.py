@@ -78,4 +78,11 @@ def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
         f"wrote {path} ({fmt}, {tl.end_s:g} s, {len(tl.t_s)} frames, {doc['drive_changes']} drive changes, "
         f"{opt['drive_kind']} drive): {doc['min_frequency_hz']:.1f} .. {doc['max_frequency_hz']:.1f} Hz"
     )
+    if source is not tl:  # the WAV holds the tip's acceleration, not the drive
+        from ..synthesis import DEFAULT_SAMPLE_RATE_HZ
+
+        x, clipped = source.samples(DEFAULT_SAMPLE_RATE_HZ, 1)  # what export() wrote (made once)
+        doc.update(signal="tip_acceleration", peak_full_scale=float(abs(x).max(initial=0.0)), clipped_samples=clipped)
+        text = (f"wrote {path} (wav, {tl.end_s:g} s): the tip's acceleration, peak {doc['peak_full_scale']:.3f} of "
+                f"full scale, {clipped} samples clipped")
     return doc, text

@@ -51,15 +51,21 @@ class StrokeAcceleration:
     gain: float = 1.0
 
     def samples(self, sample_rate_hz: float, channels: int = 2) -> tuple[np.ndarray, int]:
-        """(samples (n, channels) in [-1, 1], how many were clipped)."""
+        """(samples (n, channels) in [-1, 1], how many were clipped); made once per rate."""
+        cache = self.__dict__.setdefault("_rendered", {})
+        if sample_rate_hz not in cache:
+            cache[sample_rate_hz] = self._render(sample_rate_hz)
+        x, clipped = cache[sample_rate_hz]
+        return np.repeat(x[:, None], channels, axis=1), clipped
+
+    def _render(self, sample_rate_hz: float) -> tuple[np.ndarray, int]:
         from ..synthesis.acceleration import Mirrored, tip_acceleration, to_full_scale
 
         surface = Mirrored(self.surface) if self.mirror else self.surface
         pressure = self.stroke.pressure if any(p is not None for p in self.stroke.pressure) else None
         sig = tip_acceleration(surface, self.stroke.t_s, self.stroke.x_m, self.stroke.y_m, pressure,
                                sample_rate_hz=sample_rate_hz, start_s=self.start_s, end_s=self.end_s)
-        x, clipped = to_full_scale(sig, self.gain)
-        return np.repeat(x[:, None], channels, axis=1), clipped
+        return to_full_scale(sig, self.gain)
 
 
 def pcm_wav_signed(x: np.ndarray, sample_rate_hz: int) -> bytes:

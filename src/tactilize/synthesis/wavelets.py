@@ -131,10 +131,10 @@ SAME_SIGMAS = 1.5
 class WaveletPlayer:
     """Wavelets scheduled on a frame clock, rendered block by block (the audio thread's side).
 
-    :meth:`replace` drops every wavelet not yet started and schedules new ones; one already
-    started plays to its end (and is not scheduled again when a batch re-sends it), and a
-    new one whose start has passed is moved to start now (the whole wavelet, later, rather
-    than its tail).
+    :meth:`replace` drops every wavelet not yet started whose event has not fired and
+    schedules new ones; one already started plays to its end (and is not scheduled again
+    when a batch re-sends it), and a new one whose start has passed is moved to start now
+    (the whole wavelet, later, rather than its tail).
     """
 
     def __init__(self, sample_rate_hz: float) -> None:
@@ -145,10 +145,15 @@ class WaveletPlayer:
         # [start frame, centre frame, amplitude, sigma in frames, centre asked for], by start
         self._items: list[tuple[int, float, float, float, float]] = []
 
-    def replace(self, wavelets: Sequence[tuple[float, float, float]]) -> None:
-        """Schedule ``(centre frame, amplitude, sigma [frames])`` triples, replacing those not started."""
+    def replace(self, wavelets: Sequence[tuple[float, float, float]], fired_before: float = -math.inf) -> None:
+        """Schedule ``(centre frame, amplitude, sigma [frames])`` triples, replacing those not started.
+
+        ``fired_before`` [frame]: where the batch's newest sample falls on this clock.  A
+        wavelet asked for before it belongs to an event that has fired on the stroke's clock
+        (a batch re-sends only those whose time has not come): it stays, started or not.
+        """
         now = self.frame
-        kept = [it for it in self._items if it[0] < now]
+        kept = [it for it in self._items if it[0] < now or it[4] < fired_before]
         started = [it[4] for it in kept]
         for centre, amp, sigma in wavelets:
             if any(abs(c - centre) < SAME_SIGMAS * sigma for c in started):

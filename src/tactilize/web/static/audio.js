@@ -15,7 +15,7 @@ export function audioAvailable() {
 const LEAD_S = 0.010;
 
 export class AudioPulses {
-  constructor() { this.ctx = null; this.node = null; this.on = false; this.last = null; this.played = 0; this.playedAt = []; this.offset = null; }
+  constructor() { this.ctx = null; this.node = null; this.on = false; this.last = null; this.played = 0; this.playedAt = []; this.offset = null; this.lastAt = 0; }
 
   async start() {
     if (!this.ctx) {
@@ -62,11 +62,19 @@ export class AudioPulses {
       // a message arriving late shifts nothing, and an event re-sent lands where it was.
       if (this.offset === null || !Number.isFinite(msg.t_s)) this.offset = this.ctx.currentTime + LEAD_S - (msg.t_s || 0);
       // Events, not a steady train: these wavelets replace those not yet started.
+      this.lastAt = this.offset + (msg.t_s || 0);
       this.node.port.postMessage({
         channels: [{ f: 0 }, { f: 0 }],
         wavelets: Array.isArray(msg.wavelets) ? msg.wavelets : [],
-        at: this.offset + (msg.t_s || 0),
+        at: this.lastAt,
       });
+      return;
+    }
+    if (this.surface && silent && this.offset !== null) {
+      // The pen lifted or stopped: the bumps it crossed up to its last sample still play
+      // (the audio may run a little late), those ahead of it never will.
+      this.node.port.postMessage({ channels: [{ f: 0 }, { f: 0 }], until: this.lastAt });
+      this.offset = null;
       return;
     }
     this.offset = null;

@@ -37,15 +37,24 @@ class PulseProcessor extends AudioWorkletProcessor {
       }
       if (Array.isArray(d.wavelets)) this.schedule(d.wavelets, +d.at || 0);
       if (d.clear) this.wavelets = [];
+      if (Number.isFinite(d.until)) {
+        // Keep what has started and what was asked for up to `until` (context time [s]).
+        const last = d.until * sampleRate;
+        this.wavelets = this.wavelets.filter((w) => w.start < currentFrame || w.want <= last);
+      }
     };
   }
 
-  /** Replace every wavelet not yet started by rows [dt_s, amplitude, sigma_s], dt from
-   *  `at` (the context's time of the message's newest pen sample); one already started
-   *  is not scheduled again, and one whose start has passed plays whole, from now. */
+  /** Replace every wavelet not yet started and not yet due by rows [dt_s, amplitude,
+   *  sigma_s], dt from `at` (the context's time of the message's newest pen sample); one
+   *  already started is not scheduled again, and one whose start has passed plays whole,
+   *  from now (tactilize.synthesis.wavelets.WaveletPlayer.replace). */
   schedule(rows, at) {
-    const now = currentFrame;
-    const kept = this.wavelets.filter((w) => w.start < now);
+    // `at` is where the message's newest pen sample falls: a wavelet asked for before it
+    // belongs to an event that has fired on the stroke's clock, which the message no longer
+    // carries; it stays, started or not.
+    const now = currentFrame, fired = at * sampleRate;
+    const kept = this.wavelets.filter((w) => w.start < now || w.want < fired);
     const started = kept.map((w) => w.want);
     for (const r of rows) {
       const sigma = r[2] * sampleRate, amp = Math.max(0, Math.min(1, r[1]));
