@@ -39,10 +39,11 @@ from typing import Any, NamedTuple, Sequence
 
 import numpy as np
 
+from ..surface.events import MIN_INTERVAL_S
 from .acceleration import VOICE_COIL_BAND_HZ
 
 __all__ = ["Wavelet", "SPAN_SIGMAS", "ricker", "event_wavelets", "wavelet_rows", "render_wavelets", "WaveletPlayer",
-           "SAME_SIGMAS"]
+           "SAME_S"]
 
 #: The wavelet is drawn over +- this many standard deviations.
 SPAN_SIGMAS = 3.0
@@ -122,10 +123,12 @@ def render_wavelets(wavelets: Sequence[Wavelet], t0_s: float, n: int, sample_rat
     return out
 
 
-#: A new wavelet within this many of its standard deviations of one already started is that
-#: one again (a batch re-sends every event whose time has not come; a wavelet starts
-#: :data:`SPAN_SIGMAS` before it).  Neighbours are sqrt(2) pi sigma apart: never confused.
-SAME_SIGMAS = 1.5
+#: A new wavelet asked for within this long [s] of one already scheduled is that one again (a
+#: batch re-sends every event whose time has not come, a little moved as the prediction
+#: firms; a wavelet starts :data:`SPAN_SIGMAS` before it): half the least interval events keep
+#: (:data:`~tactilize.surface.events.MIN_INTERVAL_S`), so two distinct events never are.
+#: A width is no measure here: the first event of a batch has no neighbour before it.
+SAME_S = 0.5 * MIN_INTERVAL_S
 
 
 class WaveletPlayer:
@@ -155,8 +158,9 @@ class WaveletPlayer:
         now = self.frame
         kept = [it for it in self._items if it[0] < now or it[4] < fired_before]
         started = [it[4] for it in kept]
+        same = SAME_S * self.sample_rate_hz
         for centre, amp, sigma in wavelets:
-            if any(abs(c - centre) < SAME_SIGMAS * sigma for c in started):
+            if any(abs(c - centre) < same for c in started):
                 continue
             half = SPAN_SIGMAS * sigma
             want, start = centre, centre - half

@@ -9,9 +9,9 @@
 //   "Voice coils and the page's audio"); this only draws them.
 
 const SPAN = 3;
-// A new wavelet this many sigmas from one already started is that one, re-sent
-// (tactilize.synthesis.wavelets.SAME_SIGMAS).
-const SAME = 1.5;
+// A new wavelet asked for within this long [s] of one already kept is that one, re-sent:
+// half the least interval events keep (tactilize.synthesis.wavelets.SAME_S).
+const SAME_S = 0.5 / 300;
 
 function ricker(tau) {
   const a = Math.abs(tau);
@@ -60,7 +60,7 @@ class PulseProcessor extends AudioWorkletProcessor {
       const sigma = r[2] * sampleRate, amp = Math.max(0, Math.min(1, r[1]));
       if (!(sigma > 0) || !Number.isFinite(r[0])) continue;
       const want = (at + r[0]) * sampleRate;
-      if (started.some((c) => Math.abs(c - want) < SAME * sigma)) continue;
+      if (started.some((c) => Math.abs(c - want) < SAME_S * sampleRate)) continue;
       let centre = want, start = centre - SPAN * sigma;
       if (start < now) { centre = now + SPAN * sigma; start = now; }
       kept.push({ start: Math.floor(start), centre, want, amp, sigma, counted: false });
