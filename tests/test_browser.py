@@ -704,4 +704,3 @@ def test_without_offscreen_canvases_the_page_draws_on_its_own_thread(browser, se
         pen.lift(pen.last_x, box["y"] + 40)
     assert _red(trail) > 100
     assert _blue(plot) > 20
-
