@@ -178,3 +178,15 @@ def test_bad_strokes_raise_signal_error(grating):
         tip_acceleration(grating, [0.0, 0.1], [0.0, np.nan], [0.0, 0.0])
     with pytest.raises(SignalError):
         tip_acceleration(grating, *straight(0.1), sample_rate_hz=1000.0)
+
+
+def test_a_long_stroke_is_computed_in_blocks_that_join_seamlessly(grating, monkeypatch):
+    from tactilize.synthesis import acceleration
+
+    t, x, y = straight(0.1, duration_s=2.0)
+    x = 5e-3 + 0.1 * t + 3e-3 * np.sin(2 * np.pi * 1.5 * t)  # speed changing too
+    whole = tip_acceleration(grating, t, x, y, sample_rate_hz=RATE).samples
+    monkeypatch.setattr(acceleration, "_CHUNK", 10_007)
+    blocks = tip_acceleration(grating, t, x, y, sample_rate_hz=RATE).samples
+    assert blocks.shape == whole.shape
+    np.testing.assert_allclose(blocks, whole, atol=1e-6 * np.abs(whole).max())

@@ -78,9 +78,16 @@ VOICE_COIL_BAND_HZ = (20.0, 1000.0)
 FULL_SCALE_ACCELERATION = 0.5 * (2 * math.pi * 250.0) ** 2
 #: Butterworth order of the band-pass (applied forward and back: twice this).
 _ORDER = 4
-#: Extra signal computed on each side, where the path allows, so the filter's edges
-#: fall outside what is returned [s].
-_MARGIN_S = 0.05
+#: Extra signal computed on each side of a block where another block joins it, so the
+#: filter's edges fall outside what is returned [s]: the 20 Hz band edge rings for tens of
+#: ms, and blocks join within a millionth of the signal's peak.
+_MARGIN_S = 0.25
+#: ...and at the span's two ends, where the span's own edge is what it is [s].
+_END_MARGIN_S = 0.05
+#: Output samples computed at once (10.9 s at 48 kHz).
+_CHUNK = 1 << 19
+#: Most the height is oversampled by (a stroke's fastest segment sets it).
+_MAX_OVERSAMPLE = 8
 
 # Spline coefficients per surface, made on first use and kept while the surface lives.
 _COEFFS: "weakref.WeakKeyDictionary[Any, np.ndarray]" = weakref.WeakKeyDictionary()
@@ -236,15 +243,22 @@ def tip_acceleration(
     # Oversample when the stroke is fast enough for its step per sample to pass half the
     # surface's profile step (content up to the pixel's own rate must not alias).
     speed_max = float(np.max(np.hypot(*np.diff(xy, axis=0).T) / np.diff(t)))
-    m = max(1, int(math.ceil(speed_max / (fs * 0.5 * base.step_m))))
+    # (At most _MAX_OVERSAMPLE: one wild sample must not make the work explode.)
+    m = min(_MAX_OVERSAMPLE, max(1, int(math.ceil(speed_max / (fs * 0.5 * base.step_m)))))
     rate = fs * m
-    pad = int(round(_MARGIN_S * rate))
-    grid = start + (np.arange(-pad, n * m + pad) / rate)
-    inside = np.clip(grid, t[0], t[-1])  # at rest before the first sample and after the last
-    pos = _path_spline(t, xy)(inside)
-    h = heights_along(surface, pos[:, 0], pos[:, 1])
-    acc = band_limited_acceleration(h, rate, (lo, hi))[pad : pad + n * m : m]
-    scale = _pressure_scale(pressure, t, grid[pad : pad + n * m : m])
+    inner, outer = int(round(_MARGIN_S * rate)), int(round(_END_MARGIN_S * rate))
+    spline = _path_spline(t, xy)
+    acc = np.empty(n)
+    # Blocks of _CHUNK output samples, with margins on either side, so a ten-minute stroke
+    # needs tens of megabytes, not gigabytes; the filter's edges fall in the margins.
+    for a in range(0, n, _CHUNK):
+        b = min(n, a + _CHUNK)
+        lo_pad, hi_pad = (inner if a > 0 else outer), (inner if b < n else outer)
+        grid = start + (np.arange(a * m - lo_pad, b * m + hi_pad) / rate)
+        pos = spline(np.clip(grid, t[0], t[-1]))  # at rest before the first sample and after the last
+        h = heights_along(surface, pos[:, 0], pos[:, 1])
+        acc[a:b] = band_limited_acceleration(h, rate, (lo, hi))[lo_pad : lo_pad + (b - a) * m : m]
+    scale = _pressure_scale(pressure, t, start + np.arange(n) / fs)
     if scale is not None:
         acc = acc * scale
     return AccelerationSignal(start, fs, acc, (lo, hi))
