@@ -27,7 +27,7 @@ How it is computed, so that stepping through pixels adds nothing:
    step would pass half the surface's profile step), band-passed to the
    actuator's band with a zero-phase Butterworth (``scipy.signal.sosfiltfilt``,
    which is also the anti-aliasing filter when decimating), and differentiated
-   twice (a central difference, exact to 0.2 % at the band's top at 48 kHz).
+   twice (a central difference, exact to 0.15 % at the band's top at 48 kHz).
 4. Pressure, when present, scales it as it scales the events' strength
    (full at :data:`~tactilize.surface.events.REFERENCE_PRESSURE` and above).
 
