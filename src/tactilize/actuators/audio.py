@@ -173,10 +173,14 @@ class AudioOutput(OutputBase):
             # batch arriving late then shifts nothing, and an event re-sent lands where it was.
             self._offset_frames = self._wavelets[0].frame + self.block_frames - now_s * fs
         frame = self._offset_frames + now_s * fs
+        # The pen's two-channel split (the phantom sensation by stroke direction) scales each
+        # channel as it scales the equivalent drives.
+        loudest = max((d.amplitude for d in applied), default=0.0)
         per_channel = []
-        for events in list(channels)[: self.channels]:
+        for c, events in enumerate(list(channels)[: self.channels]):
+            share = applied[c].amplitude / loudest if loudest > 0 else 1.0
             per_channel.append(tuple(
-                (frame + (w.t_s - now_s) * fs, min(1.0, max(0.0, w.amplitude)), w.sigma_s * fs)
+                (frame + (w.t_s - now_s) * fs, share * min(1.0, max(0.0, w.amplitude)), w.sigma_s * fs)
                 for w in event_wavelets(events)
             ))
         per_channel += [()] * (self.channels - len(per_channel))

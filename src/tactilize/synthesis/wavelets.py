@@ -43,7 +43,7 @@ from ..surface.events import MIN_INTERVAL_S
 from .acceleration import VOICE_COIL_BAND_HZ
 
 __all__ = ["Wavelet", "SPAN_SIGMAS", "ricker", "event_wavelets", "wavelet_rows", "render_wavelets", "WaveletPlayer",
-           "SAME_S"]
+           "SAME_S", "GLIDE_S", "LATE_SIGMAS"]
 
 #: The wavelet is drawn over +- this many standard deviations.
 SPAN_SIGMAS = 3.0
@@ -131,13 +131,58 @@ def render_wavelets(wavelets: Sequence[Wavelet], t0_s: float, n: int, sample_rat
 SAME_S = 0.5 * MIN_INTERVAL_S
 
 
+#: A wavelet whose start has passed keeps its centre (its leading tail faded in from now) while
+#: at least this many standard deviations remain before the crest; later, it plays whole from now.
+LATE_SIGMAS = 1.0
+#: A kept wavelet whose event is re-sent with another strength glides to it over this long [s]
+#: (an event first seen at the look-ahead's far end is a bump partly seen, and weak).
+GLIDE_S = 0.003
+
+
+class _Item:
+    """One scheduled wavelet, in frames: amplitude ``amp_from`` until ``g0``, ``amp`` from ``g1``;
+    faded in (raised cosine) from ``start`` to ``fade_end`` when it starts late."""
+
+    __slots__ = ("start", "centre", "sigma", "want", "amp", "amp_from", "g0", "g1", "fade_end")
+
+    def __init__(self, start: int, centre: float, amp: float, sigma: float, want: float,
+                 fade_end: float | None = None) -> None:
+        self.start, self.centre, self.sigma, self.want = start, centre, sigma, want
+        self.amp = self.amp_from = amp
+        self.g0 = self.g1 = float(start)
+        self.fade_end = float(start) if fade_end is None else fade_end
+
+    def amp_at(self, frames: np.ndarray) -> np.ndarray | float:
+        amp: np.ndarray | float = self.amp
+        if self.amp != self.amp_from and frames[0] < self.g1:
+            amp = np.interp(frames, (self.g0, self.g1), (self.amp_from, self.amp))
+        if frames[0] < self.fade_end:
+            u = np.clip((frames - self.start) / (self.fade_end - self.start), 0.0, 1.0)
+            amp = amp * (0.5 - 0.5 * np.cos(np.pi * u))
+        return amp
+
+    def retarget(self, amp: float, now: int, glide: float) -> None:
+        """Go to ``amp`` from frame ``now``: at once if not started, else over ``glide`` frames
+        (never past the centre)."""
+        if amp == self.amp:
+            return
+        if self.start >= now:
+            self.amp = self.amp_from = amp
+            return
+        current = self.amp_at(np.array([float(now)]))
+        self.amp_from = float(np.asarray(current).ravel()[0])
+        self.amp, self.g0 = amp, float(now)
+        self.g1 = max(float(now) + 1.0, min(float(now) + glide, self.centre))
+
+
 class WaveletPlayer:
     """Wavelets scheduled on a frame clock, rendered block by block (the audio thread's side).
 
     :meth:`replace` drops every wavelet not yet started whose event has not fired and
     schedules new ones; one already started plays to its end (and is not scheduled again
-    when a batch re-sends it), and a new one whose start has passed is moved to start now
-    (the whole wavelet, later, rather than its tail).
+    when a batch re-sends it: its amplitude glides to the re-sent strength).  A new one whose
+    start has passed keeps its centre with its leading tail faded in from now, or, when less
+    than :data:`LATE_SIGMAS` remain before its crest, plays whole from now (later).
     """
 
     def __init__(self, sample_rate_hz: float) -> None:
@@ -145,8 +190,7 @@ class WaveletPlayer:
         self.frame = 0  # the next frame to render
         #: wavelets started so far
         self.started = 0
-        # [start frame, centre frame, amplitude, sigma in frames, centre asked for], by start
-        self._items: list[tuple[int, float, float, float, float]] = []
+        self._items: list[_Item] = []  # by start
 
     def replace(self, wavelets: Sequence[tuple[float, float, float]], fired_before: float = -math.inf) -> None:
         """Schedule ``(centre frame, amplitude, sigma [frames])`` triples, replacing those not started.
@@ -156,18 +200,25 @@ class WaveletPlayer:
         (a batch re-sends only those whose time has not come): it stays, started or not.
         """
         now = self.frame
-        kept = [it for it in self._items if it[0] < now or it[4] < fired_before]
-        started = [it[4] for it in kept]
+        kept = [it for it in self._items if it.start < now or it.want < fired_before]
         same = SAME_S * self.sample_rate_hz
+        glide = GLIDE_S * self.sample_rate_hz
         for centre, amp, sigma in wavelets:
-            if any(abs(c - centre) < same for c in started):
+            match = next((it for it in kept if abs(it.want - centre) < same), None)
+            if match is not None:
+                match.retarget(float(amp), now, glide)
                 continue
             half = SPAN_SIGMAS * sigma
-            want, start = centre, centre - half
+            want, start, fade_end = centre, centre - half, None
             if start < now:
-                centre, start = now + half, now
-            kept.append((int(math.floor(start)), float(centre), float(amp), float(sigma), float(want)))
-        kept.sort(key=lambda it: it[0])
+                if centre - now >= LATE_SIGMAS * sigma:
+                    # On time, its leading tail faded in over half of what is left before the crest.
+                    start, fade_end = now, now + 0.5 * (centre - now)
+                else:  # too late for that: the whole wavelet, from now
+                    centre, start = now + half, now
+            kept.append(_Item(int(math.floor(start)), float(centre), float(amp), float(sigma), float(want),
+                              fade_end))
+        kept.sort(key=lambda it: it.start)
         self._items = kept
 
     def clear(self) -> None:
@@ -179,18 +230,18 @@ class WaveletPlayer:
         f0 = self.frame
         f1 = f0 + n
         live = []
-        for item in self._items:
-            start, centre, amp, sigma, _ = item
-            end = centre + SPAN_SIGMAS * sigma
-            if start >= f1:
-                live.append(item)
+        for it in self._items:
+            end = it.centre + SPAN_SIGMAS * it.sigma
+            if it.start >= f1:
+                live.append(it)
                 continue
-            if start >= f0:
+            if it.start >= f0:
                 self.started += 1
-            a, b = max(start, f0), min(int(math.ceil(end)) + 1, f1)
+            a, b = max(it.start, f0), min(int(math.ceil(end)) + 1, f1)
             if a < b:
-                out[a - f0 : b - f0] += amp * ricker((np.arange(a, b) - centre) / sigma)
+                frames = np.arange(a, b, dtype=np.float64)
+                out[a - f0 : b - f0] += it.amp_at(frames) * ricker((frames - it.centre) / it.sigma)
             if end >= f1:
-                live.append(item)
+                live.append(it)
         self._items = live
         self.frame = f1

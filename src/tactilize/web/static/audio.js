@@ -63,9 +63,13 @@ export class AudioPulses {
       if (this.offset === null || !Number.isFinite(msg.t_s)) this.offset = this.ctx.currentTime + LEAD_S - (msg.t_s || 0);
       // Events, not a steady train: these wavelets replace those not yet started.
       this.lastAt = this.offset + (msg.t_s || 0);
+      // Each channel's share as in the drive (the pen's two-channel split by direction).
+      const amps = channels.map((c) => (c.amplitude > 0 ? c.amplitude : 0));
+      const loudest = Math.max(...amps, 0);
       this.node.port.postMessage({
         channels: [{ f: 0 }, { f: 0 }],
         wavelets: Array.isArray(msg.wavelets) ? msg.wavelets : [],
+        shares: amps.map((a) => (loudest > 0 ? a / loudest : 1)),
         at: this.lastAt,
       });
       return;
