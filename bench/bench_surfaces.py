@@ -21,6 +21,8 @@
      300 /s event train per second of computation, times 300.
 
 Run: python bench/bench_surfaces.py [--quick] [--json] [--only batch]
+(``--only audio``: the spectrum of the voice coil's signal against speed and pitch,
+and its cost: bench/bench_audio.py.)
 Needs scikit-image (the ``bench`` and ``test`` extras) for the photographs.
 """
 
@@ -271,9 +273,16 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer batches and pairs")
     ap.add_argument("--json", action="store_true", help="also print one JSON document at the end")
-    ap.add_argument("--only", choices=("tables", "batch", "model", "wire"), help="run one part only")
+    ap.add_argument("--only", choices=("tables", "batch", "model", "wire", "audio"), help="run one part only")
     a = ap.parse_args()
     doc = {}
+    if a.only == "audio":  # the voice coil's signal (issue 26): bench_audio.py
+        import bench_audio
+
+        doc["audio"] = bench_audio.run(a.quick)
+        if a.json:
+            print(json.dumps(doc, default=float))
+        return
     if a.only == "batch":
         doc["batch"] = batch_costs(150 if a.quick else 500, 2 if a.quick else 3)
         if a.json:

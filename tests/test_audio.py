@@ -171,3 +171,139 @@ def test_a_drive_the_synthesiser_refuses_fails_in_the_callers_thread(fake_sd):
             out.apply([Drive(1000.0, 1e-3)])  # pulses as long as the period: they would touch
         x = FakeStream.instances[0].pull(4800)
     assert not x.any()  # nothing was played
+
+
+# ----------------------------------------------------------------- pulse events (the surface rendering)
+
+
+def _grating_events(speed_m_s: float = 0.1, duration_s: float = 1.0):
+    from tactilize.surface import stroke_events, surface_model
+    from tactilize.surface.fields import grating_field
+
+    pitch = 0.26e-3
+    surface = surface_model(grating_field(1000.0, 0.0, (0.3, 0.02), pitch), pitch_m=pitch)
+    t = np.arange(0.0, duration_s, 1 / 240)
+    return stroke_events(surface, t, 5e-3 + speed_m_s * t, np.full(t.size, 10e-3))
+
+
+def test_events_play_as_wavelets_at_the_crossing_rate(fake_sd):
+    from tactilize.synthesis.acceleration import spectral_peak_hz, spectrum
+
+    events = _grating_events(0.1)
+    out = AudioOutput(sample_rate_hz=RATE, envelope=Identity())
+    assert out.plays_events
+    eq = Drive(pulse_frequency_hz=100.0, pulse_width_s=0.001, amplitude=0.5)
+    applied = out.play_events([events, events], 0.0, [eq, eq])
+    assert applied[0] == eq
+    x = FakeStream.instances[-1].pull(RATE)
+    assert np.isfinite(x).all()
+    f, p = spectrum(x[:, 0].astype(float), RATE)
+    assert spectral_peak_hz(f, p) == pytest.approx(100.0, rel=0.03)
+    # Bipolar, as strong as the events (one pulse train would be >= 0), and no steady train under it.
+    strongest = max(e.strength for e in events)
+    assert x[:, 0].min() == pytest.approx(-strongest, abs=0.02) and x[:, 0].max() > 0.1
+    # Each wavelet's trough lands one block after the event's time (the output's lead).
+    trough = int(np.argmin(x[:4800, 0]))
+    first = events[0].t_s * RATE + 256
+    assert abs(trough - first) <= 2
+
+
+def test_a_new_batch_replaces_what_has_not_started(fake_sd):
+    out = AudioOutput(sample_rate_hz=RATE, envelope=Identity())
+    stream = FakeStream.instances[-1]
+    from tactilize.surface.events import PulseEvent
+
+    on = Drive(pulse_frequency_hz=50.0, pulse_width_s=0.001, amplitude=0.5)
+    out.play_events([[PulseEvent(0.005, 1.0), PulseEvent(0.200, 1.0)]] * 2, 0.0, [on, on])
+    first = stream.pull(1024)  # 21 ms: the first wavelet has started
+    out.play_events([[PulseEvent(0.200, 0.5)]] * 2, 1024 / RATE, [on, on])
+    rest = stream.pull(RATE // 2)
+    x = np.concatenate([first, rest])[:, 0]
+    assert x[:3400].min() < -0.99  # the started one played to its end (3 sigma = 34 ms)...
+    # ...the one at 200 ms was replaced by the later batch's weaker one
+    assert x[3400:].min() == pytest.approx(-0.5, abs=0.005)
+    out.stop()
+    assert np.abs(stream.pull(4800)).max() == 0.0
+
+
+def test_a_steady_drive_after_events_drops_them(fake_sd):
+    from tactilize.surface.events import PulseEvent
+
+    out = AudioOutput(sample_rate_hz=RATE, envelope=Identity())
+    on = Drive(pulse_frequency_hz=50.0, pulse_width_s=0.001, amplitude=0.5)
+    out.play_events([[PulseEvent(0.05, 1.0)]] * 2, 0.0, [on, on])
+    out.apply([on, on])
+    x = FakeStream.instances[-1].pull(RATE // 5)
+    assert x.min() >= 0.0  # only the pulse train: no wavelet
+
+
+def test_an_event_re_sent_after_its_wavelet_started_plays_once(fake_sd):
+    """A batch re-sends every event whose time has not come; its wavelet starts 3 sigma before."""
+    from tactilize.surface.events import PulseEvent
+
+    out = AudioOutput(sample_rate_hz=RATE, envelope=Identity())
+    stream = FakeStream.instances[-1]
+    on = Drive(pulse_frequency_hz=50.0, pulse_width_s=0.001, amplitude=0.5)
+    events = [PulseEvent(0.010, 1.0), PulseEvent(0.030, 1.0)]
+    out.play_events([events] * 2, 0.0, [on, on])
+    head = stream.pull(600)  # the first wavelet (centre 15.3 ms, 3 sigma = 13.5 ms) has started
+    out.play_events([events] * 2, 600 / RATE + 0.004, [on, on])  # a later batch, arriving late
+    x = np.concatenate([head, stream.pull(4800)])[:, 0]
+    troughs = np.flatnonzero((x[1:-1] < x[:-2]) & (x[1:-1] <= x[2:]) & (x[1:-1] < -0.9))
+    assert len(troughs) == 2
+    assert np.diff(troughs)[0] == pytest.approx(0.020 * RATE, abs=2)  # where the events are, 20 ms apart
+
+
+def test_an_event_fired_on_the_stroke_clock_plays_though_the_device_is_behind(fake_sd):
+    """A batch re-sends only the events whose time has not come on the stroke's clock; one
+    that has come is not in it, and must still play where the device has not reached it."""
+    from tactilize.surface.events import PulseEvent
+
+    out = AudioOutput(sample_rate_hz=RATE, envelope=Identity())
+    stream = FakeStream.instances[-1]
+    on = Drive(pulse_frequency_hz=50.0, pulse_width_s=0.001, amplitude=0.5)
+    events = [PulseEvent(0.010 + 0.020 * k, 1.0) for k in range(4)]  # 20 ms apart
+    out.play_events([events] * 2, 0.0, [on, on])
+    head = stream.pull(600)  # the device is 12.5 ms in: the 30 ms wavelet has not started
+    out.play_events([events[2:]] * 2, 0.035, [on, on])  # the stroke is at 35 ms: two have fired
+    x = np.concatenate([head, stream.pull(4800)])[:, 0]
+    troughs = np.flatnonzero((x[1:-1] < x[:-2]) & (x[1:-1] <= x[2:]) & (x[1:-1] < -0.9))
+    assert len(troughs) == 4
+    assert np.diff(troughs) == pytest.approx([0.020 * RATE] * 3, abs=2)
+
+
+def test_the_pen_renderer_plays_each_bump_crossed_once_on_the_sound_card(fake_sd):
+    """End to end: pen batches through PenRenderer (surface profile) to the sound card, the
+    device advancing one batch of frames per batch; six bumps crossed, six wavelets, where
+    the bumps are."""
+    from tactilize.image import TextureImage
+    from tactilize.mapping import Profile
+    from tactilize.pen import PenRenderer, PenSample
+    from tactilize.surface import surface_model
+    from tactilize.surface.fields import bump_field
+    from tactilize.texturemap import texture_map
+
+    centres = [(x * 1e-3, 10e-3) for x in (8, 14, 20, 26, 32, 38)]
+    f = bump_field(centres, 1e-3, (50e-3, 20e-3), 0.1e-3)
+    img = TextureImage(f.heights, (f.pitch_m, f.pitch_m))
+    out = AudioOutput(sample_rate_hz=RATE, envelope=Identity())
+    stream = FakeStream.instances[-1]
+    r = PenRenderer(texture_map(img), Profile.preset("surface"), out, surface=surface_model(img))
+    t = np.arange(0.0, 0.8, 1 / 500)
+    samples = [PenSample(a, 3e-3 + 0.05 * a, 10e-3, 0.5) for a in t]
+    pulled = []
+    for k in range(0, len(samples), 8):  # 16 ms batches, the device 16 ms on each time
+        r.feed(samples[k : k + 8])
+        pulled.append(stream.pull(768))
+    r.lift()
+    pulled.append(stream.pull(RATE // 5))
+    both = np.concatenate(pulled)
+    # The two channels share each wavelet as they share the drive (the phantom split by direction).
+    loud = int(np.argmax(np.abs(both).max(axis=0)))
+    x = both[:, loud]
+    troughs = np.flatnonzero((x[1:-1] < x[:-2]) & (x[1:-1] <= x[2:]) & (x[1:-1] < -0.5))
+    assert len(troughs) == 6, troughs
+    np.testing.assert_allclose(np.diff(troughs) / RATE, 0.120, atol=0.002)  # 6 mm apart at 50 mm/s
+    # Each at full strength: a bump first seen at the look-ahead's end (partly, weak) glides to
+    # its strength when the next batch re-sends it, rather than playing weak or twice.
+    assert x[troughs + 1].max() < -0.9

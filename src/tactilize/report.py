@@ -225,3 +225,26 @@ def _close_pair(speed_mm_s: float, a: str, b: str, fa_hz: float, fb_hz: float) -
     """One pair the finger cannot tell apart at ``speed_mm_s``, with its frequency ratio."""
     ratio = max(fa_hz, fb_hz) / min(fa_hz, fb_hz) if min(fa_hz, fb_hz) > 0 else math.inf
     return {"speed_mm_s": float(speed_mm_s), "a": a, "b": b, "frequency_ratio": ratio}
+
+
+# ----------------------------------------------------------------- the voice coil's signal (issue 26)
+
+
+def audio_report(profile: Profile, images: dict[str, Any] | None = None,
+                 speeds_mm_s: Sequence[float] = SPEEDS_MM_S) -> list[dict[str, Any]]:
+    """Per texture and speed, the spectrum of the tip's acceleration along a straight stroke
+    (:func:`tactilize.synthesis.acceleration.audio_rows`): what a voice coil plays and the WAV
+    export carries.  The built-in textures when ``images`` is None."""
+    from .surface.model import TIP_RADIUS_M, surface_model
+    from .synthesis.acceleration import audio_rows
+
+    if images is None:
+        from .data import get_texture, texture_ids
+
+        images = {tid: get_texture(tid).image for tid in texture_ids()}
+    tip = getattr(profile, "tip_radius_m", None) or TIP_RADIUS_M
+    rows = []
+    for name, img in images.items():
+        for r in audio_rows(surface_model(img, tip_radius_m=tip), speeds_mm_s):
+            rows.append({"texture": name, **r})
+    return rows

@@ -12,6 +12,11 @@ sounddevice is an optional extra (``pip install 'tactilize[audio]'``) and needs
 the PortAudio library; both are imported only when an AudioOutput is made, and
 their absence is an :class:`~tactilize.errors.OutputError` saying how to
 install them.
+
+Pulse events (the surface rendering, docs/surfaces.md) play as acceleration
+wavelets (:mod:`tactilize.synthesis.wavelets`): each bump crossed is the
+second derivative of a Gaussian bump, as wide as the local interval, as strong
+as the event; the steady pulse train is silent meanwhile.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ import numpy as np
 from ..errors import OutputError
 from ..drive import Drive
 from ..synthesis import PulseScheduler, PulseStream
+from ..synthesis.wavelets import WaveletPlayer, event_wavelets
 from .base import OutputBase
 
 __all__ = ["AudioOutput", "import_sounddevice"]
@@ -63,6 +69,8 @@ class AudioOutput(OutputBase):
     """
 
     channels = 2
+    #: Plays the surface's pulse events as acceleration wavelets (:meth:`play_events`).
+    plays_events = True
 
     def __init__(
         self,
@@ -87,6 +95,14 @@ class AudioOutput(OutputBase):
         #: callback blocks PortAudio reported as under- or overflowing
         self.xruns = 0
         self._streams = [PulseStream(self.sample_rate_hz) for _ in range(self.channels)]
+        self._wavelets = [WaveletPlayer(self.sample_rate_hz) for _ in range(self.channels)]
+        self.block_frames = int(block_frames)
+        # Wavelets cross to the audio thread as one (version, per-channel triples) tuple, as drives do.
+        # (version, per channel (centre frame, amplitude, sigma frames) or None to clear, the
+        # frame of the batch's newest sample)
+        self._scheduled: tuple[int, tuple[tuple[tuple[float, float, float], ...], ...] | None, float] = (0, None, 0.0)
+        self._scheduled_version = 0
+        self._offset_frames: float | None = None
         # Drives cross to the audio thread as one (version, drives) tuple:
         # assigning it is atomic, so the callback never sees half an update
         # and never blocks on a lock the caller holds.
@@ -118,9 +134,18 @@ class AudioOutput(OutputBase):
             for stream, d in zip(self._streams, drives):
                 stream.set_drive(d)
             self._playing_version = version
+        version, wanted, fired_before = self._scheduled
+        if version != self._scheduled_version:
+            for player, triples in zip(self._wavelets, wanted or ((),) * self.channels):
+                if wanted is None:
+                    player.clear()
+                else:
+                    player.replace(triples, fired_before)
+            self._scheduled_version = version
         outdata.fill(0.0)
         for c, stream in enumerate(self._streams):
             stream.render(frames, outdata[:, c])
+            self._wavelets[c].render(outdata[:, c])
         if self.gain != 1.0:
             outdata *= self.gain
 
@@ -132,11 +157,42 @@ class AudioOutput(OutputBase):
             # refuse in the audio thread (e.g. pulses so wide they touch).
             PulseScheduler(self.sample_rate_hz).set_drive(d)
         self._publish(drives)
+        self._scheduled = (self._scheduled[0] + 1, None, 0.0)  # a steady drive: no events left to play
+        self._offset_frames = None
         return drives
+
+    def play_events(self, channels: Sequence[Sequence[Any]], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
+        """Per channel, pulse events (stroke clock [s]) as acceleration wavelets, replacing those
+        not yet started; ``now_s`` [s] is the stroke time of the newest pen sample, played one
+        block from the frame the device has reached.  Returns ``equivalent`` after the envelope
+        (for the page's readouts); the pulse train itself is silent while events play."""
+        applied = [d if d.is_off else self.envelope.apply(d) for d in self._check(equivalent)]
+        fs = self.sample_rate_hz
+        if self._offset_frames is None:
+            # The stroke's clock on the device's, fixed for the stroke, one block ahead: a
+            # batch arriving late then shifts nothing, and an event re-sent lands where it was.
+            self._offset_frames = self._wavelets[0].frame + self.block_frames - now_s * fs
+        frame = self._offset_frames + now_s * fs
+        # The pen's two-channel split (the phantom sensation by stroke direction) scales each
+        # channel as it scales the equivalent drives.
+        loudest = max((d.amplitude for d in applied), default=0.0)
+        per_channel = []
+        for c, events in enumerate(list(channels)[: self.channels]):
+            share = applied[c].amplitude / loudest if loudest > 0 else 1.0
+            per_channel.append(tuple(
+                (frame + (w.t_s - now_s) * fs, share * min(1.0, max(0.0, w.amplitude)), w.sigma_s * fs)
+                for w in event_wavelets(events)
+            ))
+        per_channel += [()] * (self.channels - len(per_channel))
+        self._publish([Drive.off()] * self.channels)
+        self._scheduled = (self._scheduled[0] + 1, tuple(per_channel), frame)
+        return applied
 
     def stop(self) -> None:
         """Silence every channel (the stream keeps running, playing zeros)."""
         self._publish([Drive.off()] * self.channels)
+        self._scheduled = (self._scheduled[0] + 1, None, 0.0)
+        self._offset_frames = None
 
     def _publish(self, drives: Sequence[Drive]) -> None:
         self._wanted = (self._wanted[0] + 1, tuple(drives))

@@ -51,7 +51,13 @@ def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     limits = profile.limits.to_dict()
     tl.meta.setdefault("min_frequency_hz", limits.get("min_frequency_hz", 0.0))
     tl.meta.setdefault("max_frequency_hz", limits.get("max_frequency_hz", 300.0))
-    path = export(tl, opt["out_path"], fmt, drive=opt["drive_kind"], **extra)
+    source: Any = tl
+    if fmt == "wav" and surface is not None and opt["drive_kind"] == "profile":  # the tip's acceleration
+        from ..export.wav import StrokeAcceleration
+
+        origin = 0.0 if opt["stroke_path"] is None else stroke.t_s[0]  # the timeline's t = 0
+        source = StrokeAcceleration(stroke, surface, origin, origin + tl.end_s, mirror=opt["stroke_path"] is None)
+    path = export(source, opt["out_path"], fmt, drive=opt["drive_kind"], **extra)
     feat = tmap.whole
     first = tl.drives(opt["drive_kind"])[0]
     freqs = [d.pulse_frequency_hz for d in tl.drives(opt["drive_kind"]) if not d.is_off]
@@ -73,7 +79,14 @@ def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
         f"wrote {path} ({fmt}, {tl.end_s:g} s, {len(tl.t_s)} frames, {doc['drive_changes']} drive changes, "
         f"{opt['drive_kind']} drive): {doc['min_frequency_hz']:.1f} .. {doc['max_frequency_hz']:.1f} Hz"
     )
-    if tl.plays_events(opt["drive_kind"]):
+    if source is not tl:  # the WAV holds the tip's acceleration, not the drive
+        from ..synthesis import DEFAULT_SAMPLE_RATE_HZ
+
+        x, clipped = source.samples(DEFAULT_SAMPLE_RATE_HZ, 1)  # what export() wrote (made once)
+        doc.update(signal="tip_acceleration", peak_full_scale=float(abs(x).max(initial=0.0)), clipped_samples=clipped)
+        text = (f"wrote {path} (wav, {tl.end_s:g} s): the tip's acceleration, peak {doc['peak_full_scale']:.3f} of "
+                f"full scale, {clipped} samples clipped")
+    elif tl.plays_events(opt["drive_kind"]):
         doc.update(_event_summary(tl, fmt))
         if "transients" in doc:
             n = doc["continuous_runs"]

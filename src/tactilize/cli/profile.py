@@ -24,9 +24,10 @@ def profile() -> None:
 @click.option("--width-mm", type=float, default=None, help="Displayed width of the given images [mm].")
 @click.option("--no-wire", is_flag=True, help="Skip playing every drive on the simulated wire.")
 @click.option("--plot", "plot_path", default=None, help="Draw frequency against speed per texture to this file.")
+@click.option("--audio", is_flag=True, help="Also the voice coil's signal: the spectrum of the tip's acceleration.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
 def report_cmd(profile_name: str, images: tuple[str, ...], dpi: float | None, width_mm: float | None,
-               no_wire: bool, plot_path: str | None, as_json: bool) -> None:
+               no_wire: bool, plot_path: str | None, as_json: bool, audio: bool = False) -> None:
     """The drive each texture gets at 10 .. 160 mm/s, whether the wire follows, and the pairs
     closer than one JND at equal speed.  A surface rendering (the default) is judged by what
     it produces for a straight stroke: pulse rate, interval CV and strength."""
@@ -53,10 +54,16 @@ def report_cmd(profile_name: str, images: tuple[str, ...], dpi: float | None, wi
 
         plot_profile_report(rep, plot_path, jnd=FREQUENCY_JND)
         doc["plot"] = plot_path
+    if audio:
+        from ..report import audio_report
+
+        doc["audio"] = audio_report(prof, pictures)
     if as_json:
         emit_json(doc)
         return
     click.echo(_table(rep, SPEEDS_MM_S))
+    if audio:
+        click.echo(_audio_table(doc["audio"], SPEEDS_MM_S))
 
 
 def _table(rep: Any, speeds: tuple[float, ...]) -> str:
@@ -85,4 +92,19 @@ def _table(rep: Any, speeds: tuple[float, ...]) -> str:
         for p in rep.close_pairs:
             ratio = "inf" if not math.isfinite(p["frequency_ratio"]) else f"{p['frequency_ratio']:.3f}"
             lines.append(f"    {p['speed_mm_s']:>5g} mm/s  {p['a']} / {p['b']}  (frequency ratio {ratio})")
+    return "\n".join(lines)
+
+
+def _audio_table(rows: list[dict[str, Any]], speeds: tuple[float, ...]) -> str:
+    """The voice coil's signal per texture and speed: spectral centroid [Hz] and RMS [dBFS]."""
+    names = list(dict.fromkeys(r["texture"] for r in rows))
+    width = max(10, *(len(n) for n in names))
+    lines = ["voice coil (the tip's acceleration, 20 .. 1000 Hz): spectral centroid [Hz] / RMS [dB full scale]",
+             f"  {'texture':{width}}" + "".join(f"{v:>13g}" for v in speeds)]
+    for n in names:
+        cells = ""
+        for r in (r for r in rows if r["texture"] == n):
+            db = 20 * math.log10(r["rms_full_scale"]) if r["rms_full_scale"] > 0 else -math.inf
+            cells += f"{r['centroid_hz']:>7.0f} /{db:>4.0f}"
+        lines.append(f"  {n:{width}}{cells}")
     return "\n".join(lines)

@@ -27,6 +27,7 @@ from .haptic import haptic_document
 from .hjif import hjif_document
 from .steady import _drives, _json_bytes, _write, csv_bytes, drive_document, pcm_wav, wav_bytes
 from .timeline import DriveTimeline
+from .wav import StrokeAcceleration
 
 __all__ = ["ExportFormat", "FORMATS", "export_format", "render", "export", "drive_log_csv", "drive_log_document"]
 
@@ -78,6 +79,8 @@ def _samples_csv(tl: DriveTimeline, fs: int, kind: str) -> bytes:
 
 
 def _wav(src: Source, t: float, fs: int, kind: str, x: dict[str, Any]) -> bytes:
+    if isinstance(src, StrokeAcceleration):  # a stroke on a surface: the tip's acceleration
+        return pcm_wav(src.samples(fs)[0], fs, signed=True)
     if isinstance(src, DriveTimeline):
         return pcm_wav(src.samples(fs, kind), fs)
     return wav_bytes(src, t, fs)
@@ -122,7 +125,8 @@ class ExportFormat:
 FORMATS: dict[str, ExportFormat] = {
     f.name: f
     for f in (
-        ExportFormat("wav", ".wav", "audio/wav", _wav, "16-bit PCM pulse train, 48 kHz, one channel per actuator"),
+        ExportFormat("wav", ".wav", "audio/wav", _wav, "16-bit PCM, 48 kHz, one channel per actuator: the pulse train, or on a "
+                     "surface the tip's acceleration"),
         ExportFormat("csv", ".csv", "text/csv", _csv, "the samples: time_s, channel_0, ..."),
         ExportFormat("json", ".json", "application/json", _json,
                      "the drive in SI units (a stroke: the drive log, one row per change)"),

@@ -16,6 +16,7 @@ from typing import Any, Callable, Iterable, Sequence
 from ..drive import Drive
 from ..mapping import Profile
 from ..synthesis import pen_channels
+from ..synthesis.wavelets import wavelet_rows
 from .samples import PenSample
 from .tracker import StrokeState, StrokeTracker
 
@@ -89,6 +90,8 @@ class RenderResult:
             "channels": channels,
             "events": len(self.events),
             "pulses": self.pulses,
+            # The page's audio plays each event as an acceleration wavelet: [dt_s from t_s, amplitude, sigma_s].
+            "wavelets": wavelet_rows(self.events, st.t_s) if self.events and st is not None else [],
         }
 
 

@@ -1,10 +1,13 @@
 """Pulse trains: one-shot arrays, a streaming phase-continuous synthesiser, two channels.
 
-==========  ==================================================================
-``trains``  :func:`pulse_train`, :class:`PulseScheduler`, :class:`PulseStream`,
-            the jitter of irregular textures
-``pen``     the pen's two actuators: phantom sensation, apparent movement
-==========  ==================================================================
+================  ==================================================================
+``trains``        :func:`pulse_train`, :class:`PulseScheduler`, :class:`PulseStream`,
+                  the jitter of irregular textures
+``pen``           the pen's two actuators: phantom sensation, apparent movement
+``acceleration``  the tip's vertical acceleration along a stroke (voice coils, WAV);
+                  imported by name (it loads scipy on first use)
+``wavelets``      pulse events as acceleration wavelets (the sound card, the page)
+================  ==================================================================
 """
 
 from .pen import PenStream, pen_channels, pen_pulse_trains, phantom_amplitudes, phantom_beta, soa_s

@@ -292,7 +292,7 @@ function onDrive(msg) {
   T.drives.push(msg);
   if (T.drives.length > HISTORY) T.drives.splice(0, T.drives.length - HISTORY);
   const chans = msg.channels && msg.channels.length ? msg.channels : [{}, {}];
-  audio.setDrives(chans);  // the sound, the motor and the plot follow at once
+  audio.setDrives(chans, msg);  // the sound, the motor and the plot follow at once
   vibration.setDrives(msg.on && !msg.resting ? chans : [{}, {}]);
   draw.setDrives(chans);
   // The readouts of a moving pen change READOUT_MS apart, not once a batch: numbers

@@ -1,0 +1,77 @@
+"""A stroke over a surface as a WAV file: the tip's vertical acceleration, for voice coils.
+
+For a profile whose rendering is ``surface`` (docs/surfaces.md) a WAV carries the
+signal a voice coil should play (:mod:`tactilize.synthesis.acceleration`): the
+tip's acceleration along the stroke, band-limited to the actuator's band, at
+full scale where it reaches
+:data:`~tactilize.synthesis.acceleration.FULL_SCALE_ACCELERATION`, signed 16-bit
+PCM, the same signal on both channels (as the stroke's other exports give both
+actuators the same drive).  A steady profile's WAV is still its pulse train
+(:mod:`.steady`).
+
+Units: SI (s, m, Hz).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..errors import SignalError
+
+__all__ = ["StrokeAcceleration", "pcm_wav_signed"]
+
+
+@dataclass(frozen=True)
+class StrokeAcceleration:
+    """A stroke on a surface, to be rendered as the tip's acceleration.
+
+    Attributes
+    ----------
+    stroke : tactilize.export.Stroke
+        The pen samples (SI, y down), pressure where known.
+    surface : SurfaceModel
+        The picture's height field.
+    start_s, end_s : float
+        The span written [s], on the stroke's clock.
+    mirror : bool
+        The picture continues beyond its edges with mirror images (a synthetic
+        stroke longer than the picture, as :func:`~tactilize.export.run_stroke` shows it).
+    gain : float
+        Multiplies the signal before the full-scale clip.
+    """
+
+    stroke: Any
+    surface: Any
+    start_s: float
+    end_s: float
+    mirror: bool = False
+    gain: float = 1.0
+
+    def samples(self, sample_rate_hz: float, channels: int = 2) -> tuple[np.ndarray, int]:
+        """(samples (n, channels) in [-1, 1], how many were clipped); made once per rate."""
+        cache = self.__dict__.setdefault("_rendered", {})
+        if sample_rate_hz not in cache:
+            cache[sample_rate_hz] = self._render(sample_rate_hz)
+        x, clipped = cache[sample_rate_hz]
+        return np.repeat(x[:, None], channels, axis=1), clipped
+
+    def _render(self, sample_rate_hz: float) -> tuple[np.ndarray, int]:
+        from ..synthesis.acceleration import Mirrored, tip_acceleration, to_full_scale
+
+        surface = Mirrored(self.surface) if self.mirror else self.surface
+        pressure = self.stroke.pressure if any(p is not None for p in self.stroke.pressure) else None
+        sig = tip_acceleration(surface, self.stroke.t_s, self.stroke.x_m, self.stroke.y_m, pressure,
+                               sample_rate_hz=sample_rate_hz, start_s=self.start_s, end_s=self.end_s)
+        return to_full_scale(sig, self.gain)
+
+
+def pcm_wav_signed(x: np.ndarray, sample_rate_hz: int) -> bytes:
+    """16-bit PCM WAV bytes of signed samples ``x`` (n, channels) in [-1, 1] (1 is 32767)."""
+    from .steady import pcm_wav
+
+    if not isinstance(sample_rate_hz, int) or isinstance(sample_rate_hz, bool) or sample_rate_hz <= 0:
+        raise SignalError("<sample rate>", f"WAV needs a whole positive number of Hz, got {sample_rate_hz!r}")
+    return pcm_wav(x, sample_rate_hz, signed=True)
