@@ -16,7 +16,7 @@ from hypothesis import settings, target
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, rule
 
-from tactilize.actuators import protocol as P
+from tactilize.actuators import frames as P
 from tactilize.actuators.sma import Circuit, WireModel, WireSpec, build_envelope, circuit_names
 from tactilize.actuators.sma.envelope import drive_jitter
 from tactilize.drive import Drive

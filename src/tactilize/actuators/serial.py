@@ -41,7 +41,7 @@ from typing import Any, Callable, Sequence
 from ..errors import OutputError
 from ..drive import Drive
 from ..mapping import ActuatorLimits
-from . import protocol as P
+from . import frames as P
 from .base import OutputBase
 from .sensed import SensedLoop, fault_text
 from .sma import Circuit, SafetyEnvelope, WireController, WireSpec, default_envelope

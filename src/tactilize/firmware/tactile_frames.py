@@ -1,6 +1,6 @@
 # The frame codec and the USB serial port of the tactile controller (MicroPython module, copied to the
 # board next to main.py; see controller.py).  The tests run the host's
-# tactilize/actuators/protocol.py against it, so the two cannot drift.
+# tactilize/actuators/frames/ against it, so the two cannot drift.
 
 import struct
 import time
