@@ -362,6 +362,7 @@ class Controller:
     def _apply(self, ch, f_mhz, w_ns, amp, reg=W.REGULARITY_EVEN):
         self.watchdog_tripped = False
         if f_mhz == 0 or w_ns == 0 or amp == 0:
+            ch.stop_events()
             if ch.on:
                 bias, hold = ch.bias_q16, ch.hold
                 keep = (hold.frequency_hz, hold.energy_j, hold.bias_w, hold.target_ohm)

@@ -336,6 +336,15 @@ class Channel:
         _irq_on(state)
         self._heat_changed(now)
 
+    def stop_events(self):
+        """No more scheduled pulses (a SET with nothing to play)."""
+        if self.mode == "events":
+            state = _irq_off()
+            self._cancel_timer()
+            self.queue.clear()
+            self.mode = None
+            _irq_on(state)
+
     def _arm_event(self):
         if not self.queue.pending:
             return

@@ -23,9 +23,9 @@ EVENT_ENTRY = ">HHH"
 HEAD_SIZE = 5
 ENTRY_SIZE = 6
 MAX_EVENTS = 9  # (64 - 5) // 6
-# A pulse this far past when its frame is handled [us] is dropped (counted
+# A pulse more than this past when its frame is handled [us] is dropped (counted
 # late); less fires at once: the frame's own transit.
-LATE_US = 1000
+LATE_US = 2000
 # A frame may reach this far ahead [us]; further is a host error (bad payload).
 MAX_AHEAD_US = 1000000
 # Two pulses' starts are never closer [us] (the paper's 300 Hz, less 10 %): a

@@ -7,7 +7,7 @@ EVENTS carries one channel's pulses of the next few tens of milliseconds::
 with at most :data:`MAX_EVENTS` pulses, offsets not decreasing, widths within the
 controller's hard limits.  The board replaces every pulse of the channel not yet
 fired with these, leaves out an id it already fired (a resent frame never doubles
-a pulse) and drops a pulse already past by more than a millisecond when the frame
+a pulse) and drops a pulse already past by more than 2 ms when the frame
 arrives (a late frame); each one then passes its running heat estimate, which
 shortens or skips it (``tactilize/firmware/tactile_events.py``).
 
