@@ -7,7 +7,8 @@ is at most half the round trip, and most of a long round trip is queueing on one
 side, not the other.  So, as NTP and Cristian's method do (docs/references.md,
 section 8 (clock sync)), the exchanges with the shortest round trips are trusted:
 of every :data:`BLOCK` consecutive exchanges the one with the least round trip is
-kept, and a straight line ``b = offset + rate * t`` is fitted to the kept points of
+kept (unless even it is far above the others, :data:`CLEAN_RTT_FACTOR`),
+and a straight line ``b = offset + rate * t`` is fitted to the kept points of
 the last :data:`WINDOW` exchanges by least squares.  Its residual (the RMS distance
 of the kept points from the line) says how well the host knows the board's clock.
 
@@ -29,6 +30,11 @@ __all__ = ["ClockSync", "BLOCK", "WINDOW"]
 BLOCK = 4
 #: Exchanges remembered for the fit (at the host's 50 ms heartbeat: 3.2 s).
 WINDOW = 64
+#: A kept exchange's round trip may be at most this many times the least one, or
+#: the median of the blocks' least ones, whichever is more.
+CLEAN_RTT_FACTOR = 2.0
+#: The kept exchanges must span this long [s] before a drift is fitted.
+MIN_SPAN_S = 1.0
 _WRAP = 1 << 32
 
 
@@ -74,21 +80,27 @@ class ClockSync:
         raw = list(self._raw)
         self.rtt_us = min(r for _, _, r in raw) * 1e6
         kept = [min(raw[i : i + self.block], key=lambda e: e[2]) for i in range(0, len(raw), self.block)]
+        # A block whose every exchange was held up is left out too: above twice
+        # the least round trip and above the median block's.
+        low = min(r for _, _, r in raw)
+        typical = float(np.median([k[2] for k in kept]))
+        clean = [k for k in kept if k[2] <= max(CLEAN_RTT_FACTOR * low, typical)]
+        kept = clean if len(clean) >= 2 else kept
         t = np.array([k[0] for k in kept])
         b = np.array([k[1] for k in kept])
         t_ref = float(t[-1])
-        if len(kept) < 2 or np.ptp(t) <= 0:
-            # One point: its offset, at the nominal rate.
-            rate = 1e6 if self._fit is None else self._fit[2]
-            self._fit = (t_ref, float(b[-1]), rate)
-            self.residual_us = None
-            return
         x = t - t_ref
-        rate, at_ref = np.polyfit(x, b - b[-1], 1)
-        at_ref += b[-1]
+        if len(kept) < 2 or np.ptp(t) < MIN_SPAN_S:
+            # Too short a span to tell a drift from the round trips' own spread:
+            # the offset alone (the median of the kept points), at the last rate.
+            rate = 1e6 if self._fit is None else self._fit[2]
+            at_ref = float(np.median(b - rate * x))
+        else:
+            rate, at_ref = np.polyfit(x, b - b[-1], 1)
+            at_ref += b[-1]
         self._fit = (t_ref, float(at_ref), float(rate))
         res = b - (at_ref + rate * x)
-        self.residual_us = float(math.sqrt(float(np.mean(res**2))))
+        self.residual_us = float(math.sqrt(float(np.mean(res**2)))) if len(kept) >= 2 else None
 
     def board_us(self, host_s: float) -> float:
         """The board's clock [us, unwrapped] at host time ``host_s`` [s]."""

@@ -41,7 +41,7 @@ from . import frames as P
 from .base import OutputBase
 from .clock_sync import ClockSync
 from .sensed import SensedLoop, fault_text
-from .serial_events import EventSender, board_limits, plan_pulses
+from .serial_events import EventSender, StrokeClock, board_limits, plan_pulses
 from .serial_link import PortLost as _PortLost
 from .serial_link import SerialLink
 from .sma import Circuit, SafetyEnvelope, WireController, WireSpec, default_envelope
@@ -152,6 +152,7 @@ class SerialOutput(SerialLink, OutputBase):
         self._desired: list[Drive] = [Drive.off()] * self.channels
         self._events_mode = False
         self._sender = EventSender(self.channels)
+        self._stroke_clock = StrokeClock()
         self._tokens = itertools.count(1)
 
         self._serial = self._open()  # raises OutputError with the reason
@@ -268,14 +269,14 @@ class SerialOutput(SerialLink, OutputBase):
         assert status is not None
         widths = (int(math.ceil(status.min_pulse_width_s * 1e6)), int(status.max_pulse_width_s * 1e6))
         lists = list(channels) + [[] for _ in range(self.channels - len(channels))]
-        host_now = time.monotonic()
+        zero = self._stroke_clock.host_s(now_s, time.monotonic())
         planned: dict[int, list[tuple[float, int]]] = {}
         with self._apply_lock:
             entering = not self._events_mode
             requests = []
             for index, evs in enumerate(lists):
                 if id(evs) not in planned:  # both pins usually get the same list: plan it once
-                    planned[id(evs)] = plan_pulses(evs, now_s, host_now, self.clock.board_us, drives[index],
+                    planned[id(evs)] = plan_pulses(evs, zero, self.clock.board_us, drives[index],
                                                    self._make_safe, widths)
                 payload = self._sender.payload(index, planned[id(evs)], force=entering)
                 if payload is not None:

@@ -321,6 +321,9 @@ class Channel:
     def play(self, now, due_of, entries):
         """The host's pulses from now on (tactile_events.EventQueue.replace with
         ``due_of(offset)`` their ticks), replacing those not yet fired; a train stops."""
+        # The timer first, outside the lock: on the host, deinit waits for a
+        # callback that may itself be waiting for the lock.
+        self._cancel_timer()
         state = _irq_off()
         if self.mode != "events":
             if self.mode == "pwm":
@@ -330,7 +333,6 @@ class Channel:
             self.frequency_mhz = 0
             self.width_ns = 0
             self.jitter_j = 0.0
-        self._cancel_timer()
         self.queue.replace(now, due_of, entries, F._ticks_diff)
         self._arm_event()
         _irq_on(state)
@@ -339,8 +341,8 @@ class Channel:
     def stop_events(self):
         """No more scheduled pulses (a SET with nothing to play)."""
         if self.mode == "events":
-            state = _irq_off()
             self._cancel_timer()
+            state = _irq_off()
             self.queue.clear()
             self.mode = None
             _irq_on(state)
