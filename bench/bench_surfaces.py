@@ -31,6 +31,7 @@ import json
 import statistics
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import scipy.fft
@@ -233,9 +234,18 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer batches and pairs")
     ap.add_argument("--json", action="store_true", help="also print one JSON document at the end")
-    ap.add_argument("--only", choices=("tables", "batch", "model", "wire"), help="run one part only")
+    ap.add_argument("--only", choices=("tables", "batch", "model", "wire", "serial"), help="run one part only")
     a = ap.parse_args()
     doc = {}
+    if a.only == "serial":  # pulse events over the serial link: bench/bench_serial_events.py
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        import bench_serial_events
+
+        doc["serial"] = bench_serial_events.run(a.quick)
+        bench_serial_events.report(doc["serial"])
+        if a.json:
+            print(json.dumps(doc, default=float))
+        return
     if a.only == "batch":
         doc["batch"] = batch_costs(150 if a.quick else 500, 2 if a.quick else 3)
         if a.json:
