@@ -90,7 +90,9 @@ def test_clock_sync_finds_offset_and_drift_through_queueing_delays():
     three held up by up to 3 ms on one side (queueing).  The min round trip filter
     keeps the clean ones; taking every exchange would not."""
     rng = np.random.default_rng(3)
-    true = lambda t: 7e6 + (1 + 200e-6) * t * 1e6  # noqa: E731
+    def true(t):
+        return 7e6 + (1 + 200e-6) * t * 1e6
+
     fitted, mids, boards = ClockSync(), [], []
     t = 100.0
     for _ in range(64):

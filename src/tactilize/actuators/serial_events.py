@@ -46,7 +46,7 @@ def board_limits(drive: Drive, status: P.ControllerStatus) -> Drive:
     if drive.is_off:
         return drive
     f, w = drive.pulse_frequency_hz, drive.pulse_width_s
-    names = []
+    names: list[str] = []
     if f > status.max_frequency_hz:
         f, names = status.max_frequency_hz, names + ["max_frequency_hz"]
     elif f < status.min_frequency_hz:
