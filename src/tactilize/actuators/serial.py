@@ -171,6 +171,11 @@ class SerialOutput(SerialLink, OutputBase):
     # ------------------------------------------------------------ public
 
     @property
+    def connected(self) -> bool:
+        """True while the controller answers on the port."""
+        return self._connected.is_set()
+
+    @property
     def plays_events(self) -> bool:  # type: ignore[override]
         """The board plays scheduled pulses (protocol version 4 or later, read from STATUS)."""
         status = self.controller_status

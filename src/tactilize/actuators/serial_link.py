@@ -52,7 +52,7 @@ class SerialLink:
         self.retries = retries
         self._on_event = on_event
         #: recent ``(monotonic time [s], kind, detail)`` events
-        self.events: collections.deque = collections.deque(maxlen=256)
+        self.events: Any = collections.deque(maxlen=256)  # a deque of (time, kind, detail)
         self._seq = itertools.count(1)
         self._write_lock = threading.RLock()
         self._pending: dict[int, _Waiter] = {}
@@ -62,11 +62,6 @@ class SerialLink:
         self._closing = threading.Event()
         self._last_rx_s = time.monotonic()
         self._decoder = P.FrameDecoder()
-
-    @property
-    def connected(self) -> bool:
-        """True while the controller answers on the port."""
-        return self._connected.is_set()
 
     def wait_connected(self, timeout_s: float) -> bool:
         """Block until connected (or the timeout [s] passes); True when connected."""
