@@ -18,12 +18,18 @@ answers, and then keeps it alive:
   polls the path until it can be reopened, and re-applies the current drives.
   It does the same when a heartbeat ACK says the watchdog fired anyway (a host
   stalled for more than 200 ms).
+- a version 4 board plays pulse events (:meth:`~SerialOutput.play_events`): each
+  one a scheduled pulse on the board's clock, which the host keeps in step
+  (:attr:`~SerialOutput.clock`, PING/PONG with every heartbeat); the board counts
+  what it did with them (:attr:`~SerialOutput.event_counts`).  An older board
+  gets the equivalent drives (``plays_events`` is False; docs/firmware.md);
 - a version 3 board flags a faulty sense path (its wire then limited with the
   circuit's worst case): :attr:`~SerialOutput.sense_faults` (None from version 2),
   :attr:`~SerialOutput.fault`, a ``sense-fault`` event; the loop skips the reading.
 
-Threads: a reader (decodes replies, matches them to requests by sequence
-number) and a keeper (heartbeats, reconnection).  Callers' threads only write
+Threads (:mod:`tactilize.actuators.serial_link`): a reader (decodes replies,
+matches them to requests by sequence number) and a keeper (heartbeats, clock
+exchanges, reconnection).  Callers' threads only write
 frames and wait for replies.
 """
 
@@ -283,7 +289,8 @@ class SerialOutput(SerialLink, OutputBase):
                 if id(evs) not in planned:  # both pins usually get the same list: plan it once
                     planned[id(evs)] = plan_pulses(evs, zero, self.clock.board_us, drives[index],
                                                    self._make_safe, widths)
-                payload = self._sender.payload(index, planned[id(evs)], force=entering)
+                payload = self._sender.payload(index, planned[id(evs)], force=entering,
+                                               now_us=self.clock.board_us(time.monotonic()))
                 if payload is not None:
                     requests.append((int(P.Command.EVENTS), payload))
             self._desired = drives
@@ -387,6 +394,8 @@ class SerialOutput(SerialLink, OutputBase):
                     self._ping(wait=True)
                 except _PortLost:
                     raise OutputError(self.port, "serial port closed during the handshake") from None
+                except OutputError:
+                    pass  # a PONG lost: the heartbeats' exchanges fill the clock in
 
     def _ping(self, wait: bool = False) -> None:
         """A PING whose PONG (see _dispatch) is one clock exchange."""
@@ -396,7 +405,7 @@ class SerialOutput(SerialLink, OutputBase):
             self._pings.clear()  # PONGs lost: their tokens would never be taken
         self._pings[token] = time.monotonic()
         if wait:
-            self._request(P.Command.PING, P.encode_ping(token), attempts=1)
+            self._request(P.Command.PING, P.encode_ping(token))
         else:
             self._write(P.encode_frame(seq, P.Command.PING, P.encode_ping(token)))
 

@@ -29,6 +29,10 @@ __all__ = ["EventSender", "StrokeClock", "plan_pulses", "board_limits", "MATCH_U
 #: A pulse within this of one sent before is that pulse again [us] (pulses are at
 #: least 1/300 s apart, so two different ones never are).
 MATCH_US = 3000.0
+#: A pulse within this after one sent before and already played [us] is that pulse
+#: again, found a little later by a later batch (1/150 s: closer pulses are a
+#: cluster the rendering weakens anyway, docs/surfaces.md).
+MATCH_PLAYED_US = 1e6 / 150
 #: How long the least lag between the stroke's clock and the host's is remembered [s].
 LAG_WINDOW_S = 2.0
 #: A lag this far above the least one is a new clock (another page, a new stroke) [s].
@@ -139,11 +143,13 @@ class EventSender:
         """The board forgot its schedules (stop, a train, a reconnect); ids go on."""
         self._live = [False] * len(self._live)
 
-    def payload(self, channel: int, pulses: Sequence[tuple[float, int]], force: bool = False) -> bytes | None:
+    def payload(self, channel: int, pulses: Sequence[tuple[float, int]], force: bool = False,
+                now_us: float | None = None) -> bytes | None:
         """The EVENTS payload replacing ``channel``'s schedule with ``pulses``
         ((board time [us], width [us]), in order; at most :data:`~tactilize.actuators.frames.MAX_EVENTS`
         within 65 ms of the first are sent, the rest go with a later frame); None
-        when there is nothing to send or withdraw (unless ``force``)."""
+        when there is nothing to send or withdraw (unless ``force``).  ``now_us``: the
+        board's clock now, so a pulse already played is recognised further off."""
         prev = self._sent[channel]
         if not pulses and not self._live[channel] and not force:
             return None
@@ -153,7 +159,8 @@ class EventSender:
             off = int(round(t - base))
             if off > 0xFFFF:
                 break
-            near = [(abs(tp - t), i) for tp, i in prev if abs(tp - t) <= MATCH_US and i not in used]
+            near = [(abs(tp - t), i) for tp, i in prev if i not in used and (
+                abs(tp - t) <= MATCH_US or (now_us is not None and tp <= now_us and 0 <= t - tp <= MATCH_PLAYED_US))]
             eid = min(near)[1] if near else None
             if eid is None:
                 eid = self._next[channel]
