@@ -268,8 +268,8 @@ def test_strokes_pulse_on_the_crossings_in_simulated_time(monkeypatch, tmp_path,
                 continue
             events = stroke.update(batch, state.speed_m_s, state.direction_rad, state.pressure)
             zero = zero_of.host_s(batch[-1].t_s, host0 + arrival)
-            pulses = plan_pulses(events, zero, clock.board_us, OPERATING, lambda d: d.replace(pulse_width_s=4e-4),
-                                 (10, 5000))
+            pulses = plan_pulses(events, zero, host0 + arrival, clock.board_us, OPERATING,
+                                 lambda d: d.replace(pulse_width_s=4e-4), (10, 5000))
             payload = sender.payload(0, pulses, now_us=clock.board_us(host0 + arrival))
             if payload is None:
                 continue

@@ -280,14 +280,15 @@ class SerialOutput(SerialLink, OutputBase):
         assert status is not None
         widths = (int(math.ceil(status.min_pulse_width_s * 1e6)), int(status.max_pulse_width_s * 1e6))
         lists = list(channels) + [[] for _ in range(self.channels - len(channels))]
-        zero = self._stroke_clock.host_s(now_s, time.monotonic())
+        host_now = time.monotonic()
+        zero = self._stroke_clock.host_s(now_s, host_now)
         planned: dict[int, list[tuple[float, int]]] = {}
         with self._apply_lock:
             entering = not self._events_mode
             requests = []
             for index, evs in enumerate(lists):
                 if id(evs) not in planned:  # both pins usually get the same list: plan it once
-                    planned[id(evs)] = plan_pulses(evs, zero, self.clock.board_us, drives[index],
+                    planned[id(evs)] = plan_pulses(evs, zero, host_now, self.clock.board_us, drives[index],
                                                    self._make_safe, widths)
                 payload = self._sender.payload(index, planned[id(evs)], force=entering,
                                                now_us=self.clock.board_us(time.monotonic()))

@@ -68,7 +68,7 @@ def board_limits(drive: Drive, status: P.ControllerStatus) -> Drive:
     return drive.replace(pulse_frequency_hz=f, pulse_width_s=w, clamped=drive.clamped + extra)
 
 
-def plan_pulses(events: Sequence[Any], stroke_zero_s: float, board_us: Callable[[float], float],
+def plan_pulses(events: Sequence[Any], stroke_zero_s: float, host_now_s: float, board_us: Callable[[float], float],
                 operating: Drive, make_safe: Callable[[Drive], Drive],
                 width_us: tuple[int, int]) -> list[tuple[float, int]]:
     """(board time [us, unwrapped], width [us]) of each event.
@@ -79,6 +79,10 @@ def plan_pulses(events: Sequence[Any], stroke_zero_s: float, board_us: Callable[
         Times ``t_s`` on the stroke's clock, in order.
     stroke_zero_s : float
         The host time [s] of stroke time 0 (:class:`StrokeClock`).
+    host_now_s : float
+        The host's clock now [s]: a pulse due before it plays at once (the
+        stroke hands over only what is not yet fired, a late crossing at its
+        newest sample's time).
     board_us : callable
         Host time [s] -> the board's clock [us].
     operating : Drive
@@ -100,7 +104,7 @@ def plan_pulses(events: Sequence[Any], stroke_zero_s: float, board_us: Callable[
         if d.is_off:
             continue
         w = min(width_us[1], max(width_us[0], int(round(d.pulse_width_s * 1e6))))
-        out.append((board_us(stroke_zero_s + ts[k]), w))
+        out.append((board_us(max(stroke_zero_s + ts[k], host_now_s)), w))
     return out
 
 
