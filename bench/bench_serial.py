@@ -31,7 +31,7 @@ import time
 import numpy as np
 import serial
 
-from tactilize.actuators import protocol as P
+from tactilize.actuators import frames as P
 from tactilize.actuators.serial import SerialOutput
 from tactilize.mapping import Drive
 

@@ -33,6 +33,7 @@ import json
 import statistics
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import scipy.fft
@@ -273,9 +274,19 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer batches and pairs")
     ap.add_argument("--json", action="store_true", help="also print one JSON document at the end")
-    ap.add_argument("--only", choices=("tables", "batch", "model", "wire", "audio"), help="run one part only")
+    ap.add_argument("--only", choices=("tables", "batch", "model", "wire", "audio", "serial"),
+                    help="run one part only")
     a = ap.parse_args()
     doc = {}
+    if a.only == "serial":  # pulse events over the serial link: bench/bench_serial_events.py
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        import bench_serial_events
+
+        doc["serial"] = bench_serial_events.run(a.quick)
+        bench_serial_events.report(doc["serial"])
+        if a.json:
+            print(json.dumps(doc, default=float))
+        return
     if a.only == "audio":  # the voice coil's signal (issue 26): bench_audio.py
         import bench_audio
 

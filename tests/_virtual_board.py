@@ -19,7 +19,15 @@ import heapq
 import itertools
 from typing import Any, Callable
 
+from tactilize.actuators import frames as P
 from tactilize.actuators.sma import Circuit, WireModel, WireSpec, build_envelope
+from tactilize.firmware import tactile_wire as W
+from tactilize.firmware.board import board_config_text
+from tactilize.firmware.emulator import load_firmware
+
+fw = load_firmware()
+PIN0, PIN1 = fw.CHANNEL_PINS
+BIAS0, BIAS1 = fw.BIAS_PINS
 
 
 class VirtualMachine:
@@ -250,3 +258,45 @@ def install(fw, monkeypatch) -> VirtualMachine:
         if module is not None and hasattr(module, "machine"):
             monkeypatch.setattr(module, "machine", vm)
     return vm
+
+
+class Board:
+    """The firmware on a virtual board, with its store in ``tmp``."""
+
+    def __init__(self, monkeypatch, tmp, circuit="aa-resistor", after_watchdog_reset=False):
+        self.vm = install(fw, monkeypatch)
+        if after_watchdog_reset:
+            self.vm.WDT_RESET = 3
+            self.vm.reset_cause = lambda: 3
+        (tmp / W.CONFIG_FILE).write_text(board_config_text(None, circuit))
+        self.sent: list[bytes] = []
+        self.ctl = fw.Controller(self.sent.append, store=str(tmp) + "/")
+        self.circuit = circuit
+        self.seq = 0
+
+    def send(self, command, payload=b""):
+        self.seq += 1
+        self.ctl.feed(P.encode_frame(self.seq, command, payload))
+
+    def set(self, channel, f_hz, w_s, amp=1.0, regularity=None):
+        self.send(P.Command.SET, P.encode_set_channel(channel, f_hz, w_s, amp, regularity))
+
+    def until(self, t_s):
+        self.vm.run_until(int(round(t_s * 1e6)), self.ctl.tick, fw.POLL_MS * 1000)
+
+    def replies(self):
+        frames = P.FrameDecoder().feed(b"".join(self.sent))
+        self.sent.clear()
+        return frames
+
+    def peak_c(self, channel=0):
+        self.vm.finish()
+        pins = ((PIN0, BIAS0), (PIN1, BIAS1))[channel]
+        durs, levels = self.vm.channel_levels(*pins, self.vm.now_us)
+        return peak_on_wire(durs, levels, self.circuit)
+
+    def pulse_count(self, channel=0):
+        self.vm.finish()
+        pin = fw.CHANNEL_PINS[channel]
+        soft = sum(1 for _, level in self.vm.edges.get(pin, []) if level)
+        return soft + sum(1 for _, w in self.vm.pulses.get(pin, []) if w > 0)

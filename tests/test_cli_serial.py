@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from tactilize.actuators import protocol as P
+from tactilize.actuators import frames as P
 
 
 def cli(*args: str) -> list[str]:

@@ -17,7 +17,7 @@ import serial
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tactilize.actuators import protocol as P
+from tactilize.actuators import frames as P
 from tactilize.actuators.sma import build_envelope
 from tactilize.firmware import host_machine
 from tactilize.firmware.emulator import ControllerEmulator, load_firmware
@@ -338,10 +338,10 @@ def test_firmware_decoder_agrees_with_host_decoder(frames, garbage, where):
 # ------------------------------------------------------------ MicroPython compatibility
 
 MICROPYTHON_MODULES = {"struct", "sys", "time", "math", "machine", "select", "micropython", "tactile_channel", "tactile_frames",
-                       "tactile_heat", "tactile_wire", "tactilize.firmware"}
+                       "tactile_events", "tactile_heat", "tactile_wire", "tactilize.firmware"}
 
 
-@pytest.mark.parametrize("name", ["controller.py", "tactile_channel.py", "tactile_frames.py", "tactile_heat.py",
+@pytest.mark.parametrize("name", ["controller.py", "tactile_channel.py", "tactile_events.py", "tactile_frames.py", "tactile_heat.py",
                                   "tactile_wire.py"])
 def test_controller_source_uses_only_micropython_features(name):
     source = resources.files("tactilize.firmware").joinpath(name).read_text("utf-8")

@@ -19,12 +19,12 @@ from pathlib import Path
 
 import pytest
 
-from tactilize.actuators import protocol as P
+from tactilize.actuators import frames as P
 from tactilize.actuators.sma import build_envelope
 
 ROOT = Path(__file__).resolve().parents[1]
 HERE = Path(__file__).resolve().parent / "micropython"
-FIRMWARE = ("controller.py", "tactile_channel.py", "tactile_frames.py", "tactile_heat.py", "tactile_wire.py")
+FIRMWARE = ("controller.py", "tactile_channel.py", "tactile_events.py", "tactile_frames.py", "tactile_heat.py", "tactile_wire.py")
 WASM_PACKAGE = "@micropython/micropython-webassembly-pyscript"
 
 
@@ -128,7 +128,7 @@ def test_micropython_answers_the_protocol():
     assert P.decode_nak(got[2].payload)[0] == P.NakReason.BAD_CHECKSUM
     assert P.decode_nak(got[3].payload)[0] == P.NakReason.UNKNOWN_COMMAND
     status = P.decode_status(got[4].payload)
-    assert status.version == P.PROTOCOL_VERSION == 3 and status.channels[0] == P.ChannelStatus(True, 120.0, 300e-6, 1.0)
+    assert status.version == P.PROTOCOL_VERSION == 4 and status.channels[0] == P.ChannelStatus(True, 120.0, 300e-6, 1.0)
     assert P.decode_sense(got[5].payload).channels[0].count == 0
     assert got[6].command == P.Command.ACK
     # the PWM calls a real RP2040 would see: 120 Hz, 300 us, then off
@@ -237,3 +237,32 @@ dump(timers=len(timers), fired=fired, gated=gated, rise=ch.heat.rise_k, budget=c
     assert r["fired"] == [["value", 16, 1], ["value", 16, 0]]
     assert r["gated"] == []
     assert r["rise"] >= r["budget"] * 0.99
+
+
+def test_micropython_plays_scheduled_pulses_once():
+    """Protocol 4 under MicroPython: PONG carries the board's clock; an EVENTS
+    frame arms a one-shot timer; its pulse fires once (pin high, then low); the
+    same frame resent leaves the fired id out, and the counters say so."""
+    ping = P.encode_frame(1, P.Command.PING, P.encode_ping(77))
+    tail = """
+pong = out[-1]
+base = struct.unpack(">II", pong[4:12])[1] + 40000  # well ahead: node may be slow
+frame = controller.encode_frame(2, controller.CMD_EVENTS, struct.pack(">BIHHHHHH", 0, base, 7, 0, 400, 8, 65000, 400))
+ch = ctl.channels[0]
+ctl.feed(frame)
+before = len(machine.log)
+ch.timer.callback(ch.timer)
+fired = [e for e in machine.log[before:] if e[0] == "value"]
+ctl.feed(frame)
+pending = [p[1] for p in ch.queue.pending]
+ctl.feed(controller.encode_frame(3, controller.CMD_PING, struct.pack(">I", 5)))
+dump(fired=fired, pending=pending)
+"""
+    r = run_frames([ping], "import struct\n" + tail)
+    got = replies(r)
+    assert got[0].command == P.Command.PONG and P.decode_pong(got[0].payload).token == 77
+    assert [f.command for f in got[1:3]] == [P.Command.ACK, P.Command.ACK]
+    assert r["fired"] == [["value", 16, 1], ["value", 16, 0]]
+    assert r["pending"] == [8]
+    counts = P.decode_pong(got[3].payload).counts[0]
+    assert (counts.fired, counts.repeated, counts.late) == (1, 1, 0)

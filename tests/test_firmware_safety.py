@@ -16,7 +16,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from tactilize.actuators import protocol as P
+from tactilize.actuators import frames as P
 from tactilize.actuators.sma import Circuit, WireController, WireModel, WireSpec, build_envelope, circuit_names
 from tactilize.actuators.sma.simulate import simulate_drive
 from tactilize.drive import Drive

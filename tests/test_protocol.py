@@ -8,7 +8,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tactilize.actuators import protocol as P
+from tactilize.actuators import frames as P
+from tactilize.actuators.frames import _framing
 
 
 def test_crc_matches_published_check_value():
@@ -173,7 +174,7 @@ def test_a_flipped_bit_loses_at_most_the_frame_it_hit(frames, where):
 
 def test_expire_stale_measures_the_candidate_not_the_last_byte(monkeypatch):
     clock = [100.0]
-    monkeypatch.setattr(P.time, "monotonic", lambda: clock[0])
+    monkeypatch.setattr(_framing.time, "monotonic", lambda: clock[0])
     dec = P.FrameDecoder()
     dec.feed(bytes((P.START, 64, 0, 0)))
     got = []

@@ -16,7 +16,7 @@ import tty
 
 import pytest
 
-from tactilize.actuators import protocol as P
+from tactilize.actuators import frames as P
 from tactilize.actuators.factory import open_output
 from tactilize.actuators.serial import SerialOutput
 from tactilize.errors import OutputError, TactilizeError

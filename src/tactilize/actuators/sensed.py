@@ -20,7 +20,7 @@ from __future__ import annotations
 from typing import Sequence
 
 from ..drive import Drive
-from . import protocol as P
+from . import frames as P
 from .sma import SafetyEnvelope, WireController
 
 __all__ = ["SensedLoop", "fault_text"]

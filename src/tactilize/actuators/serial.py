@@ -18,49 +18,47 @@ answers, and then keeps it alive:
   polls the path until it can be reopened, and re-applies the current drives.
   It does the same when a heartbeat ACK says the watchdog fired anyway (a host
   stalled for more than 200 ms).
+- a version 4 board plays pulse events (:meth:`~SerialOutput.play_events`): each
+  one a scheduled pulse on the board's clock, which the host keeps in step
+  (:attr:`~SerialOutput.clock`, PING/PONG with every heartbeat); the board counts
+  what it did with them (:attr:`~SerialOutput.event_counts`).  An older board
+  gets the equivalent drives (``plays_events`` is False; docs/firmware.md);
 - a version 3 board flags a faulty sense path (its wire then limited with the
   circuit's worst case): :attr:`~SerialOutput.sense_faults` (None from version 2),
   :attr:`~SerialOutput.fault`, a ``sense-fault`` event; the loop skips the reading.
 
-Threads: a reader (decodes replies, matches them to requests by sequence
-number) and a keeper (heartbeats, reconnection).  Callers' threads only write
+Threads (:mod:`tactilize.actuators.serial_link`): a reader (decodes replies,
+matches them to requests by sequence number) and a keeper (heartbeats, clock
+exchanges, reconnection).  Callers' threads only write
 frames and wait for replies.
 """
 
 from __future__ import annotations
 
-import collections
-import errno
 import itertools
-import os
+import math
 import threading
 import time
-from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
-from ..errors import OutputError
 from ..drive import Drive
-from ..mapping import ActuatorLimits
-from . import protocol as P
+from ..errors import OutputError
+from . import frames as P
 from .base import OutputBase
+from .clock_sync import ClockSync
 from .sensed import SensedLoop, fault_text
+from .serial_events import EventSender, StrokeClock, board_limits, plan_pulses
+from .serial_link import PortLost as _PortLost
+from .serial_link import SerialLink
 from .sma import Circuit, SafetyEnvelope, WireController, WireSpec, default_envelope
 
 __all__ = ["SerialOutput"]
 
-
-class _PortLost(Exception):
-    """The port failed under us (internal; callers see OutputError)."""
-
-
-@dataclass
-class _Waiter:
-    event: threading.Event = field(default_factory=threading.Event)
-    reply: P.Frame | None = None
-    lost: bool = False
+#: PING exchanges in the handshake with a version 4 board, before any event is sent
+SYNC_BURST = 8
 
 
-class SerialOutput(OutputBase):
+class SerialOutput(SerialLink, OutputBase):
     """Drives on a tactile controller over a serial port.
 
     Parameters
@@ -126,7 +124,8 @@ class SerialOutput(OutputBase):
         on_event: Callable[[str, str], None] | None = None,
         closed_loop: bool = True,
     ) -> None:
-        self.port = str(port)
+        SerialLink.__init__(self, port, baudrate=baudrate, ack_timeout_s=ack_timeout_s, retries=retries,
+                            on_event=on_event)
         spec = WireSpec.resolve(wire)
         self.envelope = envelope if envelope is not None else (
             default_envelope() if wire is None and circuit is None else SafetyEnvelope(spec, Circuit.resolve(circuit, spec))
@@ -138,15 +137,9 @@ class SerialOutput(OutputBase):
         )
         #: the self-sensing loop (:class:`~tactilize.actuators.sensed.SensedLoop`), when closed
         self.loop = SensedLoop(self.envelope) if closed_loop and isinstance(self.envelope, SafetyEnvelope) else None
-        self.baudrate = baudrate
-        self.ack_timeout_s = ack_timeout_s
-        self.retries = retries
         self.heartbeat_interval_s = heartbeat_interval_s
         self.reconnect_interval_s = reconnect_interval_s
         self.unresponsive_s = unresponsive_s
-        self._on_event = on_event
-        #: recent ``(monotonic time [s], kind, detail)`` events
-        self.events: collections.deque = collections.deque(maxlen=256)
         #: times the connection was re-established after a loss
         self.reconnects = 0
         #: the controller's last STATUS reply (limits, firmware version)
@@ -155,19 +148,18 @@ class SerialOutput(OutputBase):
         #: unknown (a version 2 board cannot say)
         self.sense_faults: tuple[bool, ...] | None = None
 
-        self._seq = itertools.count(1)
-        self._write_lock = threading.RLock()
-        self._pending: dict[int, _Waiter] = {}
-        self._pending_lock = threading.Lock()
+        #: the board's clock as the host knows it (version 4 boards), from PING/PONG
+        self.clock = ClockSync()
+        #: per channel, the board's counters of scheduled pulses (version 4), from the latest PONG
+        self.event_counts: tuple[P.EventCounts, ...] | None = None
+        self._pings: dict[int, float] = {}
         self._apply_lock = threading.RLock()
-        self._serial: Any = None
-        self._connected = threading.Event()
-        self._closing = threading.Event()
         self._reapply = threading.Event()
         self._desired: list[Drive] = [Drive.off()] * self.channels
-        self._controller_limits: ActuatorLimits | None = None
-        self._last_rx_s = time.monotonic()
-        self._decoder = P.FrameDecoder()
+        self._events_mode = False
+        self._sender = EventSender(self.channels)
+        self._stroke_clock = StrokeClock()
+        self._tokens = itertools.count(1)
 
         self._serial = self._open()  # raises OutputError with the reason
         self._reader = threading.Thread(target=self._read_loop, name=f"serial-reader {self.port}", daemon=True)
@@ -190,6 +182,12 @@ class SerialOutput(OutputBase):
         return self._connected.is_set()
 
     @property
+    def plays_events(self) -> bool:  # type: ignore[override]
+        """The board plays scheduled pulses (protocol version 4 or later, read from STATUS)."""
+        status = self.controller_status
+        return status is not None and status.version >= 4
+
+    @property
     def fault(self) -> str | None:
         """One line when the board flags a sense path faulty, else None."""
         return fault_text(self.sense_faults)
@@ -198,10 +196,6 @@ class SerialOutput(OutputBase):
         old, self.sense_faults = self.sense_faults, tuple(faults)
         if any(faults) != any(old or ()):
             self._event("sense-fault" if any(faults) else "sense-ok", self.fault or "sense paths read true again")
-
-    def wait_connected(self, timeout_s: float) -> bool:
-        """Block until connected (or the timeout [s] passes); True when connected."""
-        return self._connected.wait(timeout_s)
 
     @property
     def drives(self) -> list[Drive]:
@@ -220,6 +214,8 @@ class SerialOutput(OutputBase):
         drives = [self._make_safe(d) for d in self._check(channels)]
         with self._apply_lock:
             self._desired = drives
+            self._events_mode = False
+            self._sender.forget()  # a SET replaces the board's schedule
             self._send_drives(drives)
             if self.loop is not None:
                 self.loop.command(drives, time.monotonic())
@@ -239,6 +235,8 @@ class SerialOutput(OutputBase):
         """
         with self._apply_lock:
             self._desired = [Drive.off()] * self.channels
+            self._events_mode = False
+            self._sender.forget()
             if self.loop is not None:
                 self.loop.stop()
             if not self.connected:
@@ -247,6 +245,65 @@ class SerialOutput(OutputBase):
                 self._request(P.Command.STOP)
             except _PortLost:
                 return
+
+    def play_events(self, channels: Sequence[Sequence[Any]], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
+        """Per channel, pulse events from now on, replacing those not yet fired (docs/surfaces.md).
+
+        On a version 4 board each event becomes a scheduled pulse on the board's
+        clock (:mod:`tactilize.actuators.serial_events`); the equivalent drives
+        keep the operating point (the HOLD loop).  An older board gets the
+        equivalent drives through :meth:`apply`.
+
+        Parameters
+        ----------
+        channels : sequence of sequence of PulseEvent
+            Per channel, events with ``t_s`` on the stroke's clock [s].
+        now_s : float
+            The stroke time that is now [s] (the newest pen sample's).
+        equivalent : sequence of Drive
+            Per channel, the steady drive of the window.
+
+        Returns
+        -------
+        list of Drive
+            The equivalent drives as the board may play them.
+
+        Raises
+        ------
+        OutputError
+            The controller refused a frame, did not acknowledge it, or is disconnected.
+        """
+        if not self.plays_events or not self.clock.ready:
+            return self.apply(equivalent)
+        drives = [self._make_safe(d) for d in self._check(equivalent)]
+        status = self.controller_status
+        assert status is not None
+        widths = (int(math.ceil(status.min_pulse_width_s * 1e6)), int(status.max_pulse_width_s * 1e6))
+        lists = list(channels) + [[] for _ in range(self.channels - len(channels))]
+        host_now = time.monotonic()
+        zero = self._stroke_clock.host_s(now_s, host_now)
+        planned: dict[int, list[tuple[float, int]]] = {}
+        with self._apply_lock:
+            entering = not self._events_mode
+            requests = []
+            for index, evs in enumerate(lists):
+                if id(evs) not in planned:  # both pins usually get the same list: plan it once
+                    planned[id(evs)] = plan_pulses(evs, zero, host_now, self.clock.board_us, drives[index],
+                                                   self._make_safe, widths)
+                payload = self._sender.payload(index, planned[id(evs)], force=entering,
+                                               now_us=self.clock.board_us(time.monotonic()))
+                if payload is not None:
+                    requests.append((int(P.Command.EVENTS), payload))
+            self._desired = drives
+            self._events_mode = True
+            try:
+                self._transact(requests)
+            except _PortLost:
+                raise OutputError(self.port, "controller disconnected; its watchdog turned the outputs off") from None
+            if self.loop is not None:
+                self.loop.command(drives, time.monotonic())
+                self._send_holds()
+        return drives
 
     def status(self) -> P.ControllerStatus:
         """Ask the controller what it is doing (channels, hard limits, counters)."""
@@ -279,14 +336,8 @@ class SerialOutput(OutputBase):
             clamped = drive.clamped + tuple(n for n in plan.clamped if n not in drive.clamped)
             drive = drive.replace(pulse_width_s=plan.pulse_width_s, amplitude=plan.level, clamped=clamped)
         safe = self.envelope.apply(drive)
-        limits = self._controller_limits
-        if limits is not None and not safe.is_off:
-            clamped = limits.apply(safe.replace(clamped=()))
-            if clamped.clamped:
-                # Name the controller's limits apart from the envelope's.
-                names = safe.clamped + tuple(f"controller:{n}" for n in clamped.clamped)
-                safe = clamped.replace(clamped=names)
-        return safe
+        status = self.controller_status
+        return safe if status is None else board_limits(safe, status)
 
     def _send_drives(self, drives: Sequence[Drive]) -> None:
         requests = []
@@ -315,91 +366,7 @@ class SerialOutput(OutputBase):
 
     # ------------------------------------------------------------ requests
 
-    def _request(self, command: int, payload: bytes = b"", *, attempts: int | None = None) -> P.Frame:
-        """One request and its reply (see :meth:`_transact`)."""
-        return self._transact([(int(command), payload)], attempts=attempts)[0]
-
-    def _transact(self, requests: Sequence[tuple[int, bytes]], *, attempts: int | None = None) -> list[P.Frame]:
-        """Send frames back to back and wait for every reply (pipelined: one
-        round trip for all channels, not one each).  Frames whose reply times out
-        or is a checksum NAK are resent, each with a fresh sequence number.
-
-        Raises OutputError on a refusal or no answer after ``attempts`` tries,
-        _PortLost when the port is gone.  Commands are idempotent, so a frame
-        applied but whose ACK was lost is harmless to resend.
-        """
-        attempts = self.retries + 1 if attempts is None else attempts
-        replies: list[P.Frame | None] = [None] * len(requests)
-        todo = list(range(len(requests)))
-        for _ in range(attempts):
-            waiting: dict[int, tuple[int, _Waiter]] = {}
-            try:
-                for i in todo:
-                    seq = next(self._seq) & 0xFF
-                    waiter = _Waiter()
-                    with self._pending_lock:
-                        self._pending[seq] = waiter
-                    waiting[i] = (seq, waiter)
-                    self._write(P.encode_frame(seq, requests[i][0], requests[i][1]))
-                deadline = time.monotonic() + self.ack_timeout_s
-                for _, waiter in waiting.values():
-                    waiter.event.wait(max(0.0, deadline - time.monotonic()))
-            finally:
-                with self._pending_lock:
-                    for seq, _ in waiting.values():
-                        self._pending.pop(seq, None)
-            if any(w.lost for _, w in waiting.values()):
-                raise _PortLost()
-            retry = []
-            for i, (_, waiter) in waiting.items():
-                reply = waiter.reply
-                if reply is None:
-                    retry.append(i)
-                    continue
-                if reply.command == P.Command.NAK:
-                    reason, detail = P.decode_nak(reply.payload)
-                    if reason == P.NakReason.BAD_CHECKSUM:
-                        retry.append(i)  # corrupted on the wire: send again
-                        continue
-                    what = getattr(reason, "name", str(reason)).lower().replace("_", " ")
-                    extra = f" ({detail.name.lower().replace('_', ' ')})" if getattr(detail, "value", 0) else ""
-                    raise OutputError(self.port, f"controller refused {P.command_name(requests[i][0])}: {what}{extra}")
-                replies[i] = reply
-            todo = retry
-            if not todo:
-                return replies  # type: ignore[return-value]
-        names = ", ".join(sorted({P.command_name(requests[i][0]) for i in todo}))
-        raise OutputError(self.port, f"controller did not acknowledge {names} after {attempts} attempts")
-
-    def _write(self, frame: bytes) -> None:
-        with self._write_lock:
-            ser = self._serial
-            if ser is None:
-                raise _PortLost()
-            try:
-                ser.write(frame)
-            except Exception as exc:  # pyserial raises SerialException, OSError or TypeError on a dead fd
-                self._lost(ser, f"write failed ({exc})")
-                raise _PortLost() from None
-
     # ------------------------------------------------------------ port
-
-    def _open(self) -> Any:
-        import serial  # pyserial; imported here so the protocol stays importable without it
-
-        try:
-            ser = serial.Serial(self.port, self.baudrate, timeout=0.02, write_timeout=0.5, exclusive=True)
-        except (serial.SerialException, OSError, ValueError) as exc:
-            code = getattr(exc, "errno", None)
-            reason = os.strerror(code) if isinstance(code, int) else str(exc)
-            if code == errno.ENOTTY:
-                reason = f"not a serial port: {reason}"
-            raise OutputError(self.port, f"cannot open serial port ({reason})") from None
-        try:
-            ser.reset_input_buffer()
-        except Exception:
-            pass
-        return ser
 
     def _handshake(self, deadline_s: float) -> None:
         """Ask for STATUS until it answers (a board may still be booting)."""
@@ -419,81 +386,43 @@ class SerialOutput(OutputBase):
         self.controller_status = status
         if status.version >= 3:
             self._sense_faults((status.sense_fault,) * self.channels)
-        # Frequency and width limits are exact in wire units (a clamped value
-        # encodes to the limit itself); the duty is a product of two rounded
-        # integers, so it stays 10 ppm inside to survive the rounding.
-        self._controller_limits = ActuatorLimits(
-            name="controller",
-            min_frequency_hz=status.min_frequency_hz,
-            max_frequency_hz=status.max_frequency_hz,
-            min_pulse_width_s=status.min_pulse_width_s,
-            max_pulse_width_s=status.max_pulse_width_s,
-            max_duty_ratio=status.max_duty_ratio * (1 - 1e-5),
-        )
+        if status.version >= 4:
+            # A board that plays events: its clock, before any event is timed on it.
+            self.clock = ClockSync()
+            self._pings.clear()
+            for _ in range(SYNC_BURST):
+                try:
+                    self._ping(wait=True)
+                except _PortLost:
+                    raise OutputError(self.port, "serial port closed during the handshake") from None
+                except OutputError:
+                    pass  # a PONG lost: the heartbeats' exchanges fill the clock in
 
-    def _lost(self, ser: Any, reason: str) -> None:
-        with self._write_lock:
-            if self._serial is not ser or ser is None:
-                return
-            self._serial = None
-            was_connected = self._connected.is_set()
-            self._connected.clear()
-            try:
-                ser.close()
-            except Exception:
-                pass
-        with self._pending_lock:
-            for waiter in self._pending.values():
-                waiter.lost = True
-                waiter.event.set()
-        if was_connected and not self._closing.is_set():
-            self._event("lost", f"{reason}; the controller's watchdog turns its outputs off")
-
-    def _shutdown(self) -> None:
-        self._closing.set()
-        with self._write_lock:
-            ser, self._serial = self._serial, None
-            self._connected.clear()
-        if ser is not None:
-            try:
-                ser.close()
-            except Exception:
-                pass
-        for name in ("_keeper", "_reader"):
-            t = getattr(self, name, None)
-            if t is not None and t is not threading.current_thread():
-                t.join(timeout=1.0)
-
-    def _event(self, kind: str, detail: str) -> None:
-        self.events.append((time.monotonic(), kind, detail))
-        if self._on_event is not None:
-            try:
-                self._on_event(kind, detail)
-            except Exception:
-                pass  # a faulty observer must not stop the heartbeat
+    def _ping(self, wait: bool = False) -> None:
+        """A PING whose PONG (see _dispatch) is one clock exchange."""
+        seq = next(self._seq) & 0xFF
+        token = next(self._tokens) & 0xFFFFFFFF
+        if len(self._pings) > 64:
+            self._pings.clear()  # PONGs lost: their tokens would never be taken
+        self._pings[token] = time.monotonic()
+        if wait:
+            self._request(P.Command.PING, P.encode_ping(token))
+        else:
+            self._write(P.encode_frame(seq, P.Command.PING, P.encode_ping(token)))
 
     # ------------------------------------------------------------ threads
 
-    def _read_loop(self) -> None:
-        while not self._closing.is_set():
-            ser = self._serial
-            if ser is None:
-                time.sleep(0.01)
-                continue
-            try:
-                data = ser.read(max(1, ser.in_waiting))
-            except Exception as exc:  # SerialException / OSError / TypeError once the fd dies
-                self._lost(ser, f"read failed ({exc.__class__.__name__})")
-                continue
-            # A reply takes well under a millisecond on USB; a candidate older
-            # than 50 ms was corrupted and must not hold later replies back.
-            frames = self._decoder.feed(data) if data else []
-            frames += self._decoder.expire_stale(0.05)
-            for frame in frames:
-                self._dispatch(frame)
-
     def _dispatch(self, frame: P.Frame) -> None:
-        self._last_rx_s = time.monotonic()
+        self._last_rx_s = received = time.monotonic()
+        if frame.command == P.Command.PONG:
+            try:
+                pong = P.decode_pong(frame.payload)
+            except Exception:  # struct.error: a malformed reply
+                pong = None
+            sent = self._pings.pop(pong.token, None) if pong is not None else None
+            if pong is not None and sent is not None:
+                self.clock.add(sent, pong.board_us, received)
+                self.event_counts = pong.counts
         if frame.command == P.Command.ACK and len(frame.payload) >= 2 and frame.payload[1] & P.FLAG_WATCHDOG_TRIPPED:
             # The controller turned its outputs off although we are alive
             # (the host stalled); put the drives back.
@@ -513,11 +442,7 @@ class SerialOutput(OutputBase):
                 self._sense_faults(report.faults)
             if report is not None and self.loop is not None:
                 self.loop.observe(report, time.monotonic())
-        with self._pending_lock:
-            waiter = self._pending.get(frame.seq)
-        if waiter is not None:
-            waiter.reply = frame
-            waiter.event.set()
+        self._wake(frame)
 
     def _keep_loop(self) -> None:
         while not self._closing.wait(self.heartbeat_interval_s):
@@ -536,7 +461,9 @@ class SerialOutput(OutputBase):
         try:
             # Not waited for: any reply refreshes _last_rx_s, and a stalled
             # controller is caught by the silence check above.
-            self._write(P.encode_frame(seq, P.Command.HEARTBEAT))
+            self._write(P.encode_frame(seq, P.Command.HEARTBEAT))  # its ACK carries the flags
+            if version >= 4:
+                self._ping()  # a clock exchange
             if self.loop is not None or version >= 3:
                 ask = P.SENSE_V3 if version >= 3 else b""  # a version 2 board knows only the empty SENSE
                 self._write(P.encode_frame(next(self._seq) & 0xFF, P.Command.SENSE, ask))
@@ -578,20 +505,14 @@ class SerialOutput(OutputBase):
         self.reconnects += 1
         self._event("reconnected", self.port)
 
-    def _lost_quietly(self) -> None:
-        with self._write_lock:
-            ser, self._serial = self._serial, None
-        if ser is not None:
-            try:
-                ser.close()
-            except Exception:
-                pass
-
     def _reapply_drives(self) -> None:
         if self.loop is not None:
             self.loop.forget()
         with self._apply_lock:
-            drives = [self._make_safe(d) for d in self._desired]
+            # Scheduled pulses are not re-sent: they were for their moment; the
+            # next pen batch schedules what comes.
+            drives = [Drive.off()] * self.channels if self._events_mode else [self._make_safe(d) for d in self._desired]
+            self._sender.forget()
             try:
                 self._send_drives(drives)
             except OutputError as exc:

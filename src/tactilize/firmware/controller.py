@@ -2,7 +2,7 @@
 #
 # Flash it as the board's main.py (see docs/firmware.md).  It drives two actuator
 # channels (one MOSFET gate each) with pulse trains, speaks the framed protocol of
-# tactilize/actuators/protocol.py over the USB serial port (the REPL's
+# tactilize/actuators/frames/ over the USB serial port (the REPL's
 # stdin/stdout, raw bytes), acknowledges every valid frame, refuses any request
 # beyond its own hard limits, and turns every output off when no valid frame has
 # arrived for WATCHDOG_MS.
@@ -14,7 +14,7 @@
 # host difference confined to the small compatibility block below.
 #
 # This file keeps its own copy of the frame codec (MicroPython has no enum or
-# dataclasses); the tests run the host's protocol.py against it, so the two
+# dataclasses); the tests run the host's frames package against it, so the two
 # cannot drift.  The wire's physics on the board (energy limits, self-sensing,
 # the hold between host messages) is in tactile_wire.py, each channel's pulses in
 # tactile_channel.py and the running heat estimate that gates them in
@@ -26,11 +26,13 @@ import machine
 
 try:
     import tactile_channel as C
+    import tactile_events as E
     import tactile_frames as F
     import tactile_heat as H
     import tactile_wire as W
 except ImportError:  # on the host, inside the package
     from tactilize.firmware import tactile_channel as C
+    from tactilize.firmware import tactile_events as E
     from tactilize.firmware import tactile_frames as F
     from tactilize.firmware import tactile_heat as H
     from tactilize.firmware import tactile_wire as W
@@ -41,9 +43,10 @@ crc16, encode_frame, Decoder = F.crc16, F.encode_frame, F.Decoder
 _ticks_ms, _ticks_diff, _ticks_us, _sleep_us = F._ticks_ms, F._ticks_diff, F._ticks_us, F._sleep_us
 
 # 3: the sense-fault flag (ACK and STATUS flags bit 1; a per-channel byte after
-# SENSE_REPLY's fields when the SENSE carries the host's version, 3); a host reads
-# the version from STATUS (docs/firmware.md).
-VERSION = 3
+# SENSE_REPLY's fields when the SENSE carries the host's version, 3).
+# 4: scheduled pulses (EVENTS) and the board's clock (PING/PONG), tactile_events.py.
+# A host reads the version from STATUS (docs/firmware.md).
+VERSION = 4
 
 # ---------------------------------------------------------------- hardware map
 # GPIO driving the gate of each channel's MOSFET (through ~100 ohm, with a
@@ -95,10 +98,13 @@ CMD_STATUS = 0x04
 CMD_HOLD = 0x05
 CMD_SENSE = 0x06
 CMD_PAIR = 0x07
+CMD_PING = 0x08
+CMD_EVENTS = 0x09
 CMD_ACK = 0x80
 CMD_NAK = 0x81
 CMD_STATUS_REPLY = 0x82
 CMD_SENSE_REPLY = 0x83
+CMD_PONG = 0x84
 NAK_BAD_CHECKSUM = 1
 NAK_REFUSED_LIMIT = 2
 NAK_UNKNOWN_COMMAND = 3
@@ -155,6 +161,7 @@ class Controller:
         except (ValueError, TypeError):
             self.led = None
         self.decoder = Decoder(self._on_frame, self._on_bad)
+        self.clock = E.BoardClock(_ticks_us, _ticks_diff)
         self.start_ms = _ticks_ms()
         self.last_valid_ms = self.start_ms
         self.hold_ms = self.start_ms
@@ -172,6 +179,7 @@ class Controller:
         """Called from the main loop at least every POLL_MS: watchdog, stale
         frames, the sense readings and the hold."""
         now = _ticks_ms()
+        self.clock.now(_ticks_us())  # carried forward before the ticks wrap
         self.decoder.expire(now)
         if _ticks_diff(now, self.last_valid_ms) > WATCHDOG_MS:
             if any(ch.live for ch in self.channels) or self.pair_timer is not None:
@@ -273,7 +281,46 @@ class Controller:
             return self._hold_cmd(seq, payload)
         if cmd == CMD_PAIR:
             return self._pair(seq, payload)
+        if cmd == CMD_PING:
+            return self._ping(seq, payload)
+        if cmd == CMD_EVENTS:
+            return self._events(seq, payload)
         return self._nak(seq, NAK_UNKNOWN_COMMAND)
+
+    def _ping(self, seq, payload):
+        """The board's clock now (the host keeps it in step), the host's token
+        echoed, and each channel's counters of scheduled pulses."""
+        if len(payload) != 4:
+            return self._nak(seq, NAK_BAD_PAYLOAD)
+        t = self.clock.now()
+        fields = [struct.unpack(E.PING_FORMAT, payload)[0], t]
+        for i in range(2):
+            fields += self.channels[i].queue.counts if i < len(self.channels) else [0, 0, 0, 0, 0]
+        return self._reply(seq, CMD_PONG, struct.pack(E.PONG_FORMAT, *fields))
+
+    def _events(self, seq, payload):
+        """A channel's scheduled pulses (tactile_events.py): replaces those not yet fired."""
+        parsed = E.parse(payload, len(self.channels), MIN_WIDTH_NS // 1000, MAX_WIDTH_NS // 1000)
+        if parsed == 2:
+            return self._nak(seq, NAK_REFUSED_LIMIT, REFUSED_WIDTH)
+        if parsed == 3:
+            return self._nak(seq, NAK_BAD_PAYLOAD, REFUSED_CHANNEL)
+        if parsed == 1:
+            return self._nak(seq, NAK_BAD_PAYLOAD)
+        index, base, entries = parsed
+        now = _ticks_us()
+        ahead = E.signed32(base - self.clock.now(now))
+        if ahead > E.MAX_AHEAD_US:
+            return self._nak(seq, NAK_BAD_PAYLOAD)
+        ch = self.channels[index]
+        if index == 1:
+            self._cancel_pair()
+        was_on = ch.on
+        self.watchdog_tripped = False
+        ch.play(now, lambda off: F._ticks_add(now, ahead + off), entries)
+        if was_on:
+            self._changed(ch, "events")
+        return self._ack(seq, CMD_EVENTS)
 
     def _set(self, seq, payload):
         reg = W.REGULARITY_EVEN
@@ -315,6 +362,7 @@ class Controller:
     def _apply(self, ch, f_mhz, w_ns, amp, reg=W.REGULARITY_EVEN):
         self.watchdog_tripped = False
         if f_mhz == 0 or w_ns == 0 or amp == 0:
+            ch.stop_events()
             if ch.on:
                 bias, hold = ch.bias_q16, ch.hold
                 keep = (hold.frequency_hz, hold.energy_j, hold.bias_w, hold.target_ohm)

@@ -311,6 +311,10 @@ class PWM:
             _record("pwm", self._pin.id, mode="gpio", value=0, duty_ns=0)
 
 
+#: How early a timer's thread wakes to spin to its due time [s].
+_TIMER_SPIN_S = 0.005
+
+
 class Timer:
     """A soft timer (``machine.Timer``) whose callback runs on a host thread."""
 
@@ -347,7 +351,13 @@ class Timer:
 
     def _run(self, mode: int, period_s: float, callback: Callable | None, stop: threading.Event) -> None:
         next_t = time.perf_counter() + period_s
-        while not stop.wait(max(0.0, next_t - time.perf_counter())):
+        while not stop.wait(max(0.0, next_t - _TIMER_SPIN_S - time.perf_counter())):
+            # A board's timer fires on its microsecond; a host thread wakes when
+            # the scheduler lets it, so it wakes early and spins the rest.
+            while time.perf_counter() < next_t and not stop.is_set():
+                time.sleep(0)
+            if stop.is_set():
+                return
             if callback is not None:
                 callback(self)
             if mode == Timer.ONE_SHOT:

@@ -4,7 +4,8 @@
 # (tactile_heat.py).
 #
 # Fast even trains run on a PWM slice; slow (< 20 Hz) and irregular ones place
-# each pulse with a one-shot timer.  A changed drive never restarts a train: its
+# each pulse with a one-shot timer, as do the host's scheduled pulses (protocol
+# version 4, tactile_events.py).  A changed drive never restarts a train: its
 # first pulse starts at max(last start + new period, now, last end + 1 us), the
 # host's PulseScheduler rule (tactilize.synthesis), so a host that resends its
 # drive cannot multiply the pulse rate nor silence a slow train.
@@ -14,9 +15,11 @@
 import machine
 
 try:
+    import tactile_events as E
     import tactile_frames as F
     import tactile_wire as W
 except ImportError:  # on the host, inside the package
+    from tactilize.firmware import tactile_events as E
     from tactilize.firmware import tactile_frames as F
     from tactilize.firmware import tactile_wire as W
 
@@ -88,6 +91,7 @@ class Channel:
         self.last_start_us = None
         self.last_end_us = None
         self.rng = W.Jitter(0x2545F491 + index)
+        self.queue = E.EventQueue()
 
     @property
     def on(self):
@@ -95,10 +99,11 @@ class Channel:
 
     @property
     def live(self):
-        return self.frequency_mhz > 0 or self.bias_q16 > 0
+        return self.frequency_mhz > 0 or self.bias_q16 > 0 or len(self.queue.pending) > 0
 
     def off(self):
         self._stop_train(F._ticks_us())
+        self.queue.clear()
         self.pin = machine.Pin(self.pin_id, machine.Pin.OUT, value=0)
         self.mode = None
         self.request = None
@@ -137,6 +142,7 @@ class Channel:
         mode, applied, period_us, j = plan(frequency_mhz, width_ns, regularity_q16)
         now = F._ticks_us()
         was_on = self.on
+        self.queue.clear()  # a train replaces the scheduled pulses
         self.width_ns = width_ns
         self.amplitude_q16 = amplitude_q16
         self.request = (frequency_mhz, width_ns, amplitude_q16, regularity_q16)
@@ -282,11 +288,13 @@ class Channel:
         self._arm()
 
     def _fire(self):
+        self._pulse(F._ticks_us(), self.width_ns // 1000)
+
+    def _pulse(self, now, us):
         # Soft-IRQ context on the board: the pulse is busy-waited so its width is
         # exact to a microsecond even though the timer's edge may jitter; the
-        # sense path is read in the middle of it.
-        us = self.width_ns // 1000
-        now = F._ticks_us()
+        # sense path is read in the middle of it.  Returns the width fired [us]
+        # (0: the heat estimate left it out).
         if self.heat is not None:
             state = _irq_off()
             room = self.heat.room_j(now)
@@ -296,7 +304,7 @@ class Channel:
                 self.heat.add(now, us * 1e-6 * self.p_w)
             _irq_on(state)
             if us < GATE_MIN_US:
-                return
+                return 0
         self.last_start_us = now
         self.last_end_us = F._ticks_add(now, us)
         pin = self.pin
@@ -306,6 +314,83 @@ class Channel:
             self.sense.sample(F._ticks_ms())
         F._sleep_us(us - us // 2)
         pin.value(0)
+        return us
+
+    # -- scheduled pulses (protocol version 4)
+
+    def play(self, now, due_of, entries):
+        """The host's pulses from now on (tactile_events.EventQueue.replace with
+        ``due_of(offset)`` their ticks), replacing those not yet fired; a train stops."""
+        # The timer first, outside the lock: on the host, deinit waits for a
+        # callback that may itself be waiting for the lock.
+        self._cancel_timer()
+        state = _irq_off()
+        if self.mode != "events":
+            if self.mode == "pwm":
+                self._stop_train(now)
+            self.mode = "events"
+            self.request = None
+            self.frequency_mhz = 0
+            self.width_ns = 0
+            self.jitter_j = 0.0
+        self.queue.replace(now, due_of, entries, F._ticks_diff)
+        self._arm_event()
+        _irq_on(state)
+        self._heat_changed(now)
+
+    def stop_events(self):
+        """No more scheduled pulses (a SET with nothing to play)."""
+        if self.mode == "events":
+            self._cancel_timer()
+            state = _irq_off()
+            self.queue.clear()
+            self.mode = None
+            _irq_on(state)
+
+    def _arm_event(self):
+        if not self.queue.pending:
+            return
+        delay = F._ticks_diff(self.queue.pending[0][0], F._ticks_us()) - E.EARLY_US
+        gen = self.gen
+        self.timer = machine.Timer(mode=machine.Timer.ONE_SHOT, freq=1000000.0 / max(1, delay),
+                                   callback=lambda t: self._event_due(gen))
+
+    def _event_due(self, gen):
+        state = _irq_off()
+        if gen != self.gen or self.mode != "events" or not self.queue.pending:
+            _irq_on(state)
+            return
+        due, _, us = self.queue.pop()
+        _irq_on(state)
+        wait = F._ticks_diff(due, F._ticks_us())
+        if wait > 0:
+            F._sleep_us(wait)
+        self._fire_event(us)
+        state = _irq_off()
+        if gen == self.gen:
+            self._arm_event()
+        _irq_on(state)
+
+    def _fire_event(self, us):
+        # Never two starts closer than MIN_GAP_US, and a pulse leaves at least
+        # half the time since the last start to cool (the SET's duty rule).
+        q = self.queue
+        now = F._ticks_us()
+        asked = us
+        if self.last_start_us is not None:
+            gap = F._ticks_diff(now, self.last_start_us)
+            if gap < E.MIN_GAP_US:
+                q.count(E.SKIPPED)
+                return
+            if us > gap // 2:
+                us = gap // 2
+        fired = self._pulse(now, us)
+        if fired <= 0:
+            q.count(E.SKIPPED)
+            return
+        q.count(E.FIRED)
+        if fired < asked:
+            q.count(E.SHORTENED)
 
     def _heat_changed(self, now):
         if self.heat is None:

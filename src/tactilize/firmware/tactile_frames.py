@@ -1,6 +1,6 @@
 # The frame codec and the USB serial port of the tactile controller (MicroPython module, copied to the
 # board next to main.py; see controller.py).  The tests run the host's
-# tactilize/actuators/protocol.py against it, so the two cannot drift.
+# tactilize/actuators/frames/ against it, so the two cannot drift.
 
 import struct
 import time
@@ -35,9 +35,12 @@ if _ticks_ms is None:
 
     def _sleep_us(us):
         # A busy wait, as on the board: time.sleep would overshoot short pulses.
+        # sleep(0) hands the GIL over at every turn: otherwise a pulse on one
+        # channel's timer thread holds the other's up to the 5 ms switch interval,
+        # where a board's two timers would each run on time.
         end = time.perf_counter() + us / 1e6
         while time.perf_counter() < end:
-            pass
+            time.sleep(0)
 
 
 def crc16(data, crc=0xFFFF):
