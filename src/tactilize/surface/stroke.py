@@ -22,7 +22,6 @@ from bisect import bisect_left
 from collections import deque
 from typing import Any, Iterable
 
-from .bumps import bumps_in
 from .events import PulseEvent, place_events
 from .events import strengths as strengths_of
 from .path import HISTORY_M, PathGrid
@@ -135,7 +134,7 @@ class SurfaceStroke:
         w = path.window(speed_m_s, direction_rad if moving else None, self.lookahead_s, MAX_AHEAD_M)
         if w is None:
             return []
-        idx, proms = bumps_in(w.h, w.ids, w.floors)
+        idx, proms = w.bumps()
         if idx.size == 0:
             return []
         same = self._same_m
