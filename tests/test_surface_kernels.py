@@ -129,7 +129,7 @@ def test_one_pass_search_is_regions_then_bumps_in(seed, angle, kept, npred):
     x[:kept] = rng.uniform(-1e-3, 9e-3, kept)
     y[:kept] = rng.uniform(-1e-3, 7e-3, kept)
     h, ids, fl = np.zeros(n), np.zeros(n, dtype=np.intp), np.zeros(n)
-    oi, op = np.zeros(n, dtype=np.intp), np.zeros(n)
+    oi, op, ot = np.zeros(n, dtype=np.intp), np.zeros(n), np.zeros(n)
     lo = int(rng.integers(0, kept + 1))
     h[:lo], ids[:lo], fl[:lo] = sm.regions(x[:lo], y[:lo])
     step, s0, t0, x0, y0, speed = 0.1e-3, 0.537e-3, 2.0, 4e-3, 3e-3, 0.04
@@ -137,13 +137,14 @@ def test_one_pass_search_is_regions_then_bumps_in(seed, angle, kept, npred):
     ux, uy = math.cos(angle), -math.sin(angle)
     a = int(rng.integers(0, kept + 1))
     count = _kernels.search_window(sm._padded, sm._inv_pitch[0], sm._inv_pitch[1], sm.prominence_floor, t, x, y, h,
-                                   ids, fl, lo, kept, npred, k1, step, t0, x0, y0, s0, ux, uy, speed, a, oi, op)
+                                   ids, fl, lo, kept, npred, k1, step, t0, x0, y0, s0, ux, uy, speed, a, oi, op, ot)
     off = np.arange(k1, k1 + npred) * step - s0
     assert np.array_equal(x[kept : kept + npred], x0 + ux * off)
     assert np.array_equal(t[kept : kept + npred], t0 + off / speed)
     rh, rid, rfl = sm.regions(x[: kept + npred], y[: kept + npred])
     assert np.array_equal(h[: kept + npred], rh, equal_nan=True) and ids[: kept + npred].tolist() == rid.tolist()
     _same((oi[:count], op[:count]), bumps_in(rh[a:], rid[a:], rfl[a:]))
+    assert np.array_equal(ot[:count], t[a + oi[:count]])
 
 
 _FRESH = """

@@ -181,18 +181,22 @@ def bumps_into(h, ids, floors, a, b, out_idx, out_prom):  # pragma: no cover - c
 
 @njit(cache=True, nogil=True)
 def search_window(field, inv_x, inv_y, floor, t, x, y, h, ids, floors, lo, end, npred, k1, step,
-                  t0, x0, y0, s0, ux, uy, speed, a, out_idx, out_prom):  # pragma: no cover - compiled
+                  t0, x0, y0, s0, ux, uy, speed, a, out_idx, out_prom, out_t):  # pragma: no cover - compiled
     """A pen batch's window on one picture, in one pass: the predicted points, the heights
     not yet looked up, and the bumps.
 
     Points ``end .. end + npred - 1`` get the prediction (:func:`predict_into`), points
     ``lo .. end + npred - 1`` their heights (:func:`heights_into`), and the bumps of
-    ``a .. end + npred - 1`` are written as :func:`bumps_into` writes them; returns how many.
+    ``a .. end + npred - 1`` are written as :func:`bumps_into` writes them, with the time
+    each is reached in ``out_t``; returns how many.
     """
     if npred > 0:
         predict_into(t, x, y, end, npred, k1, step, t0, x0, y0, s0, ux, uy, speed)
     heights_into(field, inv_x, inv_y, floor, x, y, lo, end + npred, h, ids, floors)
-    return bumps_into(h, ids, floors, a, end + npred, out_idx, out_prom)
+    count = bumps_into(h, ids, floors, a, end + npred, out_idx, out_prom)
+    for c in range(count):
+        out_t[c] = t[a + out_idx[c]]
+    return count
 
 
 def warm() -> None:
@@ -202,6 +206,6 @@ def warm() -> None:
     f = np.zeros(8)
     i = np.zeros(8, dtype=np.intp)
     search_window(field, 1.0, 1.0, 0.1, f, f.copy(), f.copy(), f.copy(), i, f.copy(), 0, 3, 2, 3, 0.5,
-                  0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0, i.copy(), f.copy())
+                  0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0, i.copy(), f.copy(), f.copy())
     predict_into(f, f.copy(), f.copy(), 0, 2, 0, 0.5, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0)
     bumps_into(f, i, f.copy(), 0, 8, i.copy(), f.copy())

@@ -42,6 +42,9 @@ HISTORY_M = 4e-3
 class Window:
     """The profile a batch searches: the kept points, then the predicted ones.
 
+    Made from arrays (a reference computation) or, by :meth:`PathGrid.window`, as a
+    view of the grid's buffers with its bumps already searched.
+
     Attributes
     ----------
     h, ids, floors : ndarray
@@ -52,26 +55,63 @@ class Window:
         How many of the points are behind the newest sample (the rest are predicted).
     """
 
-    __slots__ = ("h", "ids", "floors", "k0", "kept", "_t_kept", "_t_pred", "step", "_found")
+    __slots__ = ("_h", "_ids", "_fl", "_t", "_a", "_stop", "k0", "kept", "step", "_found")
 
-    def __init__(self, h, ids, floors, k0, kept, t_kept, t_pred, step, found=None) -> None:
-        self.h, self.ids, self.floors, self.k0, self.kept = h, ids, floors, k0, kept
-        self._t_kept, self._t_pred, self.step = t_kept, t_pred, step
-        self._found = found
+    def __init__(self, h, ids, floors, k0, kept, t_kept, t_pred, step) -> None:
+        self._h, self._ids, self._fl = h, ids, floors
+        self._t = np.concatenate((np.asarray(t_kept, dtype=np.float64), np.asarray(t_pred, dtype=np.float64)))
+        self._a, self._stop = 0, len(h)
+        self.k0, self.kept, self.step = k0, kept, step
+        self._found = None
+
+    @classmethod
+    def _of(cls, grid: "PathGrid", a: int, stop: int, kept: int, found: tuple) -> "Window":
+        """Points ``a .. stop - 1`` of ``grid``'s buffers, ``found`` = (indices, prominences, times) of its bumps."""
+        w = object.__new__(cls)
+        w._h, w._ids, w._fl, w._t = grid._h, grid._id, grid._fl, grid._t
+        w._a, w._stop, w.kept, w.step, w._found = a, stop, kept, grid.step, found
+        w.k0 = grid._k0 + a
+        return w
+
+    @property
+    def h(self) -> np.ndarray:
+        return self._h[self._a : self._stop]
+
+    @property
+    def ids(self) -> np.ndarray:
+        return self._ids[self._a : self._stop]
+
+    @property
+    def floors(self) -> np.ndarray:
+        return self._fl[self._a : self._stop]
 
     def t_at(self, i: int) -> float:
         """Time [s] the path reaches point ``i``."""
-        return float(self._t_kept[i] if i < self.kept else self._t_pred[i - self.kept])
+        return float(self._t[self._a + i])
 
     def s_at(self, i: int) -> float:
         """Arc length [m] of point ``i``."""
         return (self.k0 + i) * self.step
 
+    def floor_at(self, i: int) -> float:
+        """Prominence floor at point ``i``."""
+        return float(self._fl[self._a + i])
+
     def bumps(self) -> tuple[np.ndarray, np.ndarray]:
         """(indices, prominences) of the profile's bumps (:func:`~tactilize.surface.bumps.bumps_in`)."""
+        self._search()
+        return self._found[0], self._found[1]  # type: ignore[index]
+
+    def crossings(self) -> tuple[list[int], list[float], list[float]]:
+        """The bumps as plain lists (a batch has a handful): indices, prominences, times [s]."""
+        self._search()
+        idx, prom, t = self._found  # type: ignore[misc]
+        return idx.tolist(), prom.tolist(), t.tolist()
+
+    def _search(self) -> None:
         if self._found is None:
-            self._found = bumps_in(self.h, self.ids, self.floors)
-        return self._found
+            idx, prom = bumps_in(self.h, self.ids, self.floors)
+            self._found = (idx, prom, self._t[self._a + np.asarray(idx, dtype=np.intp)])
 
 
 def warm() -> None:
@@ -128,6 +168,7 @@ class PathGrid:
         # The search's output: bumps' indices and prominences (at most one every other point).
         self._oi = np.zeros(cap, dtype=np.intp)
         self._op = np.zeros(cap)
+        self._ot = np.zeros(cap)  # and their times
         self._cap = cap
 
     def reset(self) -> None:
@@ -233,7 +274,7 @@ class PathGrid:
         if one is not None:
             count = _kernels.search_window(
                 one[0], one[1], one[2], one[3], self._t, self._x, self._y, self._h, self._id, self._fl,
-                n, end, npred, k1, step, t0, x0, y0, s0, ux, uy, speed_m_s, a, self._oi, self._op)
+                n, end, npred, k1, step, t0, x0, y0, s0, ux, uy, speed_m_s, a, self._oi, self._op, self._ot)
         else:
             if npred:
                 _kernels.predict_into(self._t, self._x, self._y, end, npred, k1, step, t0, x0, y0, s0, ux, uy,
@@ -242,6 +283,6 @@ class PathGrid:
                 h, ids, fl = self.surface.regions(self._x[n:stop], self._y[n:stop])
                 self._h[n:stop], self._id[n:stop], self._fl[n:stop] = h, ids, fl
             count = _kernels.bumps_into(self._h, self._id, self._fl, a, stop, self._oi, self._op)
+            self._ot[:count] = self._t[a + self._oi[:count]]
         self._n, self._m = end, 0
-        return Window(self._h[a:stop], self._id[a:stop], self._fl[a:stop], self._k0 + a, end - a,
-                      self._t[a:end], self._t[end:stop], step, (self._oi[:count], self._op[:count]))
+        return Window._of(self, a, stop, end - a, (self._oi[:count], self._op[:count], self._ot[:count]))
