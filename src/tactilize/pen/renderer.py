@@ -402,10 +402,14 @@ SAME_STRENGTH = 0.01
 
 def _same_events(a: Sequence[Any], b: Sequence[Any]) -> bool:
     """The same events, times within :data:`SAME_EVENT_S` and strengths within :data:`SAME_STRENGTH`."""
-    return len(a) == len(b) and all(
-        abs(x.t_s - y.t_s) <= SAME_EVENT_S and abs(x.strength - y.strength) <= SAME_STRENGTH and x.clamped == y.clamped
-        for x, y in zip(a, b)
-    )
+    if len(a) != len(b):
+        return False
+    for x, y in zip(a, b):  # a plain loop: every batch compares a window's events
+        d = x.t_s - y.t_s
+        e = x.strength - y.strength
+        if not (-SAME_EVENT_S <= d <= SAME_EVENT_S and -SAME_STRENGTH <= e <= SAME_STRENGTH and x.clamped == y.clamped):
+            return False
+    return True
 
 
 def _close(a: Sequence[Drive], b: Sequence[Drive], rel: float) -> bool:

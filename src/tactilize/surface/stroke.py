@@ -143,7 +143,7 @@ class SurfaceStroke:
         start = k0 * step
         while fired and fired[0][1] < start - same:
             fired.popleft()
-        fired_s = sorted(s for _, s in fired)
+        fired_s = sorted([s for _, s in fired])
         nf = len(fired_s)
         late = now - LATE_S
         times, arcs, prom, floor = [], [], [], []
