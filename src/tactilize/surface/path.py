@@ -56,6 +56,8 @@ class Window:
     """
 
     __slots__ = ("_h", "_ids", "_fl", "_t", "_a", "_stop", "k0", "kept", "step", "_found")
+    _t: np.ndarray
+    _found: tuple[np.ndarray, np.ndarray, np.ndarray] | None
 
     def __init__(self, h, ids, floors, k0, kept, t_kept, t_pred, step) -> None:
         self._h, self._ids, self._fl = h, ids, floors
@@ -99,19 +101,19 @@ class Window:
 
     def bumps(self) -> tuple[np.ndarray, np.ndarray]:
         """(indices, prominences) of the profile's bumps (:func:`~tactilize.surface.bumps.bumps_in`)."""
-        self._search()
-        return self._found[0], self._found[1]  # type: ignore[index]
+        idx, prom, _ = self._search()
+        return idx, prom
 
     def crossings(self) -> tuple[list[int], list[float], list[float]]:
         """The bumps as plain lists (a batch has a handful): indices, prominences, times [s]."""
-        self._search()
-        idx, prom, t = self._found  # type: ignore[misc]
+        idx, prom, t = self._search()
         return idx.tolist(), prom.tolist(), t.tolist()
 
-    def _search(self) -> None:
+    def _search(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         if self._found is None:
             idx, prom = bumps_in(self.h, self.ids, self.floors)
             self._found = (idx, prom, self._t[self._a + np.asarray(idx, dtype=np.intp)])
+        return self._found
 
 
 def warm() -> None:
@@ -148,11 +150,10 @@ class PathGrid:
         self.surface = surface
         self.step = float(surface.step_m)
         self.history_m = float(history_m)
+        self._one: tuple[np.ndarray, float, float, float] | None = None
         if isinstance(surface, SurfaceModel):
             # The one-picture pass reads the picture directly.
-            self._one = (surface._padded, surface._inv_pitch[0], surface._inv_pitch[1], float(surface.prominence_floor))
-        else:
-            self._one = None
+            self._one = (*surface.lookup_table(), float(surface.prominence_floor))
         span = int(self.history_m / self.step) + 2
         self._alloc(4 * span + 256)
         self.reset()

@@ -170,14 +170,14 @@ class SurfaceStroke:
         out = []
         pending = self._pending
         # place_events may drop crossings (merged): match events back to arcs by time.
-        j, n, last = 0, len(times), len(arcs) - 1
+        j, n, final = 0, len(times), len(arcs) - 1
         for ev in events:
             while j < n and times[j] < ev.t_s:
                 j += 1
             if ev.t_s <= now:
                 ev = ev._replace(t_s=now, clamped=ev.clamped + ("late",))
             out.append(ev)
-            pending.append((ev, arcs[j if j < last else last]))
+            pending.append((ev, arcs[j if j < final else final]))
         return out
 
     def recent(self, window_s: float) -> list[PulseEvent]:
