@@ -14,7 +14,9 @@
 
    * server work per pen batch (arrival to drive handed to the socket, the
      server's own record) on the page's WebSocket, p50 / p99, ``surface`` against
-     today's page default ``perceptual``, sessions alternating (goal p99 <= 1.2x);
+     today's page default ``perceptual``, sessions alternating (goal p99 <= 1.2x),
+     then the renderer alone, both renderings alternating batch by batch, and the
+     machine's load average (the p99 moves with it);
    * the surface model of a 2048 x 2048 upload against a bare ``scipy.fft.rfft2``
      of the same array (paired, median of ratios);
    * pulse events per second the simulated wire sustains: simulated seconds of a
@@ -30,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import sys
 import time
@@ -176,6 +179,13 @@ def batch_costs(batches: int, rounds: int) -> dict:
     verdict = "met" if res["p99_ratio"] <= 1.2 else "MISSED"
     print(f"  p99 RATIO surface / perceptual: {res['p99_ratio']:.2f}x (goal <= 1.2x: {verdict})")
     res["render_only"] = render_costs(batches * rounds)
+    res["load_average"] = os.getloadavg()
+    print(f"  machine load average (1, 5, 15 min) {res['load_average'][0]:.2f} {res['load_average'][1]:.2f} "
+          f"{res['load_average'][2]:.2f} on {os.cpu_count()} cores")
+    print("  The surface rendering's window (prediction, heights, bumps) is one compiled pass; what is left is\n"
+          "  Python per batch (the stroke's bookkeeping, the hand-off) and, on batches whose events changed,\n"
+          "  the equivalent Drive and the wire's plan of it: those set its p99. A pre-empted batch in a hundred\n"
+          "  is the p99 of either rendering: compare p99 ratios between runs on a quiet machine (docs/surfaces.md).")
     return res
 
 

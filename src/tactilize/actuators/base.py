@@ -160,4 +160,6 @@ class OutputBase:
             if not isinstance(d, Drive):
                 raise TypeError(f"expected Drive, got {type(d).__name__}")
         # Channels not mentioned are off: a shorter list must never leave one running.
-        return drives + [Drive.off()] * (self.channels - len(drives))
+        if len(drives) < self.channels:  # (an off Drive is built only then: every pen batch comes here)
+            drives += [Drive.off()] * (self.channels - len(drives))
+        return drives

@@ -287,16 +287,21 @@ class PenRenderer:
 
     def _render_surface(self, state: StrokeState, feat: Any, batch: list[PenSample]) -> RenderResult:
         """A pulse per bump crossed: events to an output that plays them, else their equivalent drive."""
-        events, drive = self._surface.update(self.profile, state, batch)
+        sp = self._surface
+        events, drive = sp.update(self.profile, state, batch)
         requested = self.splitter(drive, self.channels, state)
         out = self.output
         if out is not None and getattr(out, "plays_events", False) and (events or not drive.is_off):
             self._running = True
             self._sent = None  # the steady resend rule does not apply to events
-            applied = list(out.play_events([events] * self.channels, state.t_s, requested))
+            applied = sp.still_handed(events, requested, state.t_s)
+            if applied is None:
+                applied = list(out.play_events([events] * self.channels, state.t_s, requested))
+                sp.handed(events, requested, applied, state.t_s)
         else:
+            sp.handed_off()
             applied = self._apply(requested)
-        pulses = self._surface.stroke.newly_fired
+        pulses = sp.stroke.newly_fired
         self._last = RenderResult(True, True, state, feat, requested, applied, tuple(events), pulses)
         return self._last
 
@@ -336,10 +341,13 @@ class _SurfacePath:
         self.stroke = None
         self._drive_key: tuple[Any, list] | None = None
         self._drive = Drive.off()
+        self._handed: tuple[list, list, list, float] | None = None  # (events, requested, applied, t_s)
         if surface is not None:
+            from ..surface import equivalent
             from ..surface.stroke import SurfaceStroke
 
             self.stroke = SurfaceStroke(surface)
+            self._equivalent = equivalent
 
     def on(self, profile: Any) -> bool:
         return self.stroke is not None and getattr(profile, "rendering", "steady") == "surface"
@@ -347,10 +355,9 @@ class _SurfacePath:
     def reset(self) -> None:
         if self.stroke is not None:
             self.stroke.reset()
+        self._handed = None
 
     def update(self, profile: Any, state: StrokeState, batch: list[PenSample]) -> tuple[list, Drive]:
-        from ..surface.equivalent import WINDOW_S, equivalent_drive
-
         stroke = self.stroke
         if state.direction_rad is None or state.speed_m_s <= 0:
             # A resting pen adds no path and fires nothing (what was pending is withdrawn).
@@ -362,14 +369,42 @@ class _SurfacePath:
         # bring the same ones, their predicted times moved by microseconds (a Drive and its
         # limits cost more than comparing a few events).  Kept, the same Drive object also
         # spares the output its plan.
-        window = stroke.recent(WINDOW_S)
+        eq = self._equivalent
+        window = stroke.recent(eq.WINDOW_S)
         key = self._drive_key
         if key is None or profile is not key[0] or not _same_events(window, key[1]):
-            self._drive = equivalent_drive(window, state.t_s, profile)
+            self._drive = eq.equivalent_drive(window, state.t_s, profile)
             self._drive_key = (profile, window)
         return events, self._drive
 
+    def still_handed(self, events: list, requested: list[Drive], now_s: float) -> list[Drive] | None:
+        """What the output applied when it was last handed these events (those of them not yet due)
+        and these very drives, within :data:`HAND_AGAIN_S`; None: hand them over.
 
+        The same rule as the steady drives' resend rule: events within :data:`SAME_EVENT_S` of
+        what the output already holds are not sent again (each pulse is still bounded by the
+        wire's heat when it plays)."""
+        last = self._handed
+        if last is None or not 0.0 <= now_s - last[3] < HAND_AGAIN_S:
+            return None
+        if len(requested) != len(last[1]) or any(a is not b for a, b in zip(requested, last[1])):
+            return None
+        ahead = [e for e in last[0] if e.t_s > now_s]
+        return last[2] if _same_events(events, ahead) else None
+
+    def handed(self, events: list, requested: list[Drive], applied: list[Drive], now_s: float) -> None:
+        """The output was handed ``events`` and ``requested`` at ``now_s`` [s] and applied ``applied``."""
+        self._handed = (events, requested, applied, now_s)
+
+    def handed_off(self) -> None:
+        """The output was given a steady drive (or stopped): the next events are handed over."""
+        self._handed = None
+
+
+#: Events the output already holds are handed over again at least this often [s] all the same,
+#: so its plan of the equivalent drive (what the page shows) follows the wire (as ``refresh_s``
+#: does for steady drives).
+HAND_AGAIN_S = 0.1
 #: Events within this of each other [s] count as the same for the equivalent Drive: over a
 #: window's events (typically 50 ms or more apart end to end) it moves the rate by under the
 #: 0.5 % resend rule of steady drives; the events themselves are handed over exact.
@@ -380,10 +415,14 @@ SAME_STRENGTH = 0.01
 
 def _same_events(a: Sequence[Any], b: Sequence[Any]) -> bool:
     """The same events, times within :data:`SAME_EVENT_S` and strengths within :data:`SAME_STRENGTH`."""
-    return len(a) == len(b) and all(
-        abs(x.t_s - y.t_s) <= SAME_EVENT_S and abs(x.strength - y.strength) <= SAME_STRENGTH and x.clamped == y.clamped
-        for x, y in zip(a, b)
-    )
+    if len(a) != len(b):
+        return False
+    for x, y in zip(a, b):  # a plain loop: every batch compares a window's events
+        d = x.t_s - y.t_s
+        e = x.strength - y.strength
+        if not (-SAME_EVENT_S <= d <= SAME_EVENT_S and -SAME_STRENGTH <= e <= SAME_STRENGTH and x.clamped == y.clamped):
+            return False
+    return True
 
 
 def _close(a: Sequence[Drive], b: Sequence[Drive], rel: float) -> bool:

@@ -57,24 +57,34 @@ def equivalent_drive(
     Drive
         Off when no event is in the window.
     """
-    # Plain Python: a window holds a few dozen events, where each NumPy call costs more than the sums.
+    # Plain Python in one pass: a window holds a few dozen events, where each NumPy call
+    # costs more than the sums.
     since = now_s - window_s
-    kept = [e for e in events if e.t_s >= since]
-    if not kept:
+    t: list[float] = []
+    st: list[float] = []
+    names: set[str] = set()
+    for e in events:
+        if e.t_s >= since:
+            t.append(e.t_s)
+            st.append(e.strength)
+            if e.clamped:
+                names.update(e.clamped)
+    if not t:
         return Drive.off()
-    t = sorted(e.t_s for e in kept)
-    strength = math.fsum(e.strength for e in kept) / len(kept)
-    if len(t) >= 2 and t[-1] > t[0]:
+    n = len(t)
+    t.sort()
+    strength = math.fsum(st) / n
+    if n >= 2 and t[-1] > t[0]:
         iv = [b - a for a, b in zip(t, t[1:])]
-        rate = (len(t) - 1) / (t[-1] - t[0])
+        rate = (n - 1) / (t[-1] - t[0])
         mean = math.fsum(iv) / len(iv)
-        cv = math.sqrt(math.fsum((x - mean) ** 2 for x in iv) / len(iv)) / mean if len(iv) > 1 else 0.0
+        cv = math.sqrt(math.fsum([(x - mean) ** 2 for x in iv]) / len(iv)) / mean if len(iv) > 1 else 0.0
     else:
         rate, cv = 1.0 / window_s, 0.0
     width_law = getattr(profile, "width", None)
     width = float(width_law(strength)) if width_law is not None else 4e-4 * strength
     width = max(width, 2e-5)
-    clamped = tuple(sorted({c for e in kept for c in e.clamped}))
+    clamped = tuple(sorted(names))
     d = Drive(float(rate), width, 1.0, clamped, min(1.0, max(0.0, strength)), regularity_of_cv(cv))
     limits = getattr(profile, "limits", None)
     return limits.apply(d) if limits is not None else d

@@ -130,19 +130,26 @@ def place_events(
     -------
     list of PulseEvent
     """
-    # Plain Python: a pen batch places a handful of crossings (docs/surfaces.md).
+    # Plain Python in one pass: a pen batch places one crossing or two (docs/surfaces.md).
     t = [float(v) for v in t_s]
     s = [float(v) for v in strength]
     n = len(t)
     if n == 0:
         return []
-    rate = _local_rates(t if previous_t_s is None else [float(previous_t_s)] + t)[-n:]
-    fast = [r > RATE_ONLY_HZ for r in rate]
-    if any(fast):
-        # Only rate is rendered there: each pulse carries its neighbourhood's median.
+    # Local rate above RATE_ONLY_HZ at each crossing (local_rate_hz, with the pulse before).
+    u = t if previous_t_s is None else [float(previous_t_s)] + t
+    m, off = len(u), len(u) - n
+    fast = [False] * n
+    if m > 1:
         for i in range(n):
-            if fast[i]:
-                s[i] = statistics.median(s[max(0, i - 3) : i + 4])
+            j = off + i
+            d = u[1] - u[0] if j == 0 else u[-1] - u[-2] if j == m - 1 else (u[j + 1] - u[j - 1]) / 2.0
+            fast[i] = d <= 0 or 1.0 / max(d, 1e-12) > RATE_ONLY_HZ
+        if True in fast:
+            # Only rate is rendered there: each pulse carries its neighbourhood's median.
+            for i in range(n):
+                if fast[i]:
+                    s[i] = statistics.median(s[max(0, i - 3) : i + 4])
     out: list[PulseEvent] = []
     last = previous_t_s
     for i in range(n):

@@ -100,6 +100,12 @@ class SurfaceModel:
         object.__setattr__(self, "_padded", np.pad(self.height, 1, mode="edge"))
         object.__setattr__(self, "_inv_pitch", (1.0 / self.display_pitch_m[0], 1.0 / self.display_pitch_m[1]))
 
+    def lookup_table(self) -> tuple[np.ndarray, float, float]:
+        """(the height padded by one edge pixel all round, pixels per display metre across and
+        down): what :meth:`regions` reads, for the pen window's compiled search
+        (:mod:`tactilize.surface._kernels`)."""
+        return self._padded, self._inv_pitch[0], self._inv_pitch[1]  # type: ignore[attr-defined]
+
     def sample(self, x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
         """Tip-filtered height at display positions [m] (from the top-left, y down),
         bilinear between pixel centres; NaN outside the picture."""

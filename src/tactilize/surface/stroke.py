@@ -22,7 +22,6 @@ from bisect import bisect_left
 from collections import deque
 from typing import Any, Iterable
 
-from .bumps import bumps_in
 from .events import PulseEvent, place_events
 from .events import strengths as strengths_of
 from .path import HISTORY_M, PathGrid
@@ -79,16 +78,6 @@ class SurfaceStroke:
         self._last_fired_t = None
         self.now_s = None
 
-    def _add(self, t: float, x: float, y: float) -> None:
-        last = self._path.last
-        if last is not None:
-            dt = t - last[0]
-            if dt <= 0:
-                return
-            if dt > MAX_GAP_S:
-                self.reset()
-        self._path.add(t, x, y)
-
     def update(
         self,
         samples: Iterable[Any],
@@ -115,68 +104,80 @@ class SurfaceStroke:
             late is given at the newest sample's time, marked ``late``.
         """
         isfinite = math.isfinite
-        for smp in samples:
-            if isfinite(smp.t_s) and isfinite(smp.x_m) and isfinite(smp.y_m):
-                self._add(smp.t_s, smp.x_m, smp.y_m)
         path = self._path
+        for smp in samples:
+            t, x, y = smp.t_s, smp.x_m, smp.y_m
+            if isfinite(t) and isfinite(x) and isfinite(y):
+                last = path.last
+                if last is not None:
+                    dt = t - last[0]
+                    if dt <= 0:
+                        continue
+                    if dt > MAX_GAP_S:
+                        self.reset()
+                path.add(t, x, y)
         if path.last is None:
             return []
         now = path.last[0]
         self.now_s = now
         # What was handed out and is due by now has fired.
         self.newly_fired = 0
-        for ev, s in self._pending:
-            if ev.t_s <= now:
-                self.newly_fired += 1
-                self._fired.append((ev, s))
-                self._last_fired_t = ev.t_s if self._last_fired_t is None else max(self._last_fired_t, ev.t_s)
-        self._pending = []
+        if self._pending:
+            for ev, s in self._pending:
+                if ev.t_s <= now:
+                    self.newly_fired += 1
+                    self._fired.append((ev, s))
+                    self._last_fired_t = ev.t_s if self._last_fired_t is None else max(self._last_fired_t, ev.t_s)
+            self._pending = []
         moving = direction_rad is not None and speed_m_s > STILL_SPEED_M_S
         w = path.window(speed_m_s, direction_rad if moving else None, self.lookahead_s, MAX_AHEAD_M)
         if w is None:
             return []
-        idx, proms = bumps_in(w.h, w.ids, w.floors)
-        if idx.size == 0:
+        idx, proms, tis = w.crossings()
+        if not idx:
             return []
         same = self._same_m
+        k0, step = w.k0, w.step
         # Fired arcs, in order (arc length only grows), within reach of this window.
-        start = w.s_at(0)
-        while self._fired and self._fired[0][1] < start - same:
-            self._fired.popleft()
-        fired_s = sorted(s for _, s in self._fired)
+        fired = self._fired
+        start = k0 * step
+        while fired and fired[0][1] < start - same:
+            fired.popleft()
+        fired_s = sorted([s for _, s in fired])
+        nf = len(fired_s)
         late = now - LATE_S
         times, arcs, prom, floor = [], [], [], []
-        for i, p in zip(idx.tolist(), proms.tolist()):
-            ti = w.t_at(i)
+        for i, p, ti in zip(idx, proms, tis):
             if ti <= late:
                 continue  # too late to be felt as this bump
-            si = w.s_at(i)
+            si = (k0 + i) * step
             k = bisect_left(fired_s, si)
-            if (k < len(fired_s) and fired_s[k] - si < same) or (k > 0 and si - fired_s[k - 1] < same):
+            if (k < nf and fired_s[k] - si < same) or (k > 0 and si - fired_s[k - 1] < same):
                 continue
-            times.append(max(ti, now))
+            times.append(ti if ti > now else now)
             arcs.append(si)
             prom.append(p)
-            floor.append(float(w.floors[i]))
+            floor.append(w.floor_at(i))
         if not times:
             return []
         strengths = strengths_of(prom, floor, pressure)
-        order = sorted(range(len(times)), key=times.__getitem__)  # stable, as argsort's was
-        times = [times[i] for i in order]
-        arcs = [arcs[i] for i in order]
-        strengths = [strengths[i] for i in order]
+        if len(times) > 1 and times != sorted(times):  # path order is time order but for a reversal's edge
+            order = sorted(range(len(times)), key=times.__getitem__)  # stable, as argsort's was
+            times = [times[i] for i in order]
+            arcs = [arcs[i] for i in order]
+            strengths = [strengths[i] for i in order]
         events = place_events(times, strengths, previous_t_s=self._last_fired_t)
         out = []
+        pending = self._pending
         # place_events may drop crossings (merged): match events back to arcs by time.
-        j = 0
+        j, n, final = 0, len(times), len(arcs) - 1
         for ev in events:
-            while j < len(times) and times[j] < ev.t_s:
+            while j < n and times[j] < ev.t_s:
                 j += 1
-            s_j = arcs[min(j, len(arcs) - 1)]
             if ev.t_s <= now:
                 ev = ev._replace(t_s=now, clamped=ev.clamped + ("late",))
             out.append(ev)
-            self._pending.append((ev, s_j))
+            pending.append((ev, arcs[j if j < final else final]))
         return out
 
     def recent(self, window_s: float) -> list[PulseEvent]:
