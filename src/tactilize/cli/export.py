@@ -52,11 +52,10 @@ def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     tl.meta.setdefault("min_frequency_hz", limits.get("min_frequency_hz", 0.0))
     tl.meta.setdefault("max_frequency_hz", limits.get("max_frequency_hz", 300.0))
     source: Any = tl
-    if fmt == "wav" and surface is not None and opt["drive_kind"] == "profile":  # the tip's acceleration
-        from ..export.wav import StrokeAcceleration
+    if fmt == "wav":  # a surface profile's WAV: the tip's acceleration
+        from ..export.wav import stroke_wav_source
 
-        origin = 0.0 if opt["stroke_path"] is None else stroke.t_s[0]  # the timeline's t = 0
-        source = StrokeAcceleration(stroke, surface, origin, origin + tl.end_s, mirror=opt["stroke_path"] is None)
+        source = stroke_wav_source(tl, stroke, surface, opt["drive_kind"], synthetic=opt["stroke_path"] is None)
     path = export(source, opt["out_path"], fmt, drive=opt["drive_kind"], **extra)
     feat = tmap.whole
     first = tl.drives(opt["drive_kind"])[0]

@@ -25,17 +25,33 @@ def profile() -> None:
 @click.option("--no-wire", is_flag=True, help="Skip playing every drive on the simulated wire.")
 @click.option("--plot", "plot_path", default=None, help="Draw frequency against speed per texture to this file.")
 @click.option("--audio", is_flag=True, help="Also the voice coil's signal: the spectrum of the tip's acceleration.")
+@click.option("--serial", is_flag=True,
+              help="Also the serial link: each stroke played to the controller firmware on a virtual board, in "
+                   "simulated time (repeatable; about a second a texture and speed).")
+@click.option("--circuit", default="aa-resistor", show_default=True,
+              help="The board's circuit for --serial (its stored limits and the host's envelope).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
 def report_cmd(profile_name: str, images: tuple[str, ...], dpi: float | None, width_mm: float | None,
-               no_wire: bool, plot_path: str | None, as_json: bool, audio: bool = False) -> None:
+               no_wire: bool, plot_path: str | None, as_json: bool, audio: bool = False, serial: bool = False,
+               circuit: str = "aa-resistor") -> None:
     """The drive each texture gets at 10 .. 160 mm/s, whether the wire follows, and the pairs
     closer than one JND at equal speed.  A surface rendering (the default) is judged by what
-    it produces for a straight stroke: pulse rate, interval CV and strength."""
+    it produces for a straight stroke: pulse rate, interval CV and strength.
+
+    --serial plays each stroke over the serial protocol to the controller firmware running on a
+    virtual board in simulated time (not the real-time emulator: the figures are the same every
+    run): pulses per second that reached the pin, timing error of the pin's pulses against the
+    rendered events, and pulses the board's heat estimate shortened or skipped."""
     from . import emit_json
     from ..mapping import Profile
     from ..report import FREQUENCY_JND, SPEEDS_MM_S, profile_report
 
     prof = Profile.resolve(profile_name)
+    if serial:
+        from . import _circuit_option
+        from ..actuators.sma import WireSpec
+
+        circuit = _circuit_option(circuit, WireSpec.resolve(None)).name
     textures = pictures = None
     if images:
         from ..features import extract_features
@@ -58,12 +74,18 @@ def report_cmd(profile_name: str, images: tuple[str, ...], dpi: float | None, wi
         from ..report import audio_report
 
         doc["audio"] = audio_report(prof, pictures)
+    if serial:
+        from ..serial_report import serial_report
+
+        doc["serial"] = serial_report(prof, pictures, SPEEDS_MM_S, circuit=circuit)
     if as_json:
         emit_json(doc)
         return
     click.echo(_table(rep, SPEEDS_MM_S))
     if audio:
         click.echo(_audio_table(doc["audio"], SPEEDS_MM_S))
+    if serial:
+        click.echo(_serial_table(doc["serial"], SPEEDS_MM_S, circuit))
 
 
 def _table(rep: Any, speeds: tuple[float, ...]) -> str:
@@ -107,4 +129,26 @@ def _audio_table(rows: list[dict[str, Any]], speeds: tuple[float, ...]) -> str:
             db = 20 * math.log10(r["rms_full_scale"]) if r["rms_full_scale"] > 0 else -math.inf
             cells += f"{r['centroid_hz']:>7.0f} /{db:>4.0f}"
         lines.append(f"  {n:{width}}{cells}")
+    return "\n".join(lines)
+
+
+def _serial_table(rows: list[dict[str, Any]], speeds: tuple[float, ...], circuit: str) -> str:
+    """What reached the board's pin per texture and speed: pulses [1/s] / p95 timing error [ms],
+    and the pulses the board's heat estimate shortened or skipped."""
+    names = list(dict.fromkeys(r["texture"] for r in rows))
+    width = max(10, *(len(n) for n in names))
+    steady = bool(rows) and rows[0]["rendering"] == "steady"
+    what = ("pulses [1/s] on the pin (the windowed drive, sent with SET)" if steady else
+            "pulses [1/s] on the pin / p95 |pin - rendered event| [ms]")
+    lines = [f"serial link to the controller firmware ({circuit}; virtual board, simulated time): {what}",
+             f"  {'texture':{width}}" + "".join(f"{v:>14g}" for v in speeds)
+             + "   pulses on the pin / rendered, shortened, skipped (all speeds)"]
+    for n in names:
+        own = [r for r in rows if r["texture"] == n]
+        cells = ""
+        for r in own:
+            p95 = r["event_p95_ms"]
+            cells += f"{r['pulses_per_s']:>14.1f}" if steady or p95 is None else f"{r['pulses_per_s']:>7.1f} /{p95:>5.2f}"
+        lines.append(f"  {n:{width}}{cells}   {sum(r['pulses'] for r in own)}/{sum(r['rendered'] for r in own)}, "
+                     f"{sum(r['shortened'] for r in own)}, {sum(r['skipped'] for r in own)}")
     return "\n".join(lines)

@@ -7,7 +7,7 @@ full scale where it reaches
 :data:`~tactilize.synthesis.acceleration.FULL_SCALE_ACCELERATION`, signed 16-bit
 PCM, the same signal on both channels (as the stroke's other exports give both
 actuators the same drive).  A steady profile's WAV is still its pulse train
-(:mod:`.steady`).
+(:mod:`.steady`).  :func:`stroke_wav_source` is that choice, for the CLI and the page alike.
 
 Units: SI (s, m, Hz).
 """
@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import SignalError
 
-__all__ = ["StrokeAcceleration", "pcm_wav_signed"]
+__all__ = ["StrokeAcceleration", "pcm_wav_signed", "stroke_wav_source"]
 
 
 @dataclass(frozen=True)
@@ -66,6 +66,32 @@ class StrokeAcceleration:
         sig = tip_acceleration(surface, self.stroke.t_s, self.stroke.x_m, self.stroke.y_m, pressure,
                                sample_rate_hz=sample_rate_hz, start_s=self.start_s, end_s=self.end_s)
         return to_full_scale(sig, self.gain)
+
+
+def stroke_wav_source(timeline: Any, stroke: Any, surface: Any, drive: str = "profile", *,
+                      synthetic: bool = False) -> Any:
+    """What a WAV of a stroke carries: the tip's acceleration for a surface profile's own
+    drive, else the timeline's pulse train.  The CLI's ``export`` and the page's "Export
+    this stroke" both ask here, so the two write the same file for the same stroke.
+
+    Parameters
+    ----------
+    timeline : DriveTimeline
+        :func:`~tactilize.export.run_stroke`'s result for ``stroke``.
+    stroke : Stroke
+        The pen samples (SI) the timeline was run from.
+    surface : SurfaceModel or None
+        The picture's surface when the profile's rendering is ``surface``.
+    drive : {"profile", "wire"}
+        The timeline's drive asked for; the wire's drive stays a pulse train.
+    synthetic : bool
+        A synthetic stroke (timeline from stroke time 0, the picture mirrored
+        beyond its edges); a recorded one starts at its first sample.
+    """
+    if surface is None or drive != "profile":
+        return timeline
+    origin = 0.0 if synthetic else float(stroke.t_s[0])  # the timeline's t = 0 on the stroke's clock [s]
+    return StrokeAcceleration(stroke, surface, origin, origin + float(timeline.end_s), mirror=synthetic)
 
 
 def pcm_wav_signed(x: np.ndarray, sample_rate_hz: int) -> bytes:

@@ -13,7 +13,9 @@ The stroke runs through the same path as ``tactilize export --stroke``
 (:func:`tactilize.export.run_stroke`): the server's tracker, the texture's
 map at its displayed size, the profile, a fresh simulated SMA wire (the
 server's own output is not disturbed), and for the ``surface`` rendering the
-texture's surface, whose bumps the parametric formats play.
+texture's surface, whose bumps the parametric formats play and whose tip
+acceleration the WAV carries (:func:`tactilize.export.wav.stroke_wav_source`, the
+CLI's very file).
 """
 
 from __future__ import annotations
@@ -58,7 +60,12 @@ def _export(state: Any, body: dict[str, Any]) -> tuple[bytes, Any, str]:
     # The surface rendering's bumps go into the parametric formats (docs/surfaces.md, "Exports").
     surface = entry.surface if getattr(profile, "rendering", "steady") == "surface" else None
     tl = run_stroke(stroke, tmap, profile, meta=meta, surface=surface)
-    data = render(tl, spec.name, drive=kind, **meta)
+    source: Any = tl
+    if spec.name == "wav":  # the tip's acceleration for a surface profile, as `export --stroke` writes it
+        from ..export.wav import stroke_wav_source
+
+        source = stroke_wav_source(tl, stroke, surface, str(kind))
+    data = render(source, spec.name, drive=kind, **meta)
     return data, spec, f"stroke-{entry.id}{spec.suffix}"
 
 
