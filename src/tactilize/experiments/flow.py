@@ -22,7 +22,9 @@ import time
 from typing import Any
 
 from ..errors import TactilizeError
+from ..mapping import FeaturesForDrive
 from ..pen.display import MM_PER_PX_RANGE, display_scale_error
+from ..surface import SurfaceModel
 from . import demographics as demo
 from .design import Design
 from .errors import FlowError
@@ -71,18 +73,19 @@ class Flow:
         except TactilizeError:
             raise FlowError("image", f"no image {image_id!r} in this protocol", 404) from None
 
-    def image_features(self, image_id: str) -> Any:
+    def image_features(self, image_id: str) -> FeaturesForDrive:
         """The features a protocol image drives with."""
         return self.pictures.features[image_id]
 
-    def image_surface(self, image_id: str) -> Any:
+    def image_surface(self, image_id: str) -> SurfaceModel:
         """The surface model of a protocol image as shown (:meth:`.Pictures.surface`)."""
         return self.pictures.surface(image_id)
 
     def profile(self, condition_id: str):
         return self._profiles[condition_id]
 
-    def _session(self, token: str) -> ExperimentSession:
+    def session_of(self, token: str) -> ExperimentSession:
+        """The session of ``token`` in this flow; raises :class:`FlowError` (404, or 409 for another version)."""
         sess = self.store.session_by_token(token) if isinstance(token, str) and len(token) < 100 else None
         if sess is None:
             raise FlowError("session", "unknown session; start again or resume with your participant ID", 404)
@@ -149,7 +152,7 @@ class Flow:
         CSS px) or ``mm_per_px`` directly, and ``felt`` (bool: the test vibration
         was felt).
         """
-        sess = self._session(token)
+        sess = self.session_of(token)
         if not isinstance(data, dict):
             raise FlowError("calibration", "expected a JSON object", 422)
         card_mm = self.protocol.calibration_card_mm
@@ -158,7 +161,7 @@ class Flow:
             w = data["card_width_px"]
             if isinstance(w, (int, float)) and not isinstance(w, bool) and math.isfinite(w) and w > 0:
                 mm_per_px = card_mm / float(w)
-        if display_scale_error(mm_per_px) is not None:  # the pen page's rule
+        if mm_per_px is None or display_scale_error(mm_per_px) is not None:  # the pen page's rule
             raise FlowError("calibration", f"screen scale must be {MM_PER_PX_RANGE[0]} .. {MM_PER_PX_RANGE[1]} mm per px "
                             f"(measure the {card_mm} mm card again)", 422)
         if data.get("felt") is not True:
@@ -168,7 +171,7 @@ class Flow:
             # Recorded once, never replaced: the stroke log of earlier trials was
             # converted with this scale.  A repeated identical request (a double
             # click, a retry) is fine; a different one is refused.
-            stored = json.loads(sess.calibration_json)
+            stored = json.loads(sess.calibration_json or "{}")  # written with calibrated_at
             if abs(stored["mm_per_px"] - float(mm_per_px)) > 1e-9:
                 raise FlowError("calibration", "the calibration of this session is already recorded; "
                                 "reload to continue", 409)
@@ -182,7 +185,7 @@ class Flow:
         return out
 
     def end_break(self, token: str, trial_index: Any) -> dict:
-        sess = self._session(token)
+        sess = self.session_of(token)
         n = self._break_due(sess, self._first_open(sess))
         if n and trial_index == self._first_open(sess):
             self.store.set_breaks_done(sess.id, n)
@@ -200,7 +203,7 @@ class Flow:
         if comment is not None and (not isinstance(comment, str) or len(comment) > 2000):
             raise FlowError("comment", "must be text of at most 2000 characters", 422)
         comment = (comment or "").strip()
-        sess = self._session(token)
+        sess = self.session_of(token)
         trials = self.store.trials(sess.id)
         if isinstance(trial_index, bool) or not isinstance(trial_index, int) or not 0 <= trial_index < len(trials):
             raise FlowError("trial", f"trial must be an index 0 .. {len(trials) - 1}", 422)
@@ -291,7 +294,7 @@ class Flow:
         ``break`` or ``done``, with progress and (for a trial) what to show.
 
         The condition is not revealed to the participant (the page is blind)."""
-        sess = self._session(token)
+        sess = self.session_of(token)
         part = self.store.participant(sess)
         trials = self.store.trials(sess.id)
         answered = self.store.answers_of(sess.id)
@@ -341,7 +344,7 @@ class Flow:
     def stroke_handler(self, token: str, output: Any = None):
         """A handler for one page's pen WebSocket (:class:`.strokes.StrokeHandler`);
         drives go to ``output`` too when given."""
-        handler = StrokeHandler(self, self._session(token), output)
+        handler = StrokeHandler(self, self.session_of(token), output)
         # Read now, while the socket opens, what the first pen message would
         # otherwise query on the drive's path: the trial plan and the open trial.
         handler.prefetch()

@@ -173,12 +173,12 @@ class Store:
                 s.commit()
             except IntegrityError:  # another process stored it first
                 s.rollback()
-                row = s.scalar(select(ProtocolVersion).where(ProtocolVersion.sha256 == protocol.sha256))
+                row = s.scalars(select(ProtocolVersion).where(ProtocolVersion.sha256 == protocol.sha256)).one()
             return row
 
     # ------------------------------------------------------------ sessions
 
-    def create_session(self, protocol, code: str, *, simulated: bool = False, extra_provenance: dict | None = None):
+    def create_session(self, protocol, code: str, *, simulated: bool = False, extra_provenance: dict | None = None) -> ExperimentSession:
         """Register participant ``code`` and write their whole trial plan.
 
         Returns the new :class:`ExperimentSession`.  Raises ``KeyError`` with the
@@ -228,7 +228,8 @@ class Store:
                     # the loser recomputes; a taken code is reported above.
                     s.rollback()
                     continue
-                return self.session_by_token(sess.token)
+                with self.Session() as s2:
+                    return s2.scalars(select(ExperimentSession).where(ExperimentSession.token == sess.token)).one()
         raise RuntimeError("could not allocate a participant number")
 
     def session_by_token(self, token: str) -> ExperimentSession | None:
@@ -245,7 +246,7 @@ class Store:
 
     def participant(self, session: ExperimentSession) -> Participant:
         with self.Session() as s:
-            return s.get(Participant, session.participant_id)
+            return s.get_one(Participant, session.participant_id)
 
     def trials(self, session_id: int) -> list[Trial]:
         with self.Session() as s:
@@ -266,19 +267,19 @@ class Store:
 
     def set_calibration(self, session_id: int, calibration: dict) -> None:
         with self.Session.begin() as s:
-            sess = s.get(ExperimentSession, session_id)
+            sess = s.get_one(ExperimentSession, session_id)
             sess.calibration_json = json.dumps(calibration)
             sess.calibrated_at = utcnow()
 
     def set_breaks_done(self, session_id: int, n: int) -> None:
         with self.Session.begin() as s:
-            sess = s.get(ExperimentSession, session_id)
+            sess = s.get_one(ExperimentSession, session_id)
             # Monotone: a stale page acknowledging an old break changes nothing.
             sess.breaks_done = max(sess.breaks_done or 0, n)
 
     def mark_trial_started(self, trial_id: int) -> None:
         with self.Session.begin() as s:
-            t = s.get(Trial, trial_id)
+            t = s.get_one(Trial, trial_id)
             if t.started_at is None:
                 t.started_at = utcnow()
 
@@ -298,7 +299,7 @@ class Store:
         are never overwritten).
         """
         with self.Session() as s:
-            trial = s.get(Trial, trial_id)
+            trial = s.get_one(Trial, trial_id)
             stored = {a.question_id: a.rating for a in trial.answers}
             clash = {q: (stored[q], r) for q, r in ratings.items() if q in stored and stored[q] != r}
             if clash:
@@ -320,14 +321,14 @@ class Store:
                     )
                 )
                 if remaining == 0:
-                    s.get(ExperimentSession, trial.session_id).completed_at = now
+                    s.get_one(ExperimentSession, trial.session_id).completed_at = now
             try:
                 s.commit()
             except IntegrityError:
                 # A concurrent identical submission won the race; the unique
                 # constraint kept the data single.  Report what is stored now.
                 s.rollback()
-                again = {a.question_id: a.rating for a in s.get(Trial, trial_id).answers}
+                again = {a.question_id: a.rating for a in s.get_one(Trial, trial_id).answers}
                 if all(again.get(q) == r for q, r in ratings.items()):
                     return "duplicate"
                 raise ValueError({q: (again.get(q), r) for q, r in ratings.items() if again.get(q) != r}) from None

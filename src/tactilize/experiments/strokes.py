@@ -216,6 +216,7 @@ class StrokeHandler:
         reply, future = self.take(msg)
         self.refresh_open_trial()
         if future is None:
+            assert reply is not None, "take answers every message it writes nothing for"
             return reply
         status = future.result(timeout=timeout_s)
         reply = reply or {"type": "logged", "trial": msg.get("trial"), "image": msg.get("image")}

@@ -65,11 +65,11 @@ class Visit:
             nxt = self.flows[i + 1]
             sess = self.store.session_by_code(nxt.protocol.name, code)
             if sess is None:
-                part = self.store.participant(self.store.session_by_token(state["session"]))
+                part = self.store.participant(self.flows[i].session_of(state["session"]))
                 token = nxt.start(code, True, simulated=part.simulated)["session"]
             else:
                 token = sess.token
-            if calibration and self.store.session_by_token(token).calibrated_at is None:
+            if calibration and nxt.session_of(token).calibrated_at is None:
                 nxt.calibrate(token, {"mm_per_px": calibration["mm_per_px"], "felt": True})
             i, state = i + 1, nxt.state(token)
         return self._decorate(i, state)
