@@ -35,6 +35,7 @@ from sqlalchemy.orm import sessionmaker
 from .. import __version__
 from ..errors import TactilizeError
 from ..redact import ambiguous_user, redact_text, redact_url
+from .design import Design
 from .tables import (
     SCHEMA_VERSION,
     Answer,
@@ -161,7 +162,7 @@ class Store:
 
     # ------------------------------------------------------------ protocols
 
-    def protocol_version(self, protocol) -> ProtocolVersion:
+    def design_version(self, protocol: Design) -> ProtocolVersion:
         """The stored row for this exact protocol text, inserted on first use."""
         with self.Session() as s:
             row = s.scalar(select(ProtocolVersion).where(ProtocolVersion.sha256 == protocol.sha256))
@@ -178,17 +179,17 @@ class Store:
 
     # ------------------------------------------------------------ sessions
 
-    def create_session(self, protocol, code: str, *, simulated: bool = False, extra_provenance: dict | None = None) -> ExperimentSession:
+    def create_session(self, protocol: Design, code: str, *, simulated: bool = False, extra_provenance: dict | None = None) -> ExperimentSession:
         """Register participant ``code`` and write their whole trial plan.
 
         Returns the new :class:`ExperimentSession`.  Raises ``KeyError`` with the
         existing session when the code is already registered for this protocol.
         """
-        pv = self.protocol_version(protocol)
+        pv = self.design_version(protocol)
         for _attempt in range(20):
             with self.Session() as s:
                 existing = s.scalar(
-                    select(Participant).where(Participant.protocol_name == protocol.name, Participant.code == code)
+                    select(Participant).where(Participant.design_name == protocol.name, Participant.code == code)
                 )
                 if existing is not None:
                     raise KeyError(code)
@@ -198,15 +199,15 @@ class Store:
                 # see labdata.exclude) goes to the next person, so the square stays balanced.
                 sign = -1 if simulated else 1
                 taken = set(s.scalars(select(Participant.number).where(
-                    Participant.protocol_name == protocol.name, Participant.number * sign > 0)))
+                    Participant.design_name == protocol.name, Participant.number * sign > 0)))
                 number = next(n for n in range(1, len(taken) + 2) if sign * n not in taken)
-                part = Participant(protocol_name=protocol.name, code=code, number=sign * number, simulated=simulated)
+                part = Participant(design_name=protocol.name, code=code, number=sign * number, simulated=simulated)
                 s.add(part)
                 plan = protocol.plan(number)
                 sess = ExperimentSession(
                     token=secrets.token_urlsafe(18),
                     participant=part,
-                    protocol_version_id=pv.id,
+                    design_version_id=pv.id,
                     seed=protocol.seed,
                     order_json=json.dumps([t.condition_id for t in plan]),
                     consent_at=utcnow(),
@@ -241,7 +242,7 @@ class Store:
             return s.scalar(
                 select(ExperimentSession)
                 .join(Participant)
-                .where(Participant.protocol_name == protocol_name, Participant.code == code)
+                .where(Participant.design_name == protocol_name, Participant.code == code)
             )
 
     def participant(self, session: ExperimentSession) -> Participant:
@@ -341,7 +342,7 @@ class Store:
         with self.Session() as s:
             q = select(ExperimentSession, Participant, ProtocolVersion).join(Participant).join(ProtocolVersion)
             if protocol_name:
-                q = q.where(Participant.protocol_name == protocol_name)
+                q = q.where(Participant.design_name == protocol_name)
             excluded = {e.participant_id: e.square_number for e in s.scalars(select(Exclusion))}
             out = []
             for sess, part, pv in s.execute(q.order_by(ExperimentSession.id)):
@@ -379,10 +380,10 @@ class Store:
                 .join(Trial, Answer.trial_id == Trial.id)
                 .join(ExperimentSession, Trial.session_id == ExperimentSession.id)
                 .join(Participant, ExperimentSession.participant_id == Participant.id)
-                .join(ProtocolVersion, ExperimentSession.protocol_version_id == ProtocolVersion.id)
+                .join(ProtocolVersion, ExperimentSession.design_version_id == ProtocolVersion.id)
             )
             if protocol_name:
-                q = q.where(Participant.protocol_name == protocol_name)
+                q = q.where(Participant.design_name == protocol_name)
             rows = []
             for a, t, sess, part, pv in s.execute(q.order_by(ExperimentSession.id, Trial.index, Answer.id)):
                 images = json.loads(t.image_ids_json)
