@@ -281,7 +281,7 @@ def test_the_pen_renderer_plays_each_bump_crossed_once_on_the_sound_card(fake_sd
     from tactilize.pen import PenRenderer, PenSample
     from tactilize.surface import surface_model
     from tactilize.surface.fields import bump_field
-    from tactilize.maps.texturemap import texture_map
+    from tactilize.maps import texture_map
 
     centres = [(x * 1e-3, 10e-3) for x in (8, 14, 20, 26, 32, 38)]
     f = bump_field(centres, 1e-3, (50e-3, 20e-3), 0.1e-3)

@@ -159,7 +159,7 @@ def test_a_protocol_query_on_a_single_protocol_experiment_is_a_404_not_a_500(tmp
 
     app = create_experiment_app("alpha-law", str(tmp_path / "x.db"))
     with TestClient(app, base_url="http://127.0.0.1") as c:
-        image = app.state.experiment_flow.protocol.images[0].id
+        image = app.state.experiment_flow.design.images[0].id
         api = "/experiment/api/images"
         assert c.get(f"{api}/{image}.png").status_code == 200
         assert c.get(f"{api}/{image}.png?protocol=alpha-law").status_code == 200

@@ -460,7 +460,7 @@ def test_one_visit_runs_several_protocols_with_one_calibration(tmp_path):
         tok, t = state["session"], state["trial"]
         handler = visit.stroke_handler(tok)
         for im in t["images"]:
-            assert im["url"].endswith(f"?protocol={visit.flows[state['visit']['part'] - 1].protocol.name}")
+            assert im["url"].endswith(f"?protocol={visit.flows[state['visit']['part'] - 1].design.name}")
             handler.handle({"trial": t["index"], "image": im["id"], "samples": [[0, 1, 1, 0.5], [20, 3, 1, 0.5]]})
         state = visit.submit(tok, t["index"], {q["id"]: 4 for q in t["questions"]})
         assert state["recorded"] == "recorded"

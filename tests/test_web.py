@@ -23,6 +23,8 @@ class FakeOutput(OutputBase):
     """Records what the server applies; halves nothing, clamps nothing."""
 
     channels = 2
+    #: settable here (OutputBase's is read-only): tests raise a fault by hand
+    fault: str | None = None
 
     def __init__(self):
         self.applied: list[list[Drive]] = []

@@ -107,8 +107,12 @@ class OutputBase:
     #: wire's felt band and both pins play the same drive.
     amplitude_is_intensity: bool = True
 
-    #: the device answers (outputs on a link override it)
-    connected: bool = True
+    # connected and fault are read-only, as in Output: outputs on a link compute them
+    @property
+    def connected(self) -> bool:
+        """The device answers (outputs on a link override it)."""
+        return True
+
     #: (time [s], kind, detail) of what happened to the connection
     events: Sequence[tuple[float, str, str]] = ()
     #: Plays pulse events itself; outputs that cannot get the equivalent drives.
@@ -119,8 +123,11 @@ class OutputBase:
         not yet fired; an output that cannot play events applies ``equivalent``, the steady
         drive of the window (docs/surfaces.md)."""
         return self.apply(equivalent)
-    #: one line saying why the output cannot be trusted now, or None
-    fault: str | None = None
+
+    @property
+    def fault(self) -> str | None:
+        """One line saying why the output cannot be trusted now, or None."""
+        return None
 
     def standby(self) -> None:
         """Texture off, actuators held ready for the next touch (the pen lifted or

@@ -21,7 +21,7 @@ from typing import Sequence
 
 from ..drive import Drive
 from . import frames as P
-from .sma import SafetyEnvelope, WireController
+from .sma import ControllerState, SafetyEnvelope, WireController
 
 __all__ = ["SensedLoop", "fault_text"]
 
@@ -86,8 +86,8 @@ class SensedLoop:
             ctrl.update(now_s)
             energy = ctrl.plan(ctrl.drive).energy_j if ctrl.pulses_on else 0.0
             bias_w = ctrl.bias_level * ctrl.on_power_w
-            target = ctrl.spec.resistance_at(ctrl.setpoint) if ctrl.state == "vibrating" else 0.0
-            if ctrl.state == "off":
+            target = ctrl.spec.resistance_at(ctrl.setpoint) if ctrl.state == ControllerState.VIBRATING else 0.0
+            if ctrl.state == ControllerState.OFF:
                 energy = bias_w = target = 0.0
             # What the board's own energy limit leaves the bias (a warming burst
             # becomes the largest bias the board allows).

@@ -133,7 +133,7 @@ def fit_personal_profile(store, participant: str, base: str | None = None, quest
         base = design_from_toml(texts[newest["protocol_sha256"]], source=f"protocol {newest['protocol']}").base_profile
     base_profile = Profile.resolve(base)
     data = base_profile.to_dict()
-    reports = []
+    reports: list[dict[str, Any]] = []
     # Oldest protocol first: a later one (a refinement round) supersedes an
     # earlier fit of the same law.
     groups = sorted(df.groupby(["protocol", "protocol_sha256"]), key=lambda g: g[1]["answered_at"].max())
@@ -217,7 +217,7 @@ def refinement_protocol(store, participant: str, role: str | None = None, *, spa
     for i in range(steps):
         x = -span_octaves + 2 * span_octaves * i / (steps - 1)
         table = dict(law, **{key: float(centre * 2.0**x)})
-        cond = {"id": f"R{i + 1}", "label": f"{law['law']}, {key} = {table[key]:.4g} ({x:+.2f} octave)"}
+        cond: dict[str, Any] = {"id": f"R{i + 1}", "label": f"{law['law']}, {key} = {table[key]:.4g} ({x:+.2f} octave)"}
         for r, t in fitted.items():
             cond[r] = table if r == fit["role"] else dict(t)
         conditions.append(cond)

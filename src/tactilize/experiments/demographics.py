@@ -79,7 +79,7 @@ def all_answers(store) -> dict[tuple[str, str], dict[str, str]]:
     """``{(protocol, participant code): {item: value}}``."""
     out: dict[tuple[str, str], dict[str, str]] = {}
     with store.Session() as s:
-        q = (select(Participant.protocol_name, Participant.code, ParticipantInfo.key, ParticipantInfo.value)
+        q = (select(Participant.design_name, Participant.code, ParticipantInfo.key, ParticipantInfo.value)
              .join(ExperimentSession, ExperimentSession.id == ParticipantInfo.session_id)
              .join(Participant, Participant.id == ExperimentSession.participant_id))
         for p, c, k, v in s.execute(q):

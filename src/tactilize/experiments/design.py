@@ -191,7 +191,7 @@ class DemographicItem:
     options: tuple[str, ...] = field(default_factory=tuple)
 
     def to_dict(self) -> dict[str, Any]:
-        d = {"id": self.id, "text": self.text, "kind": self.kind}
+        d: dict[str, Any] = {"id": self.id, "text": self.text, "kind": self.kind}
         d.update({"min": self.minimum, "max": self.maximum} if self.kind == "integer" else {"options": list(self.options)})
         return d
 

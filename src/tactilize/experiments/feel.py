@@ -18,9 +18,12 @@ import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
+from ..actuators.base import Output
 from ..drive import Drive
+from ..mapping import FeaturesForDrive, Profile
 from ..pen import PenRenderer, PenSample, StrokeState, StrokeTracker
 from ..pen.renderer import RenderResult, default_splitter
+from ..surface import SurfaceModel
 
 __all__ = ["WholePicture", "TrialPen", "Taken"]
 
@@ -32,9 +35,9 @@ Taken = tuple[PenSample, float, "float | None"]
 class WholePicture:
     """A texture map with one set of features everywhere (a protocol picture's)."""
 
-    features: Any
+    features: FeaturesForDrive
 
-    def lookup(self, x_m: float, y_m: float) -> Any:
+    def lookup(self, x_m: float, y_m: float) -> FeaturesForDrive:
         """The picture's features, wherever ``(x_m, y_m)`` [m] is."""
         return self.features
 
@@ -83,7 +86,7 @@ class TrialPen:
     others only track.
     """
 
-    def __init__(self, output: Any = None, clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(self, output: Output | None = None, clock: Callable[[], float] = time.monotonic) -> None:
         self.output = output
         self.clock = clock
         self.renderers: dict[tuple[int, str], PenRenderer] = {}
@@ -98,7 +101,8 @@ class TrialPen:
         self._drive = drive
         return self._split(drive, n, state)
 
-    def _renderer(self, key: tuple[int, str], features: Any, profile: Any, surface: Any) -> PenRenderer:
+    def _renderer(self, key: tuple[int, str], features: FeaturesForDrive, profile: Profile,
+                  surface: SurfaceModel | None) -> PenRenderer:
         r = self.renderers.get(key)
         if r is None:
             tracker = self._trackers[key] = _LoggedTracker()
@@ -108,14 +112,14 @@ class TrialPen:
             )
         return r
 
-    def track(self, key: tuple[int, str], features: Any, profile: Any, samples: list[PenSample]) -> list[Taken]:
+    def track(self, key: tuple[int, str], features: FeaturesForDrive, profile: Profile, samples: list[PenSample]) -> list[Taken]:
         """Follow a batch that is logged, not felt (its trial was answered); the states per sample."""
         self._renderer(key, features, profile, None)
         tracker = self._trackers[key]
         tracker.extend(samples)
         return list(tracker.taken)
 
-    def feel(self, key: tuple[int, str], features: Any, profile: Any, surface: Any,
+    def feel(self, key: tuple[int, str], features: FeaturesForDrive, profile: Profile, surface: SurfaceModel | None,
              samples: list[PenSample]) -> tuple[list[Taken], Drive | None, RenderResult]:
         """Render a batch of the open trial on the output.
 

@@ -165,7 +165,7 @@ def protocol_figure(df, protocol_name: str, labels: dict[str, str] | None = None
         bar_w = 0.8 / max(1, len(series))
         rng = np.random.default_rng(0)  # jitter of the points only; fixed so figures are reproducible
         top = 7.3
-        handles = []
+        handles: list[Any] = []  # bar containers: legend takes them (its stubs say Artist)
         for j, s in enumerate(series):
             pos = np.arange(len(xs)) + (j - (len(series) - 1) / 2) * bar_w
             means = [data["mean"][s][x] for x in xs]

@@ -21,8 +21,11 @@ import re
 import time
 from typing import Any
 
+from ..actuators.base import Output
 from ..errors import TactilizeError
+from ..mapping import FeaturesForDrive
 from ..pen.display import MM_PER_PX_RANGE, display_scale_error
+from ..surface import SurfaceModel
 from . import demographics as demo
 from .design import Design
 from .errors import FlowError
@@ -54,10 +57,10 @@ class Flow:
     """
 
     def __init__(self, protocol: Design, store: Store, admin_token: str | None = None):
-        self.protocol = protocol
+        self.design = protocol
         self.store = store
         self.admin_token = admin_token
-        self.protocol_version = store.protocol_version(protocol)
+        self.design_version = store.design_version(protocol)
         self._profiles = {c.id: protocol.profile(c.id) for c in protocol.conditions}
         self.pictures = Pictures(protocol)
         self._open_cache: dict[int, tuple[int | None, float]] = {}
@@ -71,22 +74,23 @@ class Flow:
         except TactilizeError:
             raise FlowError("image", f"no image {image_id!r} in this protocol", 404) from None
 
-    def image_features(self, image_id: str) -> Any:
+    def image_features(self, image_id: str) -> FeaturesForDrive:
         """The features a protocol image drives with."""
         return self.pictures.features[image_id]
 
-    def image_surface(self, image_id: str) -> Any:
+    def image_surface(self, image_id: str) -> SurfaceModel:
         """The surface model of a protocol image as shown (:meth:`.Pictures.surface`)."""
         return self.pictures.surface(image_id)
 
     def profile(self, condition_id: str):
         return self._profiles[condition_id]
 
-    def _session(self, token: str) -> ExperimentSession:
+    def session_of(self, token: str) -> ExperimentSession:
+        """The session of ``token`` in this flow; raises :class:`FlowError` (404, or 409 for another version)."""
         sess = self.store.session_by_token(token) if isinstance(token, str) and len(token) < 100 else None
         if sess is None:
             raise FlowError("session", "unknown session; start again or resume with your participant ID", 404)
-        if sess.protocol_version_id != self.protocol_version.id:
+        if sess.design_version_id != self.design_version.id:
             raise FlowError("session", "this session belongs to another protocol version than the one being served", 409)
         return sess
 
@@ -109,7 +113,7 @@ class Flow:
         ``demographics``: optional answers to the protocol's demographic items
         (``{id: value}``; empty values are declined answers)."""
         code = self._check_code(code)
-        info = demo.check_answers(self.protocol.demographics, demographics)
+        info = demo.check_answers(self.design.demographics, demographics)
         if consent is not True:
             raise FlowError("consent", "the participant must give consent before the session starts", 422)
         if not simulated and code.upper().startswith("SIM-"):
@@ -118,15 +122,15 @@ class Flow:
             raise FlowError("participant_id", "IDs starting with SIM- are reserved for simulated participants", 422)
         try:
             # The consent text may live in its own file: record which text was agreed to.
-            consent = {"consent_sha256": hashlib.sha256(self.protocol.consent.encode("utf-8")).hexdigest()}
-            sess = self.store.create_session(self.protocol, code, simulated=simulated,
+            consent = {"consent_sha256": hashlib.sha256(self.design.consent.encode("utf-8")).hexdigest()}
+            sess = self.store.create_session(self.design, code, simulated=simulated,
                                              extra_provenance={**consent, **(extra_provenance or {})})
         except KeyError:
-            existing = self.store.session_by_code(self.protocol.name, code)
+            existing = self.store.session_by_code(self.design.name, code)
             done = existing is not None and existing.completed_at is not None
             raise FlowError(
                 "participant_id",
-                f"{code} is already registered for {self.protocol.name}"
+                f"{code} is already registered for {self.design.name}"
                 + (" and has finished" if done else "; use 'resume' to continue that session"),
                 409,
                 finished=done,
@@ -137,9 +141,9 @@ class Flow:
     def resume(self, code: Any) -> dict:
         """The state of an existing participant's session (to continue after a crash)."""
         code = self._check_code(code)
-        sess = self.store.session_by_code(self.protocol.name, code)
+        sess = self.store.session_by_code(self.design.name, code)
         if sess is None:
-            raise FlowError("participant_id", f"{code} is not registered for {self.protocol.name}; start a new session", 404)
+            raise FlowError("participant_id", f"{code} is not registered for {self.design.name}; start a new session", 404)
         return self.state(sess.token)
 
     def calibrate(self, token: str, data: Any) -> dict:
@@ -149,16 +153,16 @@ class Flow:
         CSS px) or ``mm_per_px`` directly, and ``felt`` (bool: the test vibration
         was felt).
         """
-        sess = self._session(token)
+        sess = self.session_of(token)
         if not isinstance(data, dict):
             raise FlowError("calibration", "expected a JSON object", 422)
-        card_mm = self.protocol.calibration_card_mm
+        card_mm = self.design.calibration_card_mm
         mm_per_px = data.get("mm_per_px")
         if mm_per_px is None and data.get("card_width_px") is not None:
             w = data["card_width_px"]
             if isinstance(w, (int, float)) and not isinstance(w, bool) and math.isfinite(w) and w > 0:
                 mm_per_px = card_mm / float(w)
-        if display_scale_error(mm_per_px) is not None:  # the pen page's rule
+        if mm_per_px is None or display_scale_error(mm_per_px) is not None:  # the pen page's rule
             raise FlowError("calibration", f"screen scale must be {MM_PER_PX_RANGE[0]} .. {MM_PER_PX_RANGE[1]} mm per px "
                             f"(measure the {card_mm} mm card again)", 422)
         if data.get("felt") is not True:
@@ -168,7 +172,7 @@ class Flow:
             # Recorded once, never replaced: the stroke log of earlier trials was
             # converted with this scale.  A repeated identical request (a double
             # click, a retry) is fine; a different one is refused.
-            stored = json.loads(sess.calibration_json)
+            stored = json.loads(sess.calibration_json or "{}")  # written with calibrated_at
             if abs(stored["mm_per_px"] - float(mm_per_px)) > 1e-9:
                 raise FlowError("calibration", "the calibration of this session is already recorded; "
                                 "reload to continue", 409)
@@ -182,7 +186,7 @@ class Flow:
         return out
 
     def end_break(self, token: str, trial_index: Any) -> dict:
-        sess = self._session(token)
+        sess = self.session_of(token)
         n = self._break_due(sess, self._first_open(sess))
         if n and trial_index == self._first_open(sess):
             self.store.set_breaks_done(sess.id, n)
@@ -200,7 +204,7 @@ class Flow:
         if comment is not None and (not isinstance(comment, str) or len(comment) > 2000):
             raise FlowError("comment", "must be text of at most 2000 characters", 422)
         comment = (comment or "").strip()
-        sess = self._session(token)
+        sess = self.session_of(token)
         trials = self.store.trials(sess.id)
         if isinstance(trial_index, bool) or not isinstance(trial_index, int) or not 0 <= trial_index < len(trials):
             raise FlowError("trial", f"trial must be an index 0 .. {len(trials) - 1}", 422)
@@ -226,13 +230,13 @@ class Flow:
                             f"{(current or 0) + 1}. Reload to continue.", 409, current_trial=current)
         if self._break_due(sess, current):
             raise FlowError("trial", "a break is due first; reload the page", 409, current_trial=current)
-        if self.protocol.require_every_image:
+        if self.design.require_every_image:
             # Samples sent before the answer may still be in the writer's queue.
             writer_for(self.store).barrier()
 
             missing = [i for i in trial.image_ids if i not in stroked_images(self.store, trial.id)]
             if missing:
-                labels = ", ".join(self.protocol.image(i).label for i in missing)
+                labels = ", ".join(self.design.image(i).label for i in missing)
                 raise FlowError("trial", f"stroke every picture before rating; not yet: {labels}", 409,
                                 current_trial=current, unstroked=missing)
         try:
@@ -251,7 +255,7 @@ class Flow:
     def _check_ratings(self, ratings: Any) -> dict[str, int]:
         if not isinstance(ratings, dict):
             raise FlowError("ratings", "expected an object {question id: rating}", 422)
-        expected = {q.id: q for q in self.protocol.questions}
+        expected = {q.id: q for q in self.design.questions}
         missing = sorted(set(expected) - set(ratings))
         extra = sorted(set(ratings) - set(expected))
         if missing:
@@ -272,7 +276,7 @@ class Flow:
     def _first_open(self, sess, trials=None, answered=None) -> int | None:
         trials = trials if trials is not None else self.store.trials(sess.id)
         answered = answered if answered is not None else self.store.answers_of(sess.id)
-        nq = len(self.protocol.questions)
+        nq = len(self.design.questions)
         for t in trials:
             if len(answered.get(t.index, {})) < nq:
                 return t.index
@@ -280,7 +284,7 @@ class Flow:
 
     def _break_due(self, sess, index: int | None) -> int:
         """The number of the break due before trial ``index`` (0: none)."""
-        every = self.protocol.break_every
+        every = self.design.break_every
         if not every or not index or index % every:
             return 0
         n = index // every
@@ -291,20 +295,20 @@ class Flow:
         ``break`` or ``done``, with progress and (for a trial) what to show.
 
         The condition is not revealed to the participant (the page is blind)."""
-        sess = self._session(token)
+        sess = self.session_of(token)
         part = self.store.participant(sess)
         trials = self.store.trials(sess.id)
         answered = self.store.answers_of(sess.id)
         current = self._first_open(sess, trials, answered)
         # Read from the database just now: the pen socket's next message needs no query.
         self._open_cache[sess.id] = (current, time.monotonic())
-        done = sum(1 for t in trials if len(answered.get(t.index, {})) >= len(self.protocol.questions))
+        done = sum(1 for t in trials if len(answered.get(t.index, {})) >= len(self.design.questions))
         doc: dict[str, Any] = {
             "session": token,
             "participant": part.code,
-            "protocol": {"name": self.protocol.name, "title": self.protocol.title,
-                         "description": self.protocol.description,
-                         "calibration_card_mm": self.protocol.calibration_card_mm},
+            "protocol": {"name": self.design.name, "title": self.design.title,
+                         "description": self.design.description,
+                         "calibration_card_mm": self.design.calibration_card_mm},
             "progress": {"done": done, "total": len(trials)},
             "calibration": json.loads(sess.calibration_json) if sess.calibration_json else None,
         }
@@ -327,21 +331,21 @@ class Flow:
         doc["trial"] = {
             "index": t.index,
             "number": t.index + 1,
-            "images": [{"id": iid, "label": self.protocol.image(iid).label,
+            "images": [{"id": iid, "label": self.design.image(iid).label,
                         "url": f"images/{iid}.png"} for iid in t.image_ids],
-            "questions": [q.to_dict() for q in self.protocol.questions],
-            "min_stroke_s": self.protocol.min_stroke_s,
-            "require_every_image": self.protocol.require_every_image,
+            "questions": [q.to_dict() for q in self.design.questions],
+            "min_stroke_s": self.design.min_stroke_s,
+            "require_every_image": self.design.require_every_image,
             "practice": t.repetition < 0,
         }
         return doc
 
     # ------------------------------------------------------------ strokes
 
-    def stroke_handler(self, token: str, output: Any = None):
+    def stroke_handler(self, token: str, output: Output | None = None) -> StrokeHandler:
         """A handler for one page's pen WebSocket (:class:`.strokes.StrokeHandler`);
         drives go to ``output`` too when given."""
-        handler = StrokeHandler(self, self._session(token), output)
+        handler = StrokeHandler(self, self.session_of(token), output)
         # Read now, while the socket opens, what the first pen message would
         # otherwise query on the drive's path: the trial plan and the open trial.
         handler.prefetch()

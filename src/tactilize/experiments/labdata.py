@@ -121,7 +121,7 @@ def withdraw(store, protocol_name: str, code: str) -> dict[str, int]:
         When no such participant is registered.
     """
     with store.Session.begin() as s:
-        part = s.scalar(select(Participant).where(Participant.protocol_name == protocol_name,
+        part = s.scalar(select(Participant).where(Participant.design_name == protocol_name,
                                                   Participant.code == code))
         if part is None:
             raise TactilizeError(code, f"not registered for {protocol_name}")
@@ -160,7 +160,7 @@ def exclude(store, protocol_name: str, code: str, reason: str = "") -> dict[str,
         When the participant is unknown or already excluded.
     """
     with store.Session.begin() as s:
-        part = s.scalar(select(Participant).where(Participant.protocol_name == protocol_name,
+        part = s.scalar(select(Participant).where(Participant.design_name == protocol_name,
                                                   Participant.code == code))
         if part is None:
             raise TactilizeError(code, f"not registered for {protocol_name}")
@@ -175,7 +175,7 @@ def exclude(store, protocol_name: str, code: str, reason: str = "") -> dict[str,
 def excluded_codes(store) -> dict[tuple[str, str], int]:
     """``{(protocol, participant code): square number they had}`` of the excluded participants."""
     with store.Session() as s:
-        q = (select(Participant.protocol_name, Participant.code, Exclusion.square_number)
+        q = (select(Participant.design_name, Participant.code, Exclusion.square_number)
              .join(Exclusion, Exclusion.participant_id == Participant.id))
         return {(p, c): n for p, c, n in s.execute(q)}
 

@@ -117,7 +117,8 @@ async def pump(ws, handler: StrokeHandler) -> None:
             text = message.get("text")
             if text is None and message.get("bytes") is not None:
                 text = message["bytes"].decode("utf-8", "replace")
-            future = msg = None
+            future = None
+            msg: Any = None  # the parsed JSON: anything until take() checks it
             try:
                 msg = json.loads(text or "")
                 if handler.needs_store(msg):

@@ -11,12 +11,10 @@ from __future__ import annotations
 import dataclasses
 import threading
 from pathlib import Path
-from typing import Any
-
 from ..features import extract_features
 from ..image import load_image
-from ..mapping import DriveFeatures
-from ..surface import surface_model
+from ..mapping import DriveFeatures, FeaturesForDrive
+from ..surface import SurfaceModel, surface_model
 from .design import Design, ImageSpec
 from .stimuli import PITCH_M, render_array, render_png
 
@@ -33,8 +31,8 @@ class Pictures:
 
     def __init__(self, design: Design) -> None:
         self.design = design
-        self.features: dict[str, Any] = {im.id: self._features(im) for im in design.images}
-        self._surfaces: dict[str, Any] = {}
+        self.features: dict[str, FeaturesForDrive] = {im.id: self._features(im) for im in design.images}
+        self._surfaces: dict[str, SurfaceModel] = {}
         self._lock = threading.Lock()
 
     def resolve(self, im: ImageSpec) -> ImageSpec:
@@ -45,16 +43,17 @@ class Pictures:
                 return dataclasses.replace(im, path=str(cand))
         return im
 
-    def _features(self, im: ImageSpec) -> Any:
-        if im.path:
-            return extract_features(load_image(self.resolve(im).path))
+    def _features(self, im: ImageSpec) -> FeaturesForDrive:
+        path = self.resolve(im).path
+        if path:
+            return extract_features(load_image(path))
         return DriveFeatures(im.spatial_frequency_per_m, im.spectral_intensity, im.orientation_deg, im.anisotropy)
 
     def png(self, image_id: str) -> bytes:
         """The picture shown, as PNG bytes; raises the design's error for an unknown id."""
         return render_png(self.resolve(self.design.image(image_id)))
 
-    def surface(self, image_id: str) -> Any:
+    def surface(self, image_id: str) -> SurfaceModel:
         """The surface model of a picture as shown (for a condition whose profile renders
         ``surface``), made on first use and kept."""
         with self._lock:

@@ -28,9 +28,9 @@ import threading
 from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass, field
-from typing import Any, Union
+from typing import Any, Union, cast
 
-from sqlalchemy import insert, select, update
+from sqlalchemy import Table, insert, select, update
 from sqlalchemy.exc import IntegrityError
 
 from .tables import StrokeBatch, StrokeSample, Trial, utcnow
@@ -53,6 +53,13 @@ class _Item:
     batch_id: str
     rows: Rows
     future: Future = field(default_factory=Future)
+
+
+def _materialized(item: _Item) -> list[dict[str, Any]]:
+    """The rows of an item :meth:`SampleWriter._materialize` has made."""
+    if callable(item.rows):
+        raise TypeError(f"batch {item.batch_id!r}: rows not made yet")
+    return item.rows
 
 
 class SampleWriter:
@@ -151,7 +158,9 @@ class SampleWriter:
         return self._write_once(group)
 
     def _write_once(self, group: list[_Item]) -> list[str]:
-        batches = StrokeBatch.__table__
+        # Declarative classes map Tables (their stubs say FromClause).
+        batches = cast(Table, StrokeBatch.__table__)
+        samples, trials = cast(Table, StrokeSample.__table__), cast(Table, Trial.__table__)
         now = utcnow()
         with self.store.engine.begin() as conn:
             ids = sorted({it.batch_id for it in group})
@@ -168,13 +177,13 @@ class SampleWriter:
                 statuses.append("stored")
             if fresh:
                 conn.execute(insert(batches), [{"session_id": it.session_id, "trial_id": it.trial_id,
-                                                "batch_id": it.batch_id, "n_samples": len(it.rows),
+                                                "batch_id": it.batch_id, "n_samples": len(_materialized(it)),
                                                 "received_at": now} for it in fresh])
-                conn.execute(insert(StrokeSample.__table__),
-                             [{"trial_id": it.trial_id, "received_at": now, **r} for it in fresh for r in it.rows])
-                conn.execute(update(Trial.__table__)
-                             .where(Trial.__table__.c.id.in_(sorted({it.trial_id for it in fresh})),
-                                    Trial.__table__.c.started_at.is_(None))
+                conn.execute(insert(samples),
+                             [{"trial_id": it.trial_id, "received_at": now, **r} for it in fresh for r in _materialized(it)])
+                conn.execute(update(trials)
+                             .where(trials.c.id.in_(sorted({it.trial_id for it in fresh})),
+                                    trials.c.started_at.is_(None))
                              .values(started_at=now))
         return statuses
 

@@ -156,7 +156,7 @@ def simulate(protocol, participants: int, seed: int, db_url: str | None = None, 
             # Per-trial random streams: a resumed participant gets the same
             # numbers for a trial as an uninterrupted one would have.
             trng = np.random.default_rng([seed, i, idx])
-            cond = flow.store.trials(flow.store.session_by_token(token).id)[idx].condition_id
+            cond = flow.store.trials(flow.session_of(token).id)[idx].condition_id
             feats = [flow.image_features(im["id"]) for im in trial["images"]]
             for im in trial["images"]:
                 v_mm_s = float(trng.uniform(30, 120))

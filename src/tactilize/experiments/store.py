@@ -35,6 +35,7 @@ from sqlalchemy.orm import sessionmaker
 from .. import __version__
 from ..errors import TactilizeError
 from ..redact import ambiguous_user, redact_text, redact_url
+from .design import Design
 from .tables import (
     SCHEMA_VERSION,
     Answer,
@@ -161,7 +162,7 @@ class Store:
 
     # ------------------------------------------------------------ protocols
 
-    def protocol_version(self, protocol) -> ProtocolVersion:
+    def design_version(self, protocol: Design) -> ProtocolVersion:
         """The stored row for this exact protocol text, inserted on first use."""
         with self.Session() as s:
             row = s.scalar(select(ProtocolVersion).where(ProtocolVersion.sha256 == protocol.sha256))
@@ -173,22 +174,22 @@ class Store:
                 s.commit()
             except IntegrityError:  # another process stored it first
                 s.rollback()
-                row = s.scalar(select(ProtocolVersion).where(ProtocolVersion.sha256 == protocol.sha256))
+                row = s.scalars(select(ProtocolVersion).where(ProtocolVersion.sha256 == protocol.sha256)).one()
             return row
 
     # ------------------------------------------------------------ sessions
 
-    def create_session(self, protocol, code: str, *, simulated: bool = False, extra_provenance: dict | None = None):
+    def create_session(self, protocol: Design, code: str, *, simulated: bool = False, extra_provenance: dict | None = None) -> ExperimentSession:
         """Register participant ``code`` and write their whole trial plan.
 
         Returns the new :class:`ExperimentSession`.  Raises ``KeyError`` with the
         existing session when the code is already registered for this protocol.
         """
-        pv = self.protocol_version(protocol)
+        pv = self.design_version(protocol)
         for _attempt in range(20):
             with self.Session() as s:
                 existing = s.scalar(
-                    select(Participant).where(Participant.protocol_name == protocol.name, Participant.code == code)
+                    select(Participant).where(Participant.design_name == protocol.name, Participant.code == code)
                 )
                 if existing is not None:
                     raise KeyError(code)
@@ -198,15 +199,15 @@ class Store:
                 # see labdata.exclude) goes to the next person, so the square stays balanced.
                 sign = -1 if simulated else 1
                 taken = set(s.scalars(select(Participant.number).where(
-                    Participant.protocol_name == protocol.name, Participant.number * sign > 0)))
+                    Participant.design_name == protocol.name, Participant.number * sign > 0)))
                 number = next(n for n in range(1, len(taken) + 2) if sign * n not in taken)
-                part = Participant(protocol_name=protocol.name, code=code, number=sign * number, simulated=simulated)
+                part = Participant(design_name=protocol.name, code=code, number=sign * number, simulated=simulated)
                 s.add(part)
                 plan = protocol.plan(number)
                 sess = ExperimentSession(
                     token=secrets.token_urlsafe(18),
                     participant=part,
-                    protocol_version_id=pv.id,
+                    design_version_id=pv.id,
                     seed=protocol.seed,
                     order_json=json.dumps([t.condition_id for t in plan]),
                     consent_at=utcnow(),
@@ -228,7 +229,8 @@ class Store:
                     # the loser recomputes; a taken code is reported above.
                     s.rollback()
                     continue
-                return self.session_by_token(sess.token)
+                with self.Session() as s2:
+                    return s2.scalars(select(ExperimentSession).where(ExperimentSession.token == sess.token)).one()
         raise RuntimeError("could not allocate a participant number")
 
     def session_by_token(self, token: str) -> ExperimentSession | None:
@@ -240,12 +242,12 @@ class Store:
             return s.scalar(
                 select(ExperimentSession)
                 .join(Participant)
-                .where(Participant.protocol_name == protocol_name, Participant.code == code)
+                .where(Participant.design_name == protocol_name, Participant.code == code)
             )
 
     def participant(self, session: ExperimentSession) -> Participant:
         with self.Session() as s:
-            return s.get(Participant, session.participant_id)
+            return s.get_one(Participant, session.participant_id)
 
     def trials(self, session_id: int) -> list[Trial]:
         with self.Session() as s:
@@ -266,19 +268,19 @@ class Store:
 
     def set_calibration(self, session_id: int, calibration: dict) -> None:
         with self.Session.begin() as s:
-            sess = s.get(ExperimentSession, session_id)
+            sess = s.get_one(ExperimentSession, session_id)
             sess.calibration_json = json.dumps(calibration)
             sess.calibrated_at = utcnow()
 
     def set_breaks_done(self, session_id: int, n: int) -> None:
         with self.Session.begin() as s:
-            sess = s.get(ExperimentSession, session_id)
+            sess = s.get_one(ExperimentSession, session_id)
             # Monotone: a stale page acknowledging an old break changes nothing.
             sess.breaks_done = max(sess.breaks_done or 0, n)
 
     def mark_trial_started(self, trial_id: int) -> None:
         with self.Session.begin() as s:
-            t = s.get(Trial, trial_id)
+            t = s.get_one(Trial, trial_id)
             if t.started_at is None:
                 t.started_at = utcnow()
 
@@ -298,7 +300,7 @@ class Store:
         are never overwritten).
         """
         with self.Session() as s:
-            trial = s.get(Trial, trial_id)
+            trial = s.get_one(Trial, trial_id)
             stored = {a.question_id: a.rating for a in trial.answers}
             clash = {q: (stored[q], r) for q, r in ratings.items() if q in stored and stored[q] != r}
             if clash:
@@ -320,14 +322,14 @@ class Store:
                     )
                 )
                 if remaining == 0:
-                    s.get(ExperimentSession, trial.session_id).completed_at = now
+                    s.get_one(ExperimentSession, trial.session_id).completed_at = now
             try:
                 s.commit()
             except IntegrityError:
                 # A concurrent identical submission won the race; the unique
                 # constraint kept the data single.  Report what is stored now.
                 s.rollback()
-                again = {a.question_id: a.rating for a in s.get(Trial, trial_id).answers}
+                again = {a.question_id: a.rating for a in s.get_one(Trial, trial_id).answers}
                 if all(again.get(q) == r for q, r in ratings.items()):
                     return "duplicate"
                 raise ValueError({q: (again.get(q), r) for q, r in ratings.items() if again.get(q) != r}) from None
@@ -340,7 +342,7 @@ class Store:
         with self.Session() as s:
             q = select(ExperimentSession, Participant, ProtocolVersion).join(Participant).join(ProtocolVersion)
             if protocol_name:
-                q = q.where(Participant.protocol_name == protocol_name)
+                q = q.where(Participant.design_name == protocol_name)
             excluded = {e.participant_id: e.square_number for e in s.scalars(select(Exclusion))}
             out = []
             for sess, part, pv in s.execute(q.order_by(ExperimentSession.id)):
@@ -378,10 +380,10 @@ class Store:
                 .join(Trial, Answer.trial_id == Trial.id)
                 .join(ExperimentSession, Trial.session_id == ExperimentSession.id)
                 .join(Participant, ExperimentSession.participant_id == Participant.id)
-                .join(ProtocolVersion, ExperimentSession.protocol_version_id == ProtocolVersion.id)
+                .join(ProtocolVersion, ExperimentSession.design_version_id == ProtocolVersion.id)
             )
             if protocol_name:
-                q = q.where(Participant.protocol_name == protocol_name)
+                q = q.where(Participant.design_name == protocol_name)
             rows = []
             for a, t, sess, part, pv in s.execute(q.order_by(ExperimentSession.id, Trial.index, Answer.id)):
                 images = json.loads(t.image_ids_json)

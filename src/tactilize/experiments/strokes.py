@@ -38,12 +38,14 @@ from dataclasses import dataclass, field
 from functools import partial
 from typing import Any, Callable
 
+from ..actuators.base import Output
 from ..drive import Drive
 from ..web.rows import sample_error, samples_from_css
 from .errors import FlowError
 from .feel import TrialPen
 from .labdata import record_event
 from .samples import writer_for
+from .tables import ExperimentSession
 
 __all__ = ["StrokeHandler", "M_PER_MM", "MAX_BATCH_ID"]
 
@@ -79,8 +81,8 @@ class StrokeHandler:
     """
 
     flow: Any
-    session: Any
-    output: Any = None
+    session: ExperimentSession
+    output: Output | None = None
     clock: Callable[[], float] = time.monotonic
     trial_cache: dict[int, Any] = field(default_factory=dict)
     pen: TrialPen = field(init=False)
@@ -216,6 +218,7 @@ class StrokeHandler:
         reply, future = self.take(msg)
         self.refresh_open_trial()
         if future is None:
+            assert reply is not None, "take answers every message it writes nothing for"
             return reply
         status = future.result(timeout=timeout_s)
         reply = reply or {"type": "logged", "trial": msg.get("trial"), "image": msg.get("image")}

@@ -79,7 +79,8 @@ class Participant(Base):
         UniqueConstraint("protocol_name", "number", name="uq_participant_number"),
     )
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    protocol_name: Mapped[str] = mapped_column(String(64))
+    # the column keeps its name: databases written before the rename load as they are
+    design_name: Mapped[str] = mapped_column("protocol_name", String(64))
     code: Mapped[str] = mapped_column(String(64))
     number: Mapped[int] = mapped_column(Integer)
     simulated: Mapped[bool] = mapped_column(Boolean, default=False)
@@ -93,7 +94,7 @@ class ExperimentSession(Base):
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     token: Mapped[str] = mapped_column(String(64), unique=True)
     participant_id: Mapped[int] = mapped_column(ForeignKey("participants.id"), unique=True)
-    protocol_version_id: Mapped[int] = mapped_column(ForeignKey("protocol_versions.id"))
+    design_version_id: Mapped[int] = mapped_column("protocol_version_id", ForeignKey("protocol_versions.id"))
     seed: Mapped[int] = mapped_column(Integer)
     order_json: Mapped[str] = mapped_column(Text)
     consent_at: Mapped[dt.datetime] = mapped_column(DateTime(timezone=True))
@@ -105,7 +106,7 @@ class ExperimentSession(Base):
     completed_at: Mapped[dt.datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
 
     participant: Mapped[Participant] = relationship()
-    protocol_version: Mapped[DesignVersion] = relationship()
+    design_version: Mapped[DesignVersion] = relationship()
     trials: Mapped[list["Trial"]] = relationship(order_by="Trial.index", back_populates="session")
 
 

@@ -18,7 +18,9 @@ from __future__ import annotations
 
 from typing import Any
 
+from ..actuators.base import Output
 from .flow import Flow, FlowError
+from .strokes import StrokeHandler
 
 __all__ = ["Visit"]
 
@@ -38,8 +40,8 @@ class Visit:
         self.flows = list(flows)
         self.store = flows[0].store
         self.admin_token = flows[0].admin_token
-        self.protocol = flows[0].protocol  # the welcome page's title and consent
-        self.protocol_names = [f.protocol.name for f in flows]
+        self.design = flows[0].design  # the welcome page's title and consent
+        self.protocol_names = [f.design.name for f in flows]
 
     # ------------------------------------------------------------ routing
 
@@ -47,7 +49,7 @@ class Visit:
         sess = self.store.session_by_token(token) if isinstance(token, str) and len(token) < 100 else None
         if sess is not None:
             for i, f in enumerate(self.flows):
-                if f.protocol_version.id == sess.protocol_version_id:
+                if f.design_version.id == sess.design_version_id:
                     return i
         raise FlowError("session", "unknown session; start again or resume with your participant ID", 404)
 
@@ -55,7 +57,7 @@ class Visit:
         state["visit"] = {"part": i + 1, "parts": len(self.flows), "protocols": self.protocol_names}
         if state.get("state") == "trial":
             for im in state["trial"]["images"]:
-                im["url"] = f"{im['url']}?protocol={self.flows[i].protocol.name}"
+                im["url"] = f"{im['url']}?protocol={self.flows[i].design.name}"
         return state
 
     def _advance(self, i: int, state: dict) -> dict:
@@ -63,13 +65,13 @@ class Visit:
         while state.get("state") == "done" and i + 1 < len(self.flows):
             code, calibration = state["participant"], state.get("calibration")
             nxt = self.flows[i + 1]
-            sess = self.store.session_by_code(nxt.protocol.name, code)
+            sess = self.store.session_by_code(nxt.design.name, code)
             if sess is None:
-                part = self.store.participant(self.store.session_by_token(state["session"]))
+                part = self.store.participant(self.flows[i].session_of(state["session"]))
                 token = nxt.start(code, True, simulated=part.simulated)["session"]
             else:
                 token = sess.token
-            if calibration and self.store.session_by_token(token).calibrated_at is None:
+            if calibration and nxt.session_of(token).calibrated_at is None:
                 nxt.calibrate(token, {"mm_per_px": calibration["mm_per_px"], "felt": True})
             i, state = i + 1, nxt.state(token)
         return self._decorate(i, state)
@@ -103,11 +105,11 @@ class Visit:
         out["recorded"] = recorded
         return out
 
-    def stroke_handler(self, token: str, output: Any = None):
+    def stroke_handler(self, token: str, output: Output | None = None) -> StrokeHandler:
         return self.flows[self._flow_of(token)].stroke_handler(token, output)
 
     def image_png(self, image_id: str, protocol: str | None = None) -> bytes:
         for f in self.flows:
-            if protocol in (None, f.protocol.name):
+            if protocol in (None, f.design.name):
                 return f.image_png(image_id)
         raise FlowError("image", f"no protocol {protocol!r} in this visit", 404)

@@ -90,7 +90,7 @@ async def _json_object(request: Request) -> dict[str, Any]:
     return body
 
 
-def experiment_router(flow: Flow) -> APIRouter:
+def experiment_router(flow: Flow | Visit) -> APIRouter:
     """The routes of one protocol's flow, under ``/experiment`` (include as it is)."""
     router = APIRouter(prefix=PREFIX, route_class=ErrorAnsweringRoute)
 
@@ -127,7 +127,7 @@ def experiment_router(flow: Flow) -> APIRouter:
 
     @router.get("/api/protocol")
     def protocol_info() -> dict:
-        p = flow.protocol
+        p = flow.design
         return {"name": p.name, "title": p.title, "description": p.description, "consent": p.consent,
                 "demographics": [d.to_dict() for d in p.demographics],
                 "questions": [q.to_dict() for q in p.questions], "calibration_card_mm": p.calibration_card_mm,
@@ -176,11 +176,11 @@ def experiment_router(flow: Flow) -> APIRouter:
     @router.get("/api/images/{image_id}.png")
     def image(image_id: str, protocol: str | None = None) -> Response:
         # A visit (several protocols) names the protocol: image ids may repeat across them.
-        if protocol and not hasattr(flow, "flows"):  # one protocol: the name must be its own
-            if protocol != flow.protocol.name:
-                raise FlowError("protocol", f"no protocol {protocol!r} here (this server runs {flow.protocol.name!r})", 404)
+        if protocol and not isinstance(flow, Visit):  # one protocol: the name must be its own
+            if protocol != flow.design.name:
+                raise FlowError("protocol", f"no protocol {protocol!r} here (this server runs {flow.design.name!r})", 404)
             protocol = None
-        png = flow.image_png(image_id, protocol) if protocol else flow.image_png(image_id)
+        png = flow.image_png(image_id, protocol) if isinstance(flow, Visit) else flow.image_png(image_id)
         return Response(png, media_type="image/png", headers={"Cache-Control": "max-age=3600"})
 
     @router.websocket("/ws/{token}")
@@ -209,25 +209,25 @@ def experiment_router(flow: Flow) -> APIRouter:
     @router.get("/api/admin/sessions")
     def admin_sessions(request: Request) -> Response:
         require_admin(request)
-        names = getattr(flow, "protocol_names", [flow.protocol.name])
-        return JSONResponse({"protocol": flow.protocol.to_dict(), "protocols": names,
+        names = getattr(flow, "protocol_names", [flow.design.name])
+        return JSONResponse({"protocol": flow.design.to_dict(), "protocols": names,
                              "sessions": [r for n in names for r in flow.store.sessions_overview(n)]})
 
     @router.get("/api/admin/export.csv")
     def admin_csv(request: Request) -> Response:
         require_admin(request)
-        return Response(export_answers(flow.store, "csv", flow.protocol.name), media_type="text/csv",
-                        headers={"Content-Disposition": f'attachment; filename="{flow.protocol.name}-answers.csv"'})
+        return Response(export_answers(flow.store, "csv", flow.design.name), media_type="text/csv",
+                        headers={"Content-Disposition": f'attachment; filename="{flow.design.name}-answers.csv"'})
 
     @router.get("/api/admin/export.json")
     def admin_json(request: Request) -> Response:
         require_admin(request)
-        return Response(export_answers(flow.store, "json", flow.protocol.name), media_type="application/json")
+        return Response(export_answers(flow.store, "json", flow.design.name), media_type="application/json")
 
     @router.get("/api/admin/analysis")
     def admin_analysis(request: Request) -> Response:
         require_admin(request)
-        return JSONResponse(jsonable(analyze(flow.store, flow.protocol.name)))
+        return JSONResponse(jsonable(analyze(flow.store, flow.design.name)))
 
     return router
 
@@ -288,9 +288,10 @@ def serve_flow(protocol, db_url: str | None, host: str = "127.0.0.1", port: int 
     if not admin_token:
         admin_token = secrets.token_urlsafe(16)
     store = Store(db_url)
-    flow = Flow(protocol, store, admin_token=admin_token)
+    first = Flow(protocol, store, admin_token=admin_token)
+    flow: Flow | Visit = first
     if len(protocols) > 1:
-        flow = Visit([flow] + [Flow(p, store, admin_token=admin_token) for p in protocols[1:]])
+        flow = Visit([first] + [Flow(p, store, admin_token=admin_token) for p in protocols[1:]])
         echo("one visit: " + " -> ".join(p.name for p in protocols))
     # The URL may hold a database password: a terminal (and its scrollback) must not.
     echo(f"tactilize experiment: {protocol.name} v{protocol.version} ({protocol.sha256[:12]}), "

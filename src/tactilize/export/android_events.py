@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from .android import ANDROID_LIMITS, _envelopes, _run_lengths
+from .android_envelopes import ANDROID_LIMITS, MAX_SEGMENT_MS, MIN_SEGMENT_MS, envelopes, run_lengths
 from .events import PHONE_TRANSIENT_S, BumpEvent, EventPlan, event_intensity, plan_events, run_points
 from .timeline import CONTROL_STEP_S, DriveTimeline
 
@@ -51,7 +51,7 @@ PRIMITIVES = ("PRIMITIVE_CLICK", "PRIMITIVE_TICK")
 DELAY_TYPES = ("DELAY_TYPE_PAUSE", "DELAY_TYPE_RELATIVE_START_OFFSET")
 #: A pause this long or longer [ms] starts a new composition: the longest delay a
 #: device accepts is its own and not public, so none waits longer than an envelope segment may last.
-MAX_DELAY_MS = ANDROID_LIMITS["max_segment_ms"]
+MAX_DELAY_MS = MAX_SEGMENT_MS
 #: On-time of a bump in the createWaveform fallback [ms]: the short end of an LRA's click.
 TAP_MS = 10
 #: A bump at this intensity or more is a click, below it a tick.
@@ -79,7 +79,7 @@ def _compositions(plan: EventPlan) -> list[dict[str, Any]]:
 def _at_least_a_segment(envs: list[dict[str, Any]]) -> None:
     for env in envs:
         for c in env["control_points"]:
-            c["duration_ms"] = max(c["duration_ms"], ANDROID_LIMITS["min_segment_ms"])
+            c["duration_ms"] = max(c["duration_ms"], MIN_SEGMENT_MS)
 
 
 def _starts(envs: list[dict[str, Any]], start_ms: int) -> list[dict[str, Any]]:
@@ -102,7 +102,7 @@ def android_surface_document(tl: DriveTimeline, step_s: float = CONTROL_STEP_S) 
     basic: list[dict[str, Any]] = []
     for run in plan.runs:
         pts = run_points(run, step_s=step_s)
-        flat, wf, bs = _envelopes(pts)
+        flat, wf, bs = envelopes(pts)
         _at_least_a_segment(wf)
         _at_least_a_segment(bs)
         start = int(round(run.start_s * 1e3))
@@ -116,7 +116,7 @@ def android_surface_document(tl: DriveTimeline, step_s: float = CONTROL_STEP_S) 
     for ev in plan.transients:
         s = int(round(ev.t_s * 1e3))
         level[s : min(s + TAP_MS, total_ms)] = max(1, int(round(255 * event_intensity(ev.strength))))
-    timings, amps = _run_lengths(level)
+    timings, amps = run_lengths(level)
     effects = sorted(
         [{"start_ms": c["start_ms"], "kind": "composition", "index": i} for i, c in enumerate(comps)]
         + [{"start_ms": w["start_ms"], "kind": "waveform_envelope", "index": i} for i, w in enumerate(waveform)],

@@ -89,7 +89,9 @@ def read_ahap(data: Any) -> HapticTrack:
     doc = _load(data, "ahap")
     if not isinstance(doc, dict) or not isinstance(doc.get("Pattern"), list):
         raise SignalError("<ahap>", "not an AHAP document (no Pattern list)")
-    events, curves = [], {"HapticIntensityControl": [], "HapticSharpnessControl": []}
+    events: list[dict[str, Any]] = []
+    curves: dict[str, list[tuple[float, list[tuple[float, float]]]]] = {
+        "HapticIntensityControl": [], "HapticSharpnessControl": []}
     for entry in doc["Pattern"]:
         if "Event" in entry:
             events.append(entry["Event"])

@@ -25,11 +25,21 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Literal, Sequence
 
 from ..errors import SignalError
 from ..pen import PenRenderer, PenSample
 from .timeline import DriveTimeline
+
+if TYPE_CHECKING:  # types only: the export package loads none of them until a stroke runs
+    import numpy as np
+
+    from ..actuators.base import Output
+    from ..drive import Drive
+    from ..features import TextureFeatures
+    from ..maps import FeatureLookup
+    from ..mapping import Profile
+    from ..surface import SurfaceModel
 
 __all__ = ["Stroke", "read_stroke", "parse_stroke", "synthetic_stroke", "run_stroke", "stroke_csv", "stroke_json"]
 
@@ -86,7 +96,10 @@ def parse_stroke(rows: Sequence[Any], source: str, width_m: float | None = None,
     """
     if not rows:
         raise StrokeError(source, "the stroke is empty (no samples)")
-    ts, xs, ys, ps = [], [], [], []
+    ts: list[float] = []
+    xs: list[float] = []
+    ys: list[float] = []
+    ps: list[float | None] = []
     for i, row in enumerate(rows):
         if isinstance(row, dict):
             missing = [k for k in ("t_s", "x_mm", "y_mm") if k not in row]
@@ -217,42 +230,44 @@ def _reflect(v: float, lo: float, hi: float) -> float:
 class _Mirrored:
     """A texture map continued beyond its edges by mirror images of itself."""
 
-    def __init__(self, tmap: Any) -> None:
+    def __init__(self, tmap: FeatureLookup) -> None:
         self.tmap = tmap
         # just inside the edges: lookup() takes [0, width)
         self.w, self.h = tmap.width_m * (1 - 1e-9), tmap.height_m * (1 - 1e-9)
 
-    def lookup(self, x_m: float, y_m: float) -> Any:
+    def lookup(self, x_m: float, y_m: float) -> TextureFeatures | None:
         return self.tmap.lookup(_reflect(x_m, 0.0, self.w), _reflect(y_m, 0.0, self.h))
 
 
 class _MirroredSurface:
     """A surface model continued beyond its edges by mirror images of itself."""
 
-    def __init__(self, surface: Any) -> None:
+    def __init__(self, surface: SurfaceModel) -> None:
         self.surface = surface
         self.step_m = surface.step_m
         self.tip_radius_m = surface.tip_radius_m
         self.surface_per_display = surface.surface_per_display
         self.w, self.h = surface.width_m * (1 - 1e-9), surface.height_m * (1 - 1e-9)
 
-    def regions(self, x_m: Any, y_m: Any) -> Any:
+    def regions(self, x_m: np.ndarray, y_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         import numpy as np
 
-        def fold(v: Any, span: float) -> Any:
+        def fold(v: np.ndarray, span: float) -> np.ndarray:
             u = np.mod(np.asarray(v, dtype=np.float64), 2 * span)
             return np.where(u <= span, u, 2 * span - u)
 
         return self.surface.regions(fold(x_m, self.w), fold(y_m, self.h))
 
 
-def _same_drive(drive: Any, n: int, state: Any) -> list[Any]:
+def _same_drive(drive: Drive, n: int, state: Any) -> list[Drive]:
     return [drive] * n
 
 
-def run_stroke(stroke: Stroke, texture_map: Any, profile: Any, output: Any = "simulated", *,
+def run_stroke(stroke: Stroke, texture_map: FeatureLookup, profile: Profile,
+               output: Output | Literal["simulated"] | None = "simulated", *,
                frame_s: float = FRAME_S, start_s: float | None = None, end_s: float | None = None,
-               meta: dict[str, Any] | None = None, mirror: bool = False, surface: Any = None) -> DriveTimeline:
+               meta: dict[str, Any] | None = None, mirror: bool = False,
+               surface: SurfaceModel | None = None) -> DriveTimeline:
     """Render ``stroke`` on ``texture_map`` as the pen server does; the drive per frame.
 
     Parameters
@@ -287,23 +302,29 @@ def run_stroke(stroke: Stroke, texture_map: Any, profile: Any, output: Any = "si
     from ..actuators.recording import RecordingOutput
 
     owned = False
+    out: Output
     if output == "simulated":
         from ..actuators.simulated import SimulatedOutput
 
-        output, owned = SimulatedOutput(start=False, trace_seconds=0.5, trace_rate_hz=1000.0), True
+        out, owned = SimulatedOutput(start=False, trace_seconds=0.5, trace_rate_hz=1000.0), True
     elif output is None:
-        output = RecordingOutput()
+        out = RecordingOutput()
+    elif isinstance(output, str):
+        raise ValueError(f"output must be an Output, 'simulated' or None, got {output!r}")
+    else:
+        out = output
     # Both channels get the profile's drive, as on the SMA wire (the phantom
     # split of audio outputs would leave one channel of a phone file silent).
+    felt: SurfaceModel | _MirroredSurface | None = surface
     if surface is not None and mirror:
-        surface = _MirroredSurface(surface)
-    renderer = PenRenderer(_Mirrored(texture_map) if mirror else texture_map, profile, output, resend_rel=0.0,
-                           splitter=_same_drive, surface=surface)
+        felt = _MirroredSurface(surface)
+    renderer = PenRenderer(_Mirrored(texture_map) if mirror else texture_map, profile, out, resend_rel=0.0,
+                           splitter=_same_drive, surface=felt)
     samples = stroke.samples()
     t0 = samples[0].t_s
     origin = t0 if start_s is None else start_s
     rows: list[tuple[float, tuple, tuple, float, float, float]] = []
-    advance = getattr(output, "advance", None)
+    advance = getattr(out, "advance", None)
     try:
         i, n = 0, len(samples)
         clock = t0
@@ -324,7 +345,7 @@ def run_stroke(stroke: Stroke, texture_map: Any, profile: Any, output: Any = "si
         renderer.lift()
     finally:
         if owned:
-            output.close()
+            out.close()
     end = samples[-1].t_s - origin + frame_s if end_s is None else float(end_s)
     kept = [r for r in rows if 0.0 <= r[0] < end]
     if not kept or kept[0][0] > 0.0:

@@ -88,11 +88,13 @@ from typing import Any
 from fastapi import WebSocket
 from starlette.websockets import WebSocketDisconnect, WebSocketState
 
+from ..actuators.base import Output
 from ..errors import TactilizeError
 from ..pen import PenRenderer
 from ..encode import dumps
 from ..pen.display import MM_PER_PX_RANGE  # the one display-scale rule, shared with the experiments
 from .rows import sample_error, samples_from_css
+from .state import ServerState
 
 __all__ = ["websocket_endpoint", "PenSession", "MAX_BATCH", "MAX_PENDING", "MAX_MESSAGE_CHARS", "IDLE_S", "MAX_COMPOSITE"]
 
@@ -130,7 +132,7 @@ class PenSession:
         What this page drives (:func:`.ownership.page_output`); the server's output by default.
     """
 
-    def __init__(self, state: Any, output: Any = None) -> None:
+    def __init__(self, state: ServerState, output: Output | None = None) -> None:
         self.state = state
         self.output = state.output if output is None else output
         self.m_per_px = state.m_per_px
@@ -402,7 +404,7 @@ class _NoPicture:
         return None
 
 
-async def websocket_endpoint(ws: WebSocket, state: Any) -> None:
+async def websocket_endpoint(ws: WebSocket, state: ServerState) -> None:
     """Serve one page over its WebSocket until it disconnects."""
     await ws.accept()
     loop = asyncio.get_running_loop()

@@ -29,6 +29,7 @@ from fastapi.responses import Response
 from ..errors import RequestError
 from ..http import ErrorAnsweringRoute
 from .limits import MAX_EXPORT_BODY_BYTES, read_body
+from .state import ServerState
 
 __all__ = ["stroke_export_router", "MAX_STROKE_SAMPLES"]
 
@@ -36,7 +37,7 @@ __all__ = ["stroke_export_router", "MAX_STROKE_SAMPLES"]
 MAX_STROKE_SAMPLES = 60_000
 
 
-def _export(state: Any, body: dict[str, Any]) -> tuple[bytes, Any, str]:
+def _export(state: ServerState, body: dict[str, Any]) -> tuple[bytes, Any, str]:
     from ..export import export_format, parse_stroke, render, run_stroke
 
     tid = body.get("texture")
@@ -56,7 +57,7 @@ def _export(state: Any, body: dict[str, Any]) -> tuple[bytes, Any, str]:
         raise RequestError("samples", f"too many samples ({len(rows)}, limit {MAX_STROKE_SAMPLES})", 422)
     tmap = entry.map
     stroke = parse_stroke(rows, "stroke", tmap.width_m, tmap.height_m)
-    meta = {"image": entry.name, "profile": profile.name}
+    meta: dict[str, Any] = {"image": entry.name, "profile": profile.name}
     # The surface rendering's bumps go into the parametric formats (docs/surfaces.md, "Exports").
     surface = entry.surface if getattr(profile, "rendering", "steady") == "surface" else None
     tl = run_stroke(stroke, tmap, profile, meta=meta, surface=surface)

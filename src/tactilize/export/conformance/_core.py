@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeGuard
 
 from ...errors import SignalError
 
@@ -48,12 +48,12 @@ class ConformanceError(SignalError):
         super().__init__(source, f"does not conform: {violations[0]}{more}")
 
 
-def is_int(x: Any) -> bool:
+def is_int(x: Any) -> TypeGuard[int]:
     """An integer JSON number (a bool is not one)."""
     return isinstance(x, int) and not isinstance(x, bool)
 
 
-def is_num(x: Any) -> bool:
+def is_num(x: Any) -> TypeGuard[float]:
     """A finite JSON number, integer or not (a bool is not one)."""
     return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 

@@ -85,13 +85,13 @@ def _event(ck: Checker, ev: dict[str, Any], path: str) -> None:
             ck.need(0 <= p["ParameterValue"] <= 1, "ahap.event-range", at(at(path, "EventParameters"), i),
                     f"{p['ParameterID']} {p['ParameterValue']} not in 0..1")
     if kind == "HapticContinuous":
-        d = ev.get("EventDuration")
+        d: Any = ev.get("EventDuration")
         if ck.need(is_num(d) and d > 0, "ahap.continuous-duration", at(path, "EventDuration"), f"{d!r}"):
             ck.need(d <= 30.0 + 1e-9, "ahap.continuous-30s", at(path, "EventDuration"), f"{d} s > 30 s")
 
 
 def _curve(ck: Checker, c: dict[str, Any], path: str) -> None:
-    pts = c.get("ParameterCurveControlPoints")
+    pts: Any = c.get("ParameterCurveControlPoints")  # JSON: checked below
     ok = (c.get("ParameterID") in _CURVE_IDS and is_num(c.get("Time")) and c["Time"] >= 0 and isinstance(pts, list)
           and len(pts) > 0 and all(isinstance(p, dict) and is_num(p.get("Time")) and is_num(p.get("ParameterValue"))
                                    for p in pts))

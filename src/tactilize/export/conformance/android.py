@@ -98,7 +98,7 @@ def _compositions(ck: Checker, comps: Any) -> None:
 
 
 def _envelope(ck: Checker, env: Any, path: str, fields: tuple[str, str], initial: str, basic: bool) -> None:
-    pts = env.get("control_points") if isinstance(env, dict) else None
+    pts: Any = env.get("control_points") if isinstance(env, dict) else None  # JSON: checked below
     ok = (isinstance(env, dict) and is_num(env.get(initial)) and isinstance(pts, list)
           and all(isinstance(p, dict) and all(is_num(p.get(f)) for f in fields) and is_int(p.get("duration_ms"))
                   for p in pts))

@@ -60,7 +60,8 @@ def check_haptic(doc: Any) -> list[Violation]:
     env = cont.get("envelopes") if isinstance(cont, dict) else None
     env = env if isinstance(env, dict) else None
     ok = env is not None and isinstance(env.get("amplitude"), list) and isinstance(env.get("frequency", []), list)
-    if not ck.need(ok, "haptic.signals", "signals", "no signals.continuous.envelopes with an amplitude array"):
+    if not ck.need(ok, "haptic.signals", "signals", "no signals.continuous.envelopes with an amplitude array") \
+            or env is None:  # (not ok)
         return ck.violations
     path = "signals.continuous.envelopes"
     ck.need(len(env["amplitude"]) > 0, "haptic.amplitude-nonempty", at(path, "amplitude"), "empty")

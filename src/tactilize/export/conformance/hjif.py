@@ -288,7 +288,7 @@ def _band(ck: Checker, b: dict[str, Any], path: str, library: set[int], profile:
     lo, hi = b.get("lower_frequency_limit"), b.get("upper_frequency_limit")
     limits = (lo, hi) if is_int(lo) and is_int(hi) else None
     if limits:
-        ck.need(0 <= lo <= hi <= 65535, "hjif.band-limits", path, f"limits {lo}..{hi} Hz")
+        ck.need(0 <= limits[0] <= limits[1] <= 65535, "hjif.band-limits", path, f"limits {lo}..{hi} Hz")
     if "curve_type" in b:
         ck.need(bt == "Curve" and b["curve_type"] in _CURVE_TYPES, "hjif.band-curve-type", at(path, "curve_type"),
                 f"{b['curve_type']!r} on a {bt!r} band")
