@@ -22,8 +22,8 @@ from typing import Any, Callable
 from tactilize.actuators import frames as P
 from tactilize.actuators.sma import Circuit, WireModel, WireSpec, build_envelope
 from tactilize.firmware import tactile_wire as W
-from tactilize.firmware.board import board_config_text
-from tactilize.firmware.emulator import load_firmware
+from tactilize.boardhost.board import board_config_text
+from tactilize.boardhost.emulator import load_firmware
 
 fw = load_firmware()
 PIN0, PIN1 = fw.CHANNEL_PINS
