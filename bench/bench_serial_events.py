@@ -44,8 +44,8 @@ from tactilize.surface.stroke import SurfaceStroke
 
 EMULATOR = r"""
 import sys, time
-from tactilize.firmware import host_machine
-from tactilize.firmware.emulator import ControllerEmulator
+from tactilize.boardhost import host_machine
+from tactilize.boardhost.emulator import ControllerEmulator
 emu = ControllerEmulator().start()
 shift = time.monotonic() - time.perf_counter()
 pin = emu.firmware.CHANNEL_PINS[0]

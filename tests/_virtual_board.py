@@ -1,9 +1,9 @@
-"""The virtual-time board of the firmware tests: :mod:`tactilize.virtual_board`, patched
+"""The virtual-time board of the firmware tests: :mod:`tactilize.boardhost.virtual_board`, patched
 through pytest's ``monkeypatch`` (undone after each test)."""
 
 from __future__ import annotations
 
-from tactilize.virtual_board import VirtualBoard, VirtualMachine, firmware, install, peak_on_wire
+from tactilize.boardhost.virtual_board import VirtualBoard, VirtualMachine, firmware, install, peak_on_wire
 
 __all__ = ["Board", "VirtualMachine", "fw", "install", "peak_on_wire", "PIN0", "PIN1", "BIAS0", "BIAS1"]
 

@@ -56,7 +56,7 @@ def test_the_tree_keeps_every_contract():
 
 def test_the_copy_keeps_them_too(copy_root: Path):
     # The violations below are the only difference from a copy that passes.
-    done = _lint(copy_root, "layers", "actuators-no-mapping")
+    done = _lint(copy_root, "layers", "actuators-no-mapping", "firmware-stands-alone")
     assert done.returncode == 0, done.stdout + done.stderr
 
 
@@ -88,6 +88,22 @@ def test_a_circle_between_siblings_breaks_acyclic(copy_root: Path):
     done = _lint(bad, "acyclic")
     assert done.returncode != 0
     assert "BROKEN" in done.stdout
+
+
+def test_the_board_importing_the_library_breaks_firmware_stands_alone(copy_root: Path):
+    # what firmware/board.py once did (the wire model lives on the host only)
+    bad = _with_line(copy_root, "firmware/tactile_heat.py", "from tactilize.actuators import sma  # noqa")
+    done = _lint(bad, "firmware-stands-alone")
+    assert done.returncode != 0
+    assert "tactilize.firmware.tactile_heat -> tactilize.actuators" in done.stdout
+
+
+def test_a_host_only_module_on_the_board_breaks_firmware_stands_alone(copy_root: Path):
+    # MicroPython has no typing: a hint imported for mypy would fail only on the board
+    bad = _with_line(copy_root, "firmware/tactile_frames.py", "from typing import Any  # noqa")
+    done = _lint(bad, "firmware-stands-alone")
+    assert done.returncode != 0
+    assert "tactilize.firmware.tactile_frames -> typing" in done.stdout
 
 
 def test_ci_checks_contracts_and_types_before_the_tests():

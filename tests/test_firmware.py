@@ -7,9 +7,13 @@ emulated ``machine`` pins (host_machine), not from the firmware's own report.
 from __future__ import annotations
 
 import ast
+import re
+import subprocess
+import sys
 import threading
 import time
 from importlib import resources
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,8 +23,8 @@ from hypothesis import strategies as st
 
 from tactilize.actuators import frames as P
 from tactilize.actuators.sma import build_envelope
-from tactilize.firmware import host_machine
-from tactilize.firmware.emulator import ControllerEmulator, load_firmware
+from tactilize.boardhost import host_machine
+from tactilize.boardhost.emulator import ControllerEmulator, load_firmware
 
 fw = load_firmware()
 PIN0, PIN1 = fw.CHANNEL_PINS
@@ -333,6 +337,23 @@ def test_firmware_decoder_agrees_with_host_decoder(frames, garbage, where):
         got_host += dec_host.expire()
     assert got_fw == got_host
     assert len(bad_fw) == dec_host.crc_errors
+
+
+# ------------------------------------------------------------ what docs/firmware.md flashes
+
+def test_the_flashed_files_are_exactly_the_firmware_folder():
+    """docs/firmware.md's mpremote line copies every module of tactilize/firmware and nothing else
+    (the host's tools live in tactilize/boardhost), and the path it prints is that folder."""
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "firmware.md").read_text("utf-8")
+    copied = dict(re.findall(r"cp (\S+\.py) :(\S+\.py)", doc))
+    assert copied.get("controller.py") == "main.py"
+    assert all(src == dst for src, dst in copied.items() if src != "controller.py")
+    command = re.search(r'python -c "(import importlib\.resources[^"]+)"', doc)
+    assert command is not None
+    printed = subprocess.run([sys.executable, "-c", command.group(1)], capture_output=True, text=True, check=True)
+    folder = Path(printed.stdout.strip()).parent
+    on_disk = {p.name for p in folder.glob("*.py")} - {"__init__.py"}
+    assert set(copied) == on_disk
 
 
 # ------------------------------------------------------------ MicroPython compatibility

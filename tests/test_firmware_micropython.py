@@ -190,8 +190,8 @@ dump()
 def test_micropython_and_the_host_emulator_answer_alike(tmp_path):
     """The same frames, refused and accepted, to the firmware under MicroPython
     and under CPython (the host emulator's way): the same replies, byte for byte."""
-    from tactilize.firmware import host_machine
-    from tactilize.firmware.emulator import load_firmware
+    from tactilize.boardhost import host_machine
+    from tactilize.boardhost.emulator import load_firmware
 
     cases = [(0, 80.0, 500e-6), (0, 301.0, 3e-4), (0, 0.5, 3e-4), (0, 100.0, 6e-3), (0, 100.0, 5e-6),
              (0, 250.0, 3e-3), (0, 150.0, 1e-3), (1, 60.0, 4e-4), (3, 60.0, 4e-4), (1, 0.0, 0.0)]

@@ -20,10 +20,10 @@ from tactilize.actuators import frames as P
 from tactilize.actuators.sma import Circuit, WireController, WireModel, WireSpec, build_envelope, circuit_names
 from tactilize.actuators.sma.simulate import simulate_drive
 from tactilize.drive import Drive
-from tactilize.firmware import host_machine
+from tactilize.boardhost import host_machine
 from tactilize.firmware import tactile_wire as W
-from tactilize.firmware.board import board_config, board_config_text, energy_budget
-from tactilize.firmware.emulator import load_firmware
+from tactilize.boardhost.board import board_config, board_config_text, energy_budget
+from tactilize.boardhost.emulator import load_firmware
 
 fw = load_firmware()
 SPEC = WireSpec.resolve(None)

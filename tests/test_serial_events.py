@@ -23,8 +23,8 @@ from tactilize.actuators.clock_sync import ClockSync
 from tactilize.actuators.serial import SerialOutput
 from tactilize.actuators.serial_events import MATCH_US, EventSender, StrokeClock, plan_pulses
 from tactilize.drive import Drive
-from tactilize.firmware import host_machine
-from tactilize.firmware.emulator import ControllerEmulator, load_firmware
+from tactilize.boardhost import host_machine
+from tactilize.boardhost.emulator import ControllerEmulator, load_firmware
 from tactilize.pen.samples import PenSample
 from tactilize.pen.tracker import StrokeTracker
 from tactilize.surface import surface_model
@@ -51,8 +51,8 @@ def emu():
 # core), printing the monotonic time [s] of every rising edge of channel 0's pin.
 EMULATOR = r'''
 import sys, time
-from tactilize.firmware import host_machine
-from tactilize.firmware.emulator import ControllerEmulator
+from tactilize.boardhost import host_machine
+from tactilize.boardhost.emulator import ControllerEmulator
 emu = ControllerEmulator().start()
 shift = time.monotonic() - time.perf_counter()
 def edge(t, kind, pin, detail):

@@ -20,8 +20,8 @@ from tactilize.actuators import frames as P
 from tactilize.actuators.factory import open_output
 from tactilize.actuators.serial import SerialOutput
 from tactilize.errors import OutputError, TactilizeError
-from tactilize.firmware import host_machine
-from tactilize.firmware.emulator import ControllerEmulator, load_firmware
+from tactilize.boardhost import host_machine
+from tactilize.boardhost.emulator import ControllerEmulator, load_firmware
 from tactilize.mapping import ActuatorLimits, Drive
 
 fw = load_firmware()

@@ -3,7 +3,7 @@
 For each texture and speed, :func:`board_stroke` renders the profile's steady
 straight stroke (:mod:`tactilize.surface.straight`, the stroke the rest of the
 report measures) and plays it to the controller firmware on the virtual-time
-board (:mod:`tactilize.virtual_board`), along the host's own path:
+board (:mod:`tactilize.boardhost.virtual_board`), along the host's own path:
 
 - a ``surface`` profile: the stroke's pulse events handed over as the pen page's
   batches come (every :data:`BATCH_S`, each event once it is within the surface's
@@ -129,7 +129,7 @@ def board_stroke(profile: Any, speed_m_s: float, *, surface: Any = None, feature
         ``skipped``, ``late`` (the board's counters of scheduled pulses).
     """
     from .surface.straight import STROKE_S, straight_stroke
-    from .virtual_board import VirtualBoard
+    from .boardhost.virtual_board import VirtualBoard
 
     duration = STROKE_S if duration_s is None else float(duration_s)
     surface_rendering = getattr(profile, "rendering", "steady") == "surface"

@@ -176,6 +176,8 @@ class SerialOutput(SerialLink, OutputBase):
 
     # ------------------------------------------------------------ public
 
+    # OutputBase's connected and fault are plain attributes until types27b's read-only
+    # properties merge (issue 27); these two ignores go then (mypy reports them unused).
     @property
     def connected(self) -> bool:
         """True while the controller answers on the port."""
@@ -356,13 +358,15 @@ class SerialOutput(SerialLink, OutputBase):
 
     def _send_holds(self) -> None:
         """The loop's HOLD frames whose heat moved (the apply lock is held)."""
-        holds = self.loop.holds(time.monotonic()) if self.loop is not None else []
-        requests = [(int(P.Command.HOLD), P.encode_hold(*h)) for h in holds]
+        loop = self.loop
+        if loop is None:
+            return
+        requests = [(int(P.Command.HOLD), P.encode_hold(*h)) for h in loop.holds(time.monotonic())]
         if requests:
             try:
                 self._transact(requests)
             except _PortLost:
-                self.loop.forget()
+                loop.forget()
 
     # ------------------------------------------------------------ requests
 

@@ -125,13 +125,17 @@ class SerialLink:
                     if reason == P.NakReason.BAD_CHECKSUM:
                         retry.append(i)  # corrupted on the wire: send again
                         continue
-                    what = getattr(reason, "name", str(reason)).lower().replace("_", " ")
-                    extra = f" ({detail.name.lower().replace('_', ' ')})" if getattr(detail, "value", 0) else ""
+                    # unknown codes come back as plain ints: the reason as a number, no detail
+                    what = reason.name if isinstance(reason, P.NakReason) else str(reason)
+                    what = what.lower().replace("_", " ")
+                    extra = ""
+                    if isinstance(detail, P.Refused) and detail.value:
+                        extra = f" ({detail.name.lower().replace('_', ' ')})"
                     raise OutputError(self.port, f"controller refused {P.command_name(requests[i][0])}: {what}{extra}")
                 replies[i] = reply
             todo = retry
             if not todo:
-                return replies  # type: ignore[return-value]
+                return [r for r in replies if r is not None]  # every one answered
         names = ", ".join(sorted({P.command_name(requests[i][0]) for i in todo}))
         raise OutputError(self.port, f"controller did not acknowledge {names} after {attempts} attempts")
 

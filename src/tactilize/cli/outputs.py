@@ -82,7 +82,7 @@ def run_controller_emulator(link: str | None = None) -> None:
     Prints the device path as the first line of stdout, then one JSON line per
     output change; everything is flushed at once so a parent process can follow.
     """
-    from ..firmware.emulator import ControllerEmulator
+    from ..boardhost.emulator import ControllerEmulator
 
     def emit(event: dict[str, Any]) -> None:
         try:

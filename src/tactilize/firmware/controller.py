@@ -8,7 +8,7 @@
 # arrived for WATCHDOG_MS.
 #
 # The same file runs on the host: `tactilize controller-emulator` injects
-# tactilize/firmware/host_machine.py as `machine` and feeds it a pseudo-terminal.
+# tactilize/boardhost/host_machine.py as `machine` and feeds it a pseudo-terminal.
 # So: MicroPython-compatible code only (no dataclasses, enum, typing, f-strings,
 # annotations or bytearray.find), integer arithmetic in wire units, and every
 # host difference confined to the small compatibility block below.

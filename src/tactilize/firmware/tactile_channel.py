@@ -217,6 +217,9 @@ class Channel:
     def _gate_pwm(self, now):
         # A PWM pulse lands on the wire as the estimate stands (its train is
         # counted as a mean heat, which bounds each period's lowest temperature).
+        pwm = self.pwm
+        if pwm is None:
+            return  # no slice, no train to gate (mode "pwm" always has one)
         want = self.width_ns
         if self.heat is not None:
             state = _irq_off()
@@ -225,7 +228,7 @@ class Channel:
             if not fits:
                 want = 0
         if want != self.pwm_duty_ns:
-            self.pwm.duty_ns(want)  # same divider and TOP: latches at the wrap
+            pwm.duty_ns(want)  # same divider and TOP: latches at the wrap
             self.pwm_duty_ns = want
             if want == 0:
                 self._mark(now, self.width_ns // 1000)

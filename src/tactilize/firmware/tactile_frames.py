@@ -13,34 +13,42 @@ MAX_PAYLOAD = 64
 FRAME_TIMEOUT_MS = 50
 
 # ---------------------------------------------------------------- host compatibility
-# MicroPython's time has ticks_ms/ticks_diff/sleep_us; CPython has monotonic.
-_ticks_ms = getattr(time, "ticks_ms", None)
-_ticks_diff = getattr(time, "ticks_diff", None)
-_sleep_us = getattr(time, "sleep_us", None)
-_ticks_us = getattr(time, "ticks_us", None)
-_ticks_add = getattr(time, "ticks_add", None)
-if _ticks_ms is None:
+# MicroPython's time has ticks_ms/ticks_diff/sleep_us; CPython has monotonic.  The
+# host's stand-ins are picked by getattr's default (not defined under an `if`), so
+# mypy sees one callable per name on both.
 
-    def _ticks_add(a, b):
-        return a + b
 
-    def _ticks_us():
-        return int(time.monotonic() * 1000000)
+def _host_ticks_add(a, b):
+    return a + b
 
-    def _ticks_ms():
-        return int(time.monotonic() * 1000)
 
-    def _ticks_diff(a, b):
-        return a - b
+def _host_ticks_us():
+    return int(time.monotonic() * 1000000)
 
-    def _sleep_us(us):
-        # A busy wait, as on the board: time.sleep would overshoot short pulses.
-        # sleep(0) hands the GIL over at every turn: otherwise a pulse on one
-        # channel's timer thread holds the other's up to the 5 ms switch interval,
-        # where a board's two timers would each run on time.
-        end = time.perf_counter() + us / 1e6
-        while time.perf_counter() < end:
-            time.sleep(0)
+
+def _host_ticks_ms():
+    return int(time.monotonic() * 1000)
+
+
+def _host_ticks_diff(a, b):
+    return a - b
+
+
+def _host_sleep_us(us):
+    # A busy wait, as on the board: time.sleep would overshoot short pulses.
+    # sleep(0) hands the GIL over at every turn: otherwise a pulse on one
+    # channel's timer thread holds the other's up to the 5 ms switch interval,
+    # where a board's two timers would each run on time.
+    end = time.perf_counter() + us / 1e6
+    while time.perf_counter() < end:
+        time.sleep(0)
+
+
+_ticks_ms = getattr(time, "ticks_ms", _host_ticks_ms)
+_ticks_diff = getattr(time, "ticks_diff", _host_ticks_diff)
+_sleep_us = getattr(time, "sleep_us", _host_sleep_us)
+_ticks_us = getattr(time, "ticks_us", _host_ticks_us)
+_ticks_add = getattr(time, "ticks_add", _host_ticks_add)
 
 
 def crc16(data, crc=0xFFFF):
@@ -119,6 +127,12 @@ class Decoder:
             self.pending_since_ms = _ticks_ms()
 
 
+def _raw(stream):
+    # The byte stream under a text one, where the port has it; a port without
+    # .buffer reads and writes bytes-like str on the stream itself.
+    return getattr(stream, "buffer", stream)
+
+
 class UsbSerial:
     """The board's USB CDC serial port as raw bytes (the REPL's stdin/stdout)."""
 
@@ -126,8 +140,8 @@ class UsbSerial:
         import select
         import sys
 
-        self.rx = getattr(sys.stdin, "buffer", sys.stdin)
-        self.tx = getattr(sys.stdout, "buffer", sys.stdout)
+        self.rx = _raw(sys.stdin)
+        self.tx = _raw(sys.stdout)
         self.poller = select.poll()
         self.poller.register(sys.stdin, select.POLLIN)
 

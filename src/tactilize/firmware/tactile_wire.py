@@ -4,7 +4,7 @@
 # knows the wire and the circuit only as a few numbers stored on the board's
 # flash (tactile_cfg.txt, written in maintenance mode; never over the protocol),
 # with the defaults below for the paper's 75 um wire on the aa-resistor circuit.
-# tactilize.firmware.board writes those numbers from the host's wire model, and
+# tactilize.boardhost.board writes those numbers from the host's wire model, and
 # tests/test_firmware_safety.py checks that they equal it.
 #
 # Units: SI floats (W, J, K, s, ohm, A, V).  MicroPython-compatible code only.

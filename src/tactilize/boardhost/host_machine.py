@@ -201,7 +201,9 @@ def pwm_pulses(pin_id: Any, until_s: float | None = None) -> list[tuple[float, f
     end = time.perf_counter() if until_s is None else until_s
     t, _, (div, top, cc) = log[0]
     pend: dict[str, int] = {}
-    c, i, high_at, out = 0.0, 1, None, []
+    c, i = 0.0, 1
+    high_at: float | None = None
+    out: list[tuple[float, float]] = []
     while t < end:
         while i < len(log) and log[i][0] <= t:
             _, name, v = log[i]
@@ -222,7 +224,7 @@ def pwm_pulses(pin_id: Any, until_s: float | None = None) -> list[tuple[float, f
             t = t_event
             continue
         t, c = t_b, float(target)
-        if falls:
+        if falls and high_at is not None:
             out.append((high_at, t - high_at))
             high_at = None
             continue

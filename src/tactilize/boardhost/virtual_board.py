@@ -9,7 +9,7 @@ their wraps (a new compare latches at the wrap, as on the RP2040).  Nothing wait
 on the wall clock, so seconds of frames at exact instants take milliseconds and
 give the same result every run: ``tactilize profile report --serial`` and the
 firmware's tests both play frames to it (the real-time emulator behind a
-pseudo-terminal is :mod:`tactilize.firmware.emulator`).
+pseudo-terminal is :mod:`tactilize.boardhost.emulator`).
 
 :func:`peak_on_wire` turns what a channel's pins did (pulses on the gate pin,
 the standby bias PWM) into switch levels and runs them through the host's wire
@@ -32,15 +32,15 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any, Callable
 
-from .actuators import frames as P
-from .actuators.sma import Circuit, WireModel, WireSpec, build_envelope
+from ..actuators import frames as P
+from ..actuators.sma import Circuit, WireModel, WireSpec, build_envelope
 
 __all__ = ["VirtualMachine", "VirtualBoard", "firmware", "install", "peak_on_wire"]
 
 
 def firmware() -> ModuleType:
     """The controller firmware module, loaded against the host's ``machine`` (once per process)."""
-    from .firmware.emulator import load_firmware
+    from .emulator import load_firmware
 
     return load_firmware()
 
@@ -315,7 +315,7 @@ class VirtualBoard:
 
     def __init__(self, store: str | Path | None = None, circuit: str | Circuit = "aa-resistor", *,
                  set_attr: SetAttr | None = None, after_watchdog_reset: bool = False) -> None:
-        from .firmware.board import board_config_text
+        from .board import board_config_text
 
         self.fw = fw = firmware()
         self._patches = _Patches()

@@ -1,7 +1,7 @@
 """Run the controller firmware on the host, behind a pseudo-terminal.
 
 :class:`ControllerEmulator` loads ``controller.py`` (the very file flashed on a
-board) with :mod:`tactilize.firmware.host_machine` standing in for MicroPython's
+board) with :mod:`tactilize.boardhost.host_machine` standing in for MicroPython's
 ``machine``, opens a pseudo-terminal and serves the protocol on it, so
 :class:`~tactilize.actuators.serial.SerialOutput` can open the slave side exactly
 as it would open ``/dev/ttyACM0``.  ``tactilize controller-emulator`` is this
