@@ -39,7 +39,7 @@ from tactilize.pen.tracker import StrokeTracker
 from tactilize.surface import surface_model
 from tactilize.surface.equivalent import equivalent_drive
 from tactilize.surface.events import PulseEvent
-from tactilize.surface.fields import bump_field
+from tactilize.surface.fields import bump_field, min_jerk_path
 from tactilize.surface.stroke import SurfaceStroke
 
 EMULATOR = r"""
@@ -108,21 +108,6 @@ def _field(seed: int, radius: float = 0.6e-3):
     return bump_field(centres, radius, (80e-3, 20e-3), 0.05e-3), y0
 
 
-def _min_jerk(points, durations, holds, rate_hz=240.0):
-    t, x, t0 = [], [], 0.0
-    for a, b, T, hold in zip(points[:-1], points[1:], durations, holds):
-        tt = np.arange(0.0, T, 1.0 / rate_hz)
-        tau = tt / T
-        x += list(a + (b - a) * (10 * tau**3 - 15 * tau**4 + 6 * tau**5))
-        t += list(t0 + tt)
-        t0 += T
-        th = np.arange(0.0, hold, 1.0 / rate_hz)
-        x += [b] * th.size
-        t += list(t0 + th)
-        t0 += hold
-    return np.array(t), np.array(x)
-
-
 def _crossings(t, x, y0, centres, radius):
     td = np.linspace(t[0], t[-1], int((t[-1] - t[0]) * 20_000) + 2)
     xd = np.interp(td, t, x)
@@ -139,7 +124,7 @@ def _stroke(out: SerialOutput, seed: int, events: bool) -> tuple[float, np.ndarr
     radius = 0.6e-3
     f, y0 = _field(seed, radius)
     sm = surface_model(f.heights, pitch_m=f.pitch_m)
-    t, x = _min_jerk([3e-3, 41e-3, 24e-3, 62e-3], [0.7, 0.6, 0.9], [0.15, 0.2, 0.1])
+    t, x = min_jerk_path([3e-3, 41e-3, 24e-3, 62e-3], [0.7, 0.6, 0.9], [0.15, 0.2, 0.1])
     truth = _crossings(t, x, y0, f.centres_m, radius)
     tracker, stroke = StrokeTracker(), SurfaceStroke(sm)
     batches: list[list[PenSample]] = []

@@ -28,10 +28,11 @@ from tactilize.boardhost.emulator import ControllerEmulator, load_firmware
 from tactilize.pen.samples import PenSample
 from tactilize.pen.tracker import StrokeTracker
 from tactilize.surface import surface_model
+from tactilize.surface.fields import min_jerk_path, true_crossings
 from tactilize.surface.stroke import SurfaceStroke
 
 from _virtual_board import Board
-from test_surface_events import _bump_line_field, _min_jerk, _true_crossings
+from test_surface_events import _bump_line_field
 
 fw = load_firmware()
 PIN0 = fw.CHANNEL_PINS[0]
@@ -219,8 +220,8 @@ def _stroke(seed, radius=0.6e-3):
     # The pen never comes to rest on a bump (arriving on one is a touch the true
     # crossings, local closest approaches, do not count).
     assert all(np.min(np.hypot(*(f.centres_m - (p, y0)).T)) > radius for p in stops)
-    t, x = _min_jerk(stops, [0.7, 0.6, 0.9], [0.15, 0.2, 0.1], rate_hz=240.0)
-    truth = _true_crossings(t, x, np.full(t.size, y0), f.centres_m, radius)
+    t, x = min_jerk_path(stops, [0.7, 0.6, 0.9], [0.15, 0.2, 0.1], rate_hz=240.0)
+    truth = true_crossings(t, x, np.full(t.size, y0), f.centres_m, radius)
     assert truth.size >= 15
     return surface_model(f.heights, pitch_m=f.pitch_m), t, x, y0, truth
 

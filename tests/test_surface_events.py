@@ -15,7 +15,7 @@ from tactilize.errors import ImageError
 from tactilize.pen.samples import PenSample
 from tactilize.surface import CompositeSurface, place_events, stroke_events, surface_model
 from tactilize.surface.events import MAX_RATE_HZ, RATE_ONLY_HZ, event_statistics
-from tactilize.surface.fields import bump_field, grain_field, grating_field
+from tactilize.surface.fields import bump_field, grain_field, grating_field, min_jerk_path, true_crossings
 from tactilize.surface.replay import replay_stroke
 
 FREQUENCY_JND = 0.2
@@ -24,18 +24,6 @@ FREQUENCY_JND = 0.2
 def _line(v_m_s: float, x0: float, x1: float, y: float, rate_hz: float = 500.0):
     t = np.arange(0.0, (x1 - x0) / v_m_s, 1.0 / rate_hz)
     return t, x0 + v_m_s * t, np.full(t.size, y)
-
-
-def _true_crossings(t, x, y, centres, radius):
-    """Times the dense path passes a local closest approach within ``radius`` of a centre."""
-    td = np.linspace(t[0], t[-1], int((t[-1] - t[0]) * 20_000) + 2)
-    xd, yd = np.interp(td, t, x), np.interp(td, t, y)
-    out = []
-    for cx, cy in centres:
-        d = np.hypot(xd - cx, yd - cy)
-        i = np.flatnonzero((d[1:-1] <= d[:-2]) & (d[1:-1] < d[2:]) & (d[1:-1] < radius)) + 1
-        out.extend(td[i].tolist())
-    return np.sort(np.array(out))
 
 
 def _bump_line_field(seed: int, radius: float = 0.6e-3):
@@ -96,7 +84,7 @@ def test_straight_strokes_match_true_crossings_both_ways(v_mm_s):
     sm = surface_model(f.heights, pitch_m=f.pitch_m)
     v = v_mm_s / 1e3
     t, x, y = _line(v, 2e-3, 78e-3, y0)
-    truth = _true_crossings(t, x, y, f.centres_m, radius)
+    truth = true_crossings(t, x, y, f.centres_m, radius)
     pulses = np.array([e.t_s for e in stroke_events(sm, t, x, y)])
     tol = max(2e-3, 0.25 * radius / v)
     assert truth.size >= 20
@@ -146,9 +134,9 @@ def test_min_jerk_strokes_with_stops_and_reversal_in_simulated_time():
         f, y0 = _bump_line_field(seed=100 + seed, radius=radius)
         sm = surface_model(f.heights, pitch_m=f.pitch_m)
         points = [3e-3, 40e-3, 55e-3, 22e-3, 77e-3]
-        t, x = _min_jerk(points, [0.8, 0.35, 0.7, 1.0], [0.2, 0.15, 0.3, 0.1], rate_hz=500.0)
+        t, x = min_jerk_path(points, [0.8, 0.35, 0.7, 1.0], [0.2, 0.15, 0.3, 0.1], rate_hz=500.0)
         samples = [PenSample(a, b, y0) for a, b in zip(t, x)]
-        truth = _true_crossings(t, x, np.full(t.size, y0), f.centres_m, radius)
+        truth = true_crossings(t, x, np.full(t.size, y0), f.centres_m, radius)
         fired = replay_stroke(sm, samples, batch_s=0.004, transport_s=0.001)
         assert truth.size >= 20
         for k, e in enumerate(fired):
@@ -160,21 +148,6 @@ def test_min_jerk_strokes_with_stops_and_reversal_in_simulated_time():
         total += len(fired)
     assert np.percentile(errors, 95) <= 0.005
     assert spurious <= 0.02 * total
-
-
-def _min_jerk(points, durations, holds, rate_hz):
-    t, x, t0 = [], [], 0.0
-    for a, b, T, hold in zip(points[:-1], points[1:], durations, holds):
-        tt = np.arange(0.0, T, 1.0 / rate_hz)
-        tau = tt / T
-        x += list(a + (b - a) * (10 * tau**3 - 15 * tau**4 + 6 * tau**5))
-        t += list(t0 + tt)
-        t0 += T
-        th = np.arange(0.0, hold, 1.0 / rate_hz)
-        x += [b] * th.size
-        t += list(t0 + th)
-        t0 += hold
-    return np.array(t), np.array(x)
 
 
 # ---------------------------------------------------------------- the rules

@@ -39,7 +39,7 @@ import numpy as np
 
 from .drive import Drive
 
-__all__ = ["board_stroke", "serial_report", "true_crossings", "BATCH_S", "TRANSPORT_S"]
+__all__ = ["board_stroke", "serial_report", "BATCH_S", "TRANSPORT_S"]
 
 #: The pen page's batch period [s] (its samples reach the host in batches this long).
 BATCH_S = 0.004
@@ -49,21 +49,6 @@ TRANSPORT_S = 0.001
 _ORIGIN_S = 0.1
 #: A heartbeat this often while a steady drive plays [s] (the host's, well inside the board's 200 ms watchdog).
 _HEARTBEAT_S = 0.05
-
-
-def true_crossings(t_s: np.ndarray, x_m: np.ndarray, y_m: np.ndarray, centres_m: np.ndarray,
-                   radii_m: np.ndarray | float) -> np.ndarray:
-    """Times [s] the path (samples t, x, y [s, m], linearly between them) passes its closest
-    approach to a bump centre within that bump's radius [m], in order."""
-    td = np.linspace(t_s[0], t_s[-1], int((t_s[-1] - t_s[0]) * 20_000) + 2)
-    xd, yd = np.interp(td, t_s, x_m), np.interp(td, t_s, y_m)
-    radii = np.broadcast_to(np.asarray(radii_m, dtype=float), (len(centres_m),))
-    out: list[float] = []
-    for (cx, cy), r in zip(np.asarray(centres_m, dtype=float), radii):
-        d = np.hypot(xd - cx, yd - cy)
-        i = np.flatnonzero((d[1:-1] <= d[:-2]) & (d[1:-1] < d[2:]) & (d[1:-1] < r)) + 1
-        out.extend(td[i].tolist())
-    return np.sort(np.array(out))
 
 
 def _host(board: Any, circuit: str) -> Any:
@@ -152,6 +137,8 @@ def board_stroke(profile: Any, speed_m_s: float, *, surface: Any = None, feature
     row.update(event_p50_ms=ev["p50_ms"], event_p95_ms=ev["p95_ms"], crossings=None, crossing_p50_ms=None,
                crossing_p95_ms=None)
     if bumps is not None and surface is not None:
+        from .surface.fields import true_crossings
+
         t, x, y = straight_stroke(surface.width_m, surface.height_m, speed_m_s, 0.0, duration)
         truth = true_crossings(t, x, y, bumps.centres_m, bumps.radii_m)
         cr = _errors_ms(inside, zero_s + truth)

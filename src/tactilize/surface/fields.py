@@ -1,4 +1,5 @@
-"""Height fields generated in code, with their bumps known: for tests, benches and demos.
+"""Height fields generated in code, with their bumps known: for tests, benches and demos;
+strokes over them (minimum-jerk paths) and the times they truly cross each bump.
 
 Every field is an array of heights in luminance units (0 .. 1) plus the centres
 and radii of its bumps, so what a stroke should feel is known exactly.
@@ -14,7 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["BumpField", "bump_field", "grain_field", "grating_field"]
+__all__ = ["BumpField", "bump_field", "grain_field", "grating_field", "min_jerk_path", "true_crossings"]
 
 
 class BumpField(NamedTuple):
@@ -85,3 +86,39 @@ def grating_field(spatial_frequency_per_m: float, angle_rad: float, size_m: tupl
     y = -(np.arange(rows) + 0.5) * pitch_m  # y up
     phase = 2 * np.pi * spatial_frequency_per_m * (x[None, :] * math.cos(angle_rad) + y[:, None] * math.sin(angle_rad))
     return (0.5 + 0.5 * np.cos(phase)).astype(np.float32)
+
+
+def min_jerk_path(points_m, durations_s, holds_s, rate_hz: float = 240.0) -> tuple[np.ndarray, np.ndarray]:
+    """A hand's stroke along one axis: minimum-jerk moves between ``points_m`` [m], each
+    taking its duration [s] and followed by a rest of its hold [s] (a stop; a move back is
+    a reversal), sampled at ``rate_hz`` [Hz].  Returns times [s] and positions [m]."""
+    t: list[float] = []
+    x: list[float] = []
+    t0 = 0.0
+    for a, b, T, hold in zip(points_m[:-1], points_m[1:], durations_s, holds_s):
+        tt = np.arange(0.0, T, 1.0 / rate_hz)
+        tau = tt / T
+        x += list(a + (b - a) * (10 * tau**3 - 15 * tau**4 + 6 * tau**5))
+        t += list(t0 + tt)
+        t0 += T
+        th = np.arange(0.0, hold, 1.0 / rate_hz)
+        x += [b] * th.size
+        t += list(t0 + th)
+        t0 += hold
+    return np.array(t), np.array(x)
+
+
+def true_crossings(t_s: np.ndarray, x_m: np.ndarray, y_m: np.ndarray, centres_m: np.ndarray,
+                   radii_m: np.ndarray | float) -> np.ndarray:
+    """Times [s] the path (samples t, x, y [s, m], linearly between them) passes its closest
+    approach to a bump centre within that bump's radius [m], in order (a pen resting on a
+    bump's top has no strict closest approach there and is not counted)."""
+    td = np.linspace(t_s[0], t_s[-1], int((t_s[-1] - t_s[0]) * 20_000) + 2)
+    xd, yd = np.interp(td, t_s, x_m), np.interp(td, t_s, y_m)
+    radii = np.broadcast_to(np.asarray(radii_m, dtype=float), (len(centres_m),))
+    out: list[float] = []
+    for (cx, cy), r in zip(np.asarray(centres_m, dtype=float), radii):
+        d = np.hypot(xd - cx, yd - cy)
+        i = np.flatnonzero((d[1:-1] <= d[:-2]) & (d[1:-1] < d[2:]) & (d[1:-1] < r)) + 1
+        out.extend(td[i].tolist())
+    return np.sort(np.array(out))
