@@ -184,6 +184,16 @@ class LeasedOutput:
             self.notify(self.lease.status(self))
         return [Drive.off()] * int(self.output.channels)
 
+    def play_events(self, channels: Sequence[Any], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
+        # A stroke of events is a stroke: it claims the lease as apply() does (else a page could
+        # replace the holder's events, and its after_batch() would never reach the output).
+        if self.lease.claim(self):
+            return self.output.play_events(channels, now_s, equivalent)
+        self.refused += 1
+        if not self._told_refused:
+            self.notify(self.lease.status(self))
+        return [Drive.off()] * int(self.output.channels)
+
     def stop(self) -> None:
         if self.lease.may_rest(self):
             self.output.stop()
