@@ -14,7 +14,8 @@
 
    * server work per pen batch (arrival to drive handed to the socket, the
      server's own record) on the page's WebSocket, p50 / p99, ``surface`` against
-     today's page default ``perceptual``, sessions alternating (goal p99 <= 1.2x),
+     today's page default ``perceptual``, sessions alternating in rounds of
+     ROUND_BATCHES, the first SKIP_FIRST of each left out (goal p99 <= 1.2x),
      then the renderer alone, both renderings alternating batch by batch, and the
      machine's load average (the p99 moves with it);
    * the surface model of a 2048 x 2048 upload against a bare ``scipy.fft.rfft2``
@@ -193,10 +194,11 @@ def batch_costs(batches: int, rounds: int) -> dict:
     res["load_average"] = os.getloadavg()
     print(f"  machine load average (1, 5, 15 min) {res['load_average'][0]:.2f} {res['load_average'][1]:.2f} "
           f"{res['load_average'][2]:.2f} on {os.cpu_count()} cores")
-    print("  The surface rendering's window (prediction, heights, bumps) is one compiled pass; what is left is\n"
-          "  Python per batch (the stroke's bookkeeping, the hand-off) and, on batches whose events changed,\n"
-          "  the equivalent Drive and the wire's plan of it: those set its p99. A pre-empted batch in a hundred\n"
-          "  is the p99 of either rendering: compare p99 ratios between runs on a quiet machine (docs/surfaces.md).")
+    print("  The surface rendering's window is one compiled pass; its page now holds the wire's lease, so the\n"
+          "  wire steps in the gap after each batch (before, 1 % of surface batches waited 0.5-1 ms for it).\n"
+          "  What is left is Python per batch (the stroke's bookkeeping, the hand-off) and, on the batches\n"
+          "  whose events changed (about half), the equivalent Drive and the wire's plan of it: those set the\n"
+          "  p99. Batches over 1 ms were pre-empted: compare p99 ratios between runs on a quiet machine.")
     return res
 
 

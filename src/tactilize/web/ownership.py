@@ -28,7 +28,7 @@ from __future__ import annotations
 import itertools
 import threading
 import time
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Sequence, cast
 
 from ..actuators.base import Output
 from ..drive import Drive
@@ -188,7 +188,8 @@ class LeasedOutput:
         # A stroke of events is a stroke: it claims the lease as apply() does (else a page could
         # replace the holder's events, and its after_batch() would never reach the output).
         if self.lease.claim(self):
-            return self.output.play_events(channels, now_s, equivalent)
+            # Only outputs that play events (``plays_events``) are handed them: not in Output's protocol.
+            return cast(Any, self.output).play_events(channels, now_s, equivalent)
         self.refused += 1
         if not self._told_refused:
             self.notify(self.lease.status(self))
