@@ -64,6 +64,19 @@ class Drive:
     regularity: float | None = None
 
     def __post_init__(self) -> None:
+        f, w, a, s, r = self.pulse_frequency_hz, self.pulse_width_s, self.amplitude, self.strength, self.regularity
+        # Every pen batch makes a few Drives: plain floats within range pass in one chain of
+        # comparisons (NaN fails every one); anything else goes through check_finite, which
+        # accepts or refuses exactly as for these.
+        if (
+            type(f) is float and type(w) is float and type(a) is float
+            and 0.0 <= f < math.inf and 0.0 <= w < math.inf and 0.0 <= a <= 1.0
+            and (s is None or (type(s) is float and 0.0 <= s <= 1.0))
+            and (r is None or (type(r) is float and 0.0 <= r <= 1.0))
+        ):
+            if type(self.clamped) is not tuple:
+                object.__setattr__(self, "clamped", tuple(self.clamped))
+            return
         for name in ("pulse_frequency_hz", "pulse_width_s"):
             check_finite(getattr(self, name), "<drive>", what=name, error=DriveError, minimum=0.0)
         check_finite(self.amplitude, "<drive>", what="amplitude", error=DriveError, minimum=0.0, maximum=1.0)
@@ -97,7 +110,9 @@ class Drive:
 
     def replace(self, **changes: Any) -> "Drive":
         """A copy with some fields changed (validated like any new Drive)."""
-        return dataclasses.replace(self, **changes)
+        # As dataclasses.replace (an unknown name is a TypeError from __init__, every field is
+        # checked again), without its walk over the fields' metadata.
+        return type(self)(**{**self.__dict__, **changes})
 
     def with_clamp(self, name: str, **changes: Any) -> "Drive":
         """A copy with fields changed and ``name`` appended to :attr:`clamped`."""

@@ -179,7 +179,10 @@ def bumps_into(h, ids, floors, a, b, out_idx, out_prom):  # pragma: no cover - c
     return count
 
 
-@njit(cache=True, nogil=True)
+# Holding the GIL (no nogil): it runs for microseconds on the server's event loop, and a
+# release there hands the GIL to any thread waiting for it (the simulated wire's), which the
+# batch then waits for, up to a switch interval or, on a loaded machine, an OS time slice.
+@njit(cache=True)
 def search_window(field, inv_x, inv_y, floor, t, x, y, h, ids, floors, lo, end, npred, k1, step,
                   t0, x0, y0, s0, ux, uy, speed, a, out_idx, out_prom, out_t):  # pragma: no cover - compiled
     """A pen batch's window on one picture, in one pass: the predicted points, the heights

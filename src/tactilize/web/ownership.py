@@ -28,7 +28,7 @@ from __future__ import annotations
 import itertools
 import threading
 import time
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Sequence, cast
 
 from ..actuators.base import Output
 from ..drive import Drive
@@ -179,6 +179,17 @@ class LeasedOutput:
     def apply(self, channels: Sequence[Drive]) -> list[Drive]:
         if self.lease.claim(self):
             return self.output.apply(channels)
+        self.refused += 1
+        if not self._told_refused:
+            self.notify(self.lease.status(self))
+        return [Drive.off()] * int(self.output.channels)
+
+    def play_events(self, channels: Sequence[Any], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
+        # A stroke of events is a stroke: it claims the lease as apply() does (else a page could
+        # replace the holder's events, and its after_batch() would never reach the output).
+        if self.lease.claim(self):
+            # Only outputs that play events (``plays_events``) are handed them: not in Output's protocol.
+            return cast(Any, self.output).play_events(channels, now_s, equivalent)
         self.refused += 1
         if not self._told_refused:
             self.notify(self.lease.status(self))
