@@ -299,7 +299,7 @@ class SimulatedOutput(OutputBase):
                     ch.ctrl.stop()
                 elif kind == "standby":
                     ch.ctrl.standby(now)
-                else:
+                elif drives is not None:
                     ch.ctrl.command(drives[c], now)
 
     def close(self) -> None:
@@ -494,7 +494,7 @@ class SimulatedOutput(OutputBase):
             if not starts:
                 ctrl.update(ch.model.time_s)
 
-    def _push(self, t: np.ndarray, cols: list[tuple[np.ndarray, ...]]) -> None:
+    def _push(self, t: np.ndarray, cols: Sequence[tuple[np.ndarray, ...]]) -> None:
         m = t.size
         if m >= self._size:
             t = t[-self._size :]

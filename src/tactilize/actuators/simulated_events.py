@@ -121,7 +121,7 @@ def run_event_block(out: Any, ch: Any, starts: list[tuple[int, Drive]], step: in
         out._close_pulse(ch)
         ctrl.update(ch.model.time_s)
         plan = ctrl.plan(drive)
-        width_s = min(plan.pulse_width_s, ch.heat.max_pulse_s())  # type: ignore[union-attr]
+        width_s = min(plan.pulse_width_s, ch.heat.max_pulse_s())
         width_us = int(width_s * _US)
         ch.width_s, ch.current_a = width_us * 1e-6, ch.model.current_a
         pos = s

@@ -272,7 +272,7 @@ class PenRenderer:
     def _render(self, state: StrokeState | None, batch: list[PenSample] | None = None) -> RenderResult:
         # No state: every sample so far was rejected, nothing is known about the pen.
         feat = None if state is None else self.texture_map.lookup(state.x_m, state.y_m)
-        if feat is None:
+        if state is None or feat is None:
             self._surface.reset()
             self._stop()
             self._last = RenderResult(True, False, state, None, self._off, self._off)
@@ -301,7 +301,7 @@ class PenRenderer:
         else:
             sp.handed_off()
             applied = self._apply(requested)
-        pulses = sp.stroke.newly_fired
+        pulses = sp.stroke.newly_fired if sp.stroke is not None else 0
         self._last = RenderResult(True, True, state, feat, requested, applied, tuple(events), pulses)
         return self._last
 
@@ -359,6 +359,7 @@ class _SurfacePath:
 
     def update(self, profile: Any, state: StrokeState, batch: list[PenSample]) -> tuple[list, Drive]:
         stroke = self.stroke
+        assert stroke is not None, "on() makes the stroke before the first update"
         if state.direction_rad is None or state.speed_m_s <= 0:
             # A resting pen adds no path and fires nothing (what was pending is withdrawn).
             stroke.update(batch, 0.0, None, state.pressure)

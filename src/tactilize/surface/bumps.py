@@ -90,7 +90,10 @@ def _resample_short(t_s: Any, x_m: Any, y_m: Any, step_m: float, s0_m: float) ->
         d = math.hypot(x[i] - x[i - 1], y[i] - y[i - 1])
         if d > 0:
             c += d
-            kt.append(t[i]), kx.append(x[i]), ky.append(y[i]), ks.append(s0_m + c)
+            kt.append(t[i])
+            kx.append(x[i])
+            ky.append(y[i])
+            ks.append(s0_m + c)
     if len(ks) < 2:
         return np.array(kt), np.array(kx), np.array(ky), np.array(ks)
     n = int((ks[-1] - ks[0]) / step_m) + 1

@@ -110,8 +110,8 @@ def local_rate_hz(t_s: np.ndarray) -> np.ndarray:
 
 
 def place_events(
-    t_s: Sequence[float],
-    strength: Sequence[float],
+    t_s: Sequence[float] | np.ndarray,
+    strength: Sequence[float] | np.ndarray,
     *,
     previous_t_s: float | None = None,
 ) -> list[PulseEvent]:
@@ -171,9 +171,9 @@ def place_events(
 
 def stroke_events(
     surface: Any,
-    t_s: Sequence[float],
-    x_m: Sequence[float],
-    y_m: Sequence[float],
+    t_s: Sequence[float] | np.ndarray,
+    x_m: Sequence[float] | np.ndarray,
+    y_m: Sequence[float] | np.ndarray,
     pressure: float | None = None,
 ) -> list[PulseEvent]:
     """Every pulse of a whole stroke, offline: the pure path of the surface rendering.

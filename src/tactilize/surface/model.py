@@ -19,7 +19,7 @@ Units: SI (metres); heights in luminance units.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -68,10 +68,14 @@ class SurfaceModel:
     tip_radius_m: float
     prominence_floor: float
     raw: np.ndarray
+    # Made in __post_init__ (see there), not parameters.
+    _padded: np.ndarray = field(init=False, repr=False, compare=False)
+    _inv_pitch: tuple[float, float] = field(init=False, repr=False, compare=False)
 
     @property
     def shape(self) -> tuple[int, int]:
-        return self.height.shape  # type: ignore[return-value]
+        rows, cols = self.height.shape
+        return int(rows), int(cols)
 
     @property
     def width_m(self) -> float:
@@ -104,7 +108,7 @@ class SurfaceModel:
         """(the height padded by one edge pixel all round, pixels per display metre across and
         down): what :meth:`regions` reads, for the pen window's compiled search
         (:mod:`tactilize.surface._kernels`)."""
-        return self._padded, self._inv_pitch[0], self._inv_pitch[1]  # type: ignore[attr-defined]
+        return self._padded, self._inv_pitch[0], self._inv_pitch[1]
 
     def sample(self, x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
         """Tip-filtered height at display positions [m] (from the top-left, y down),
