@@ -16,7 +16,7 @@ from tactilize.pen.samples import PenSample
 from tactilize.surface import CompositeSurface, place_events, stroke_events, surface_model
 from tactilize.surface.events import MAX_RATE_HZ, RATE_ONLY_HZ, event_statistics
 from tactilize.surface.fields import bump_field, grain_field, grating_field, min_jerk_path, true_crossings
-from tactilize.surface.replay import replay_stroke
+from tactilize.pen.replay import replay_stroke
 
 FREQUENCY_JND = 0.2
 

@@ -5,8 +5,9 @@ made once per picture), :mod:`.bumps` (bumps along a path), :mod:`.events`
 (one pulse per bump crossed, its strength in the felt band), :mod:`.stroke`
 (the same in real time, predicted ahead), :mod:`.equivalent` (the steady Drive
 of the next window for outputs that cannot play events), :mod:`.composite`
-(several pictures side by side), :mod:`.fields` (generated fields with known
-bumps) and :mod:`.replay` (a stroke through the real-time path in simulated time).
+(several pictures side by side) and :mod:`.fields` (generated fields with known
+bumps).  A stroke replayed through the real-time path is the pen's
+(:mod:`tactilize.pen.replay`).
 """
 
 from __future__ import annotations

@@ -15,10 +15,10 @@ from __future__ import annotations
 
 from typing import Any, Sequence
 
-from ..pen.samples import PenSample
-from ..pen.tracker import StrokeTracker
-from .events import PulseEvent
-from .stroke import SurfaceStroke
+from .samples import PenSample
+from .tracker import StrokeTracker
+from ..surface.events import PulseEvent
+from ..surface.stroke import SurfaceStroke
 
 __all__ = ["replay_stroke"]
 
