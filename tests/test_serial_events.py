@@ -21,10 +21,15 @@ import pytest
 from tactilize.actuators import frames as P
 from tactilize.actuators.clock_sync import ClockSync
 from tactilize.actuators.serial import SerialOutput
-from tactilize.actuators.serial_events import MATCH_US, EventSender, StrokeClock, plan_pulses
+from tactilize.actuators.serial_events import MATCH_US, EventSender, plan_pulses
+from tactilize.surface.clock import StrokeClock
 from tactilize.drive import Drive
 from tactilize.boardhost import host_machine
 from tactilize.boardhost.emulator import ControllerEmulator, load_firmware
+from tactilize.image import TextureImage
+from tactilize.maps import texture_map
+from tactilize.mapping import Profile
+from tactilize.pen import PenRenderer
 from tactilize.pen.samples import PenSample
 from tactilize.pen.tracker import StrokeTracker
 from tactilize.surface import surface_model
@@ -168,22 +173,19 @@ def _wait(predicate, timeout_s):
 
 
 def _play(out, sm, t, x, y0, batch_s=0.004, transport_s=0.001, channels=1):
-    """The stroke in real time: batches as the page sends them, through the tracker and the
-    surface's real-time path into ``out.play_events`` (on the first ``channels``; the
-    machine is shared, and one channel's pulses are what is measured); returns the host
-    time of stroke time 0."""
-    tracker, stroke = StrokeTracker(), SurfaceStroke(sm)
+    """The stroke in real time: batches as the page sends them, through the pen's renderer
+    (what `serve` runs: the tracker, the surface's real-time path, the stroke clock) into
+    ``out`` (on the first ``channels``; the machine is shared, and one channel's pulses are
+    what is measured); returns the host time of stroke time 0."""
+    img = TextureImage(sm.raw, sm.display_pitch_m)
+    renderer = PenRenderer(texture_map(img), Profile.preset("surface"), out, channels=channels, surface=sm)
     batches = _batches(t, x, y0, batch_s)
     origin = time.monotonic() + 0.1
     for batch in batches:
         delay = origin + batch[-1].t_s + transport_s - time.monotonic()
         if delay > 0:
             time.sleep(delay)
-        state = tracker.extend(batch)
-        if state is None:
-            continue
-        events = stroke.update(batch, state.speed_m_s, state.direction_rad, state.pressure)
-        out.play_events([events] * channels, batch[-1].t_s, [OPERATING] * channels)
+        renderer.feed(batch)
     return origin
 
 

@@ -60,3 +60,42 @@ def test_a_real_texture_keeps_every_ridge_at_touch_screen_rates():
         live = [e for e in replay_stroke(sm, _samples(t, x, y), batch_s=1.0 / rate_hz) if e.t_s <= t[-1]]
         assert len(offline) >= 14
         assert len(live) == len(offline), rate_hz
+
+
+def test_a_held_up_batch_does_not_schedule_a_played_bump_again():
+    """The output plays what a batch handed out on its own clock; a batch held up on the
+    way arrives after that, its samples older than the pulse it played.  If the hand
+    slowed meanwhile, later batches find the bump later: told how far the output got
+    (played_until_s), the stroke does not schedule it a second time."""
+    from tactilize.surface.stroke import SurfaceStroke
+
+    f = bump_field(np.array([[20e-3, 5e-3]]), 0.6e-3, (40e-3, 10e-3), 0.05e-3)
+    sm = surface_model(f.heights, pitch_m=f.pitch_m)
+    y = 5e-3
+
+    def run(told):
+        stroke = SurfaceStroke(sm)
+        v = 0.1  # 100 mm/s: the bump is 15 ms ahead of the first batch's end
+        t1 = np.arange(0.0, 0.072, 0.004)
+        x_end = 20e-3 - 1.5e-3
+        first = stroke.update(_samples(t1, x_end - v * (t1[-1] - t1), np.full(t1.size, y)), v, 0.0)
+        assert len(first) == 1
+        played = first[0].t_s  # the output plays it then
+        later = []
+        # The hand slowed to 30 mm/s; the next batch (8 ms of samples) arrives 10 ms after
+        # the pulse played, then batches come on time.
+        t0, x0, w = t1[-1], x_end, 0.03
+        for k in range(12):
+            tb = t0 + 0.004 * np.array([2 * k + 1, 2 * k + 2])
+            xb = x0 + w * (tb - t0)
+            arrival = played + 0.010 if k == 0 else tb[-1]
+            ev = stroke.update(_samples(tb, xb, np.full(tb.size, y)), w, 0.0,
+                               played_until_s=arrival if told else None)
+            later += [e.t_s for e in ev if e.t_s <= tb[-1] + 0.004]  # what becomes due now
+        return played, sorted(set(round(t, 6) for t in later))
+
+    played, again = run(told=True)
+    assert again == []
+    # without being told, the same bump is found again 20+ ms later and played a second time
+    _, unaware = run(told=False)
+    assert unaware and min(unaware) > played + 0.006

@@ -151,7 +151,8 @@ def _play_events(board: Any, host: Any, profile: Any, surface: Any, speed_m_s: f
     """A surface profile's stroke as scheduled pulses; (row, board time [s] of stroke time 0, event times [s])."""
     from .actuators import frames as P
     from .actuators.clock_sync import ClockSync
-    from .actuators.serial_events import EventSender, StrokeClock, plan_pulses
+    from .actuators.serial_events import EventSender, plan_pulses
+    from .surface.clock import StrokeClock
     from .surface.events import stroke_events
     from .surface.stroke import LOOKAHEAD_S
     from .surface.straight import straight_stroke

@@ -47,7 +47,8 @@ from . import frames as P
 from .base import OutputBase
 from .clock_sync import ClockSync
 from .sensed import SensedLoop, fault_text
-from .serial_events import EventSender, StrokeClock, board_limits, plan_pulses
+from ..surface.clock import StrokeClock
+from .serial_events import EventSender, board_limits, plan_pulses
 from .serial_link import PortLost as _PortLost
 from .serial_link import SerialLink
 from .sma import Circuit, SafetyEnvelope, WireController, WireSpec, default_envelope

@@ -24,7 +24,7 @@ from typing import Any, Callable, Sequence
 from ..drive import Drive
 from . import frames as P
 
-__all__ = ["EventSender", "StrokeClock", "plan_pulses", "board_limits", "MATCH_US"]
+__all__ = ["EventSender", "plan_pulses", "board_limits", "MATCH_US"]
 
 #: A pulse within this of one sent before is that pulse again [us] (pulses are at
 #: least 1/300 s apart, so two different ones never are).
@@ -33,10 +33,6 @@ MATCH_US = 3000.0
 #: again, found a little later by a later batch (1/150 s: closer pulses are a
 #: cluster the rendering weakens anyway, docs/surfaces.md).
 MATCH_PLAYED_US = 1e6 / 150
-#: How long the least lag between the stroke's clock and the host's is remembered [s].
-LAG_WINDOW_S = 2.0
-#: A lag this far above the least one is a new clock (another page, a new stroke) [s].
-LAG_RESET_S = 0.5
 #: The band's lowest and highest pulse rate [Hz] for the interval rule.
 _RATE_HZ = (1.0, 300.0)
 #: Pulses remembered per channel for their ids.
@@ -78,7 +74,7 @@ def plan_pulses(events: Sequence[Any], stroke_zero_s: float, host_now_s: float, 
     events : sequence of PulseEvent
         Times ``t_s`` on the stroke's clock, in order.
     stroke_zero_s : float
-        The host time [s] of stroke time 0 (:class:`StrokeClock`).
+        The host time [s] of stroke time 0 (:class:`~tactilize.surface.clock.StrokeClock`).
     host_now_s : float
         The host's clock now [s]: a pulse due before it plays at once (the
         stroke hands over only what is not yet fired, a late crossing at its
@@ -106,31 +102,6 @@ def plan_pulses(events: Sequence[Any], stroke_zero_s: float, host_now_s: float, 
         w = min(width_us[1], max(width_us[0], int(round(d.pulse_width_s * 1e6))))
         out.append((board_us(max(stroke_zero_s + ts[k], host_now_s)), w))
     return out
-
-
-class StrokeClock:
-    """The stroke's clock on the host's: host time = stroke time + the least lag seen lately.
-
-    Each call says "stroke time ``now_s`` is now"; but a call can come late (a
-    batch held up on the way, a busy thread), and mapping each call's events from
-    its own arrival would move every pulse by that delay, and move a pulse sent
-    again from one frame to the next.  The least lag over :data:`LAG_WINDOW_S`
-    is the batch that came quickest: the mapping follows it, steady from call to
-    call.  A lag far above it (:data:`LAG_RESET_S`) is a new clock and starts afresh.
-    """
-
-    def __init__(self) -> None:
-        self._lags: list[tuple[float, float]] = []  # (host time [s], lag [s])
-
-    def host_s(self, now_s: float, host_now_s: float) -> float:
-        """The host time [s] of stroke time 0, given that ``now_s`` is now (``host_now_s``)."""
-        lag = host_now_s - now_s
-        lags = [(h, g) for h, g in self._lags if h >= host_now_s - LAG_WINDOW_S]
-        if lags and (lag > min(g for _, g in lags) + LAG_RESET_S or lag < min(g for _, g in lags) - LAG_RESET_S):
-            lags = []
-        lags.append((host_now_s, lag))
-        self._lags = lags
-        return min(g for _, g in lags)
 
 
 class EventSender:

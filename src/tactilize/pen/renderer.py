@@ -15,6 +15,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 from ..drive import Drive
 from ..mapping import Profile
+from ..surface.clock import StrokeClock
 from ..synthesis import pen_channels
 from ..synthesis.wavelets import wavelet_rows
 from .samples import PenSample
@@ -180,6 +181,7 @@ class PenRenderer:
     ) -> None:
         self.texture_map = texture_map
         self._clock = clock or time.monotonic
+        self._stroke_clock = StrokeClock()
         self._surface = _SurfacePath(surface)
         self.profile = profile or Profile.preset("paper")
         self.output = output
@@ -288,7 +290,10 @@ class PenRenderer:
     def _render_surface(self, state: StrokeState, feat: Any, batch: list[PenSample]) -> RenderResult:
         """A pulse per bump crossed: events to an output that plays them, else their equivalent drive."""
         sp = self._surface
-        events, drive = sp.update(self.profile, state, batch)
+        # A batch held up arrives after the output played some of what the last one handed
+        # out: tell the stroke, so a bump found again a little elsewhere is not played twice.
+        played = self._stroke_clock.played_until_s(state.t_s, self._clock())
+        events, drive = sp.update(self.profile, state, batch, played)
         requested = self.splitter(drive, self.channels, state)
         out = self.output
         if out is not None and getattr(out, "plays_events", False) and (events or not drive.is_off):
@@ -357,15 +362,16 @@ class _SurfacePath:
             self.stroke.reset()
         self._handed = None
 
-    def update(self, profile: Any, state: StrokeState, batch: list[PenSample]) -> tuple[list, Drive]:
+    def update(self, profile: Any, state: StrokeState, batch: list[PenSample],
+               played_until_s: float | None = None) -> tuple[list, Drive]:
         stroke = self.stroke
         assert stroke is not None, "on() makes the stroke before the first update"
         if state.direction_rad is None or state.speed_m_s <= 0:
             # A resting pen adds no path and fires nothing (what was pending is withdrawn).
-            stroke.update(batch, 0.0, None, state.pressure)
+            stroke.update(batch, 0.0, None, state.pressure, played_until_s)
             stroke.rest()
             return [], Drive.off()
-        events = stroke.update(batch, state.speed_m_s, state.direction_rad, state.pressure)
+        events = stroke.update(batch, state.speed_m_s, state.direction_rad, state.pressure, played_until_s)
         # The drive depends only on the events in the window and the profile: most batches
         # bring the same ones, their predicted times moved by microseconds (a Drive and its
         # limits cost more than comparing a few events).  Kept, the same Drive object also

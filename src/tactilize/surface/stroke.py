@@ -89,6 +89,7 @@ class SurfaceStroke:
         speed_m_s: float,
         direction_rad: float | None,
         pressure: float | None = None,
+        played_until_s: float | None = None,
     ) -> list[PulseEvent]:
         """Add a batch; returns every event from the newest sample's time on that is not yet fired.
 
@@ -101,6 +102,11 @@ class SurfaceStroke:
             The tracker's velocity [m/s] and direction [rad, y up] (None: still).
         pressure : float, optional
             Pen pressure in [0, 1]; None when the device has none.
+        played_until_s : float, optional
+            The stroke time [s] the output has reached when this batch arrives, when that is
+            later than its newest sample (a batch held up: :meth:`~tactilize.surface.clock.StrokeClock.played_until_s`).
+            Events handed out before and due by then have fired, so a bump found again
+            by this batch a little elsewhere is not scheduled a second time.
 
         Returns
         -------
@@ -126,11 +132,12 @@ class SurfaceStroke:
             return []
         now = path.last[0]
         previous, self.now_s = self.now_s, now
-        # What was handed out and is due by now has fired.
+        # What was handed out and is due by now (by the output's clock) has fired.
         self.newly_fired = 0
         if self._pending:
+            played = now if played_until_s is None or played_until_s < now else played_until_s
             for ev, s in self._pending:
-                if ev.t_s <= now:
+                if ev.t_s <= played:
                     self.newly_fired += 1
                     self._fired.append((ev, s))
                     self._last_fired_t = ev.t_s if self._last_fired_t is None else max(self._last_fired_t, ev.t_s)
