@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as hs
 
 from tactilize.surface import stroke_events, surface_model
 from tactilize.surface.events import PulseEvent
@@ -60,3 +62,16 @@ def test_the_wavelet_is_a_bump_s_acceleration_cut_smoothly():
     inner = np.abs(tau) <= SPAN_SIGMAS - 1
     np.testing.assert_allclose(w[inner], -(1 - tau[inner] ** 2) * np.exp(-tau[inner] ** 2 / 2))
     assert np.max(np.abs(np.diff(w))) < 0.01  # no step anywhere
+
+
+@settings(max_examples=200, deadline=None)
+@given(hs.lists(hs.tuples(hs.floats(0.0, 0.05), hs.floats(0.0, 1.0)), max_size=12), hs.floats(-1.0, 1.0))
+def test_the_page_rows_are_event_wavelets_exactly(items, now_s):
+    # wavelet_rows is event_wavelets' arithmetic written out for the page (ties and
+    # repeated times included): every row must be the same floats.
+    t, ev = 0.0, []
+    for dt, s in items:
+        t += dt
+        ev.append(PulseEvent(t, s))
+    ref = [[w.t_s - now_s, w.amplitude, w.sigma_s] for w in event_wavelets(ev)]
+    assert wavelet_rows(ev, now_s) == ref

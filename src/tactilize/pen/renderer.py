@@ -396,8 +396,7 @@ class _SurfacePath:
             return None
         if len(requested) != len(last[1]) or any(a is not b for a, b in zip(requested, last[1])):
             return None
-        ahead = [e for e in last[0] if e.t_s > now_s]
-        return last[2] if _same_events(events, ahead) else None
+        return last[2] if _same_ahead(events, last[0], now_s) else None
 
     def handed(self, events: list, requested: list[Drive], applied: list[Drive], now_s: float) -> None:
         """The output was handed ``events`` and ``requested`` at ``now_s`` [s] and applied ``applied``."""
@@ -430,6 +429,24 @@ def _same_events(a: Sequence[Any], b: Sequence[Any]) -> bool:
         if not (-SAME_EVENT_S <= d <= SAME_EVENT_S and -SAME_STRENGTH <= e <= SAME_STRENGTH and x.clamped == y.clamped):
             return False
     return True
+
+
+def _same_ahead(events: Sequence[Any], held: Sequence[Any], now_s: float) -> bool:
+    """``_same_events(events, [e for e in held if e.t_s > now_s])`` in one pass, without the
+    list: every surface batch asks it."""
+    j, n = 0, len(events)
+    for y in held:
+        if y.t_s <= now_s:
+            continue
+        if j == n:
+            return False
+        x = events[j]
+        d = x.t_s - y.t_s
+        e = x.strength - y.strength
+        if not (-SAME_EVENT_S <= d <= SAME_EVENT_S and -SAME_STRENGTH <= e <= SAME_STRENGTH and x.clamped == y.clamped):
+            return False
+        j += 1
+    return j == n
 
 
 def _close(a: Sequence[Drive], b: Sequence[Drive], rel: float) -> bool:

@@ -72,6 +72,9 @@ def _sigma_bounds(band_hz: tuple[float, float]) -> tuple[float, float]:
     return 1.0 / (_SQRT2_PI * band_hz[1]), 1.0 / (_SQRT2_PI * band_hz[0])
 
 
+_VOICE_COIL_SIGMAS = _sigma_bounds(VOICE_COIL_BAND_HZ)
+
+
 def event_wavelets(events: Sequence[Any], previous_t_s: float | None = None,
                    band_hz: tuple[float, float] = VOICE_COIL_BAND_HZ) -> list[Wavelet]:
     """One :class:`Wavelet` per pulse event (``t_s``, ``strength``), widths from the intervals.
@@ -106,7 +109,21 @@ def event_wavelets(events: Sequence[Any], previous_t_s: float | None = None,
 def wavelet_rows(events: Sequence[Any], now_s: float) -> list[list[float]]:
     """The page's form of :func:`event_wavelets`: ``[dt_s, amplitude, sigma_s]`` per event,
     ``dt_s`` from ``now_s`` [s] (the stroke time of the newest pen sample)."""
-    return [[w.t_s - now_s, w.amplitude, w.sigma_s] for w in event_wavelets(events)]
+    # The same arithmetic as event_wavelets without its Wavelet values: every surface batch
+    # builds these rows for the page (tests/test_wavelets.py holds the two equal).
+    lo, hi = _VOICE_COIL_SIGMAS
+    t = [float(e.t_s) for e in events]
+    n = len(t)
+    rows = []
+    for i in range(n):
+        gap = math.inf
+        if i > 0 and t[i] - t[i - 1] > 0:
+            gap = t[i] - t[i - 1]
+        if i + 1 < n and 0 < t[i + 1] - t[i] < gap:
+            gap = t[i + 1] - t[i]
+        sigma = gap / _SQRT2_PI if gap != math.inf else hi
+        rows.append([t[i] - now_s, float(events[i].strength), min(hi, max(lo, sigma))])
+    return rows
 
 
 def render_wavelets(wavelets: Sequence[Wavelet], t0_s: float, n: int, sample_rate_hz: float) -> np.ndarray:
