@@ -18,6 +18,7 @@ import pytest
 from PIL import Image
 
 from tactilize.actuators import frames as P
+from _waiting import wait_for
 
 
 def cli(*args: str) -> list[str]:
@@ -63,14 +64,6 @@ def grating(tmp_path):
     Image.fromarray(img).save(path)
     return str(path)
 
-
-def wait_for(predicate, timeout_s: float = 10.0) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.01)
-    return predicate()
 
 
 def test_emulator_prints_its_device_then_one_json_line_per_change(emulator):

@@ -37,6 +37,7 @@ from tactilize.surface.fields import min_jerk_path, true_crossings
 from tactilize.surface.stroke import SurfaceStroke
 
 from _virtual_board import Board
+from _waiting import wait_for as _wait
 from test_surface_events import _bump_line_field
 
 fw = load_firmware()
@@ -162,14 +163,6 @@ def test_a_skewed_board_clock_is_followed(emu):
         assert abs(out.clock.drift_ppm - 300.0) < 150.0
         assert abs(out.clock.board_us(time.monotonic()) - (3e9 + (time.monotonic() - t0) * 1.0003e6)) < 2000.0
 
-
-def _wait(predicate, timeout_s):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.01)
-    return predicate()
 
 
 def _play(out, sm, t, x, y0, batch_s=0.004, transport_s=0.001, channels=1):

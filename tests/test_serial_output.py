@@ -23,6 +23,7 @@ from tactilize.errors import OutputError, TactilizeError
 from tactilize.boardhost import host_machine
 from tactilize.boardhost.emulator import ControllerEmulator, load_firmware
 from tactilize.mapping import ActuatorLimits, Drive
+from _waiting import wait_for
 
 fw = load_firmware()
 
@@ -51,14 +52,6 @@ def emu():
     e.stop()
     host_machine.reset()
 
-
-def wait_for(predicate, timeout_s: float = 10.0) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.01)
-    return predicate()
 
 
 def test_apply_round_trip(emu):

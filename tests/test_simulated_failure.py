@@ -4,21 +4,14 @@ thread and the page kept saying "vibrating" while the model was frozen."""
 
 from __future__ import annotations
 
-import time
 
 import pytest
 
 from tactilize.actuators.simulated import SimulatedOutput
 from tactilize.drive import Drive
 from tactilize.errors import OutputError
+from _waiting import wait_for
 
-
-def _wait(predicate, limit_s: float = 30.0) -> bool:
-    # A bound only (a loaded machine is slow), never an assertion on time.
-    deadline = time.monotonic() + limit_s
-    while not predicate() and time.monotonic() < deadline:
-        time.sleep(0.01)
-    return predicate()
 
 
 def test_a_dead_simulation_thread_turns_the_output_safe_and_says_so():
@@ -26,7 +19,7 @@ def test_a_dead_simulation_thread_turns_the_output_safe_and_says_so():
     try:
         assert out.connected and out.fault is None
         out.apply([Drive(600_000.0, 1e-6), Drive(100.0, 3e-4)])
-        assert _wait(lambda: not out.connected), "the thread never stopped (or never said so)"
+        assert wait_for(lambda: not out.connected, 30.0), "the thread never stopped (or never said so)"
         assert "SignalError" in out.fault and "output is off" in out.fault
         assert [s["state"] for s in out.state()] == ["failed", "failed"]
         assert all(c.state == "off" for c in out.controllers)
@@ -52,7 +45,7 @@ def test_the_pages_wire_legend_says_failed_once_the_thread_stopped():
     try:
         pull = _wire_source(out)
         out.apply([Drive(600_000.0, 1e-6), Drive.off()])
-        assert _wait(lambda: not out.connected)
+        assert wait_for(lambda: not out.connected, 30.0)
         msg = pull()
         assert msg is not None and msg["state"] == ["failed", "failed"]
     finally:
