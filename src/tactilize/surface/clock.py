@@ -12,10 +12,17 @@ Used by the outputs that schedule events on their own clock (the serial board) a
 by the pen's renderer, which needs to know which pulses an output has played by now
 (a late batch must not re-schedule a bump the output already played).
 
+The least lag over the window is kept as a queue of the lags that can still become
+the least (each newer and smaller than the one before it): a batch costs a few
+steps however many batches the window holds (500 at 4 ms batches), not a pass over
+them all (docs/surfaces.md, "Server work per pen batch", round 5).
+
 Units: seconds.
 """
 
 from __future__ import annotations
+
+from collections import deque
 
 __all__ = ["StrokeClock", "LAG_WINDOW_S", "LAG_RESET_S"]
 
@@ -29,17 +36,25 @@ class StrokeClock:
     """Host time = stroke time + the least lag seen lately (see the module's docstring)."""
 
     def __init__(self) -> None:
-        self._lags: list[tuple[float, float]] = []  # (host time [s], lag [s])
+        # (host time [s], lag [s]) of the lags that may yet be the least: host times and
+        # lags both increase along it, so the least of the window is its first.
+        self._lags: deque[tuple[float, float]] = deque()
 
     def host_s(self, now_s: float, host_now_s: float) -> float:
-        """The host time [s] of stroke time 0, given that ``now_s`` [s] is now (``host_now_s`` [s])."""
+        """The host time [s] of stroke time 0, given that ``now_s`` [s] is now (``host_now_s`` [s],
+        never earlier than the previous call's: a monotonic clock)."""
         lag = host_now_s - now_s
-        lags = [(h, g) for h, g in self._lags if h >= host_now_s - LAG_WINDOW_S]
-        if lags and (lag > min(g for _, g in lags) + LAG_RESET_S or lag < min(g for _, g in lags) - LAG_RESET_S):
-            lags = []
+        lags = self._lags
+        oldest = host_now_s - LAG_WINDOW_S
+        while lags and lags[0][0] < oldest:
+            lags.popleft()
+        if lags and (lag > lags[0][1] + LAG_RESET_S or lag < lags[0][1] - LAG_RESET_S):
+            lags.clear()
+        # A lag no smaller than this one, seen before it, can never be the least again.
+        while lags and lags[-1][1] >= lag:
+            lags.pop()
         lags.append((host_now_s, lag))
-        self._lags = lags
-        return min(g for _, g in lags)
+        return lags[0][1]
 
     def played_until_s(self, now_s: float, host_now_s: float) -> float:
         """The stroke time [s] an output following this clock has reached when stroke time
