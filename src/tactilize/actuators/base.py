@@ -98,6 +98,21 @@ class Output(Protocol):
         ...
 
 
+class EventOutput(Output, Protocol):
+    """An output with the optional ``plays_events`` capability: what a caller may call
+    once ``plays_events`` is True (:meth:`OutputBase.play_events` documents it)."""
+
+    @property
+    def plays_events(self) -> bool:
+        """Pulse events are played as such (False: their equivalent drives are applied)."""
+        ...
+
+    def play_events(self, channels: Sequence[Sequence["PulseEvent"]], now_s: float,
+                    equivalent: Sequence[Drive]) -> list[Drive]:
+        """Replace each channel's events not yet fired; returns the drives applied."""
+        ...
+
+
 class OutputBase:
     """Shared plumbing: context manager and a check on the number of channels."""
 

@@ -11,10 +11,11 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Callable, Iterable, Protocol, Sequence, cast
 
+from ..actuators.base import EventOutput, Output
 from ..drive import Drive
-from ..mapping import Profile
+from ..mapping import FeaturesForDrive, Profile
 from ..surface.clock import StrokeClock
 from ..synthesis import pen_channels
 from ..synthesis.wavelets import wavelet_rows
@@ -22,6 +23,16 @@ from .samples import PenSample
 from .tracker import StrokeState, StrokeTracker
 
 __all__ = ["RenderResult", "PenRenderer", "default_splitter"]
+
+
+class PictureLookup(Protocol):
+    """What the renderer reads of a picture: the features under the pen (a
+    :class:`~tactilize.maps.FeatureLookup` is one; so is a picture with one set of
+    features everywhere)."""
+
+    def lookup(self, x_m: float, y_m: float) -> FeaturesForDrive | None:
+        """The features at (``x_m``, ``y_m``) [m, from the top-left, y down]; None off the picture."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -48,7 +59,7 @@ class RenderResult:
     down: bool
     inside: bool
     state: StrokeState | None
-    features: Any
+    features: FeaturesForDrive | None
     requested: list[Drive]
     applied: list[Drive]
     #: Pulse events this batch scheduled (the surface rendering), on the stroke's clock;
@@ -106,7 +117,7 @@ def _phantom_channels(drive: Drive, n: int, state: StrokeState | None) -> list[D
     return pen_channels(drive, state.direction_rad if state is not None else None)
 
 
-def default_splitter(output: Any) -> Callable[[Drive, int, StrokeState | None], list[Drive]]:
+def default_splitter(output: Output | None) -> Callable[[Drive, int, StrokeState | None], list[Drive]]:
     """How one drive becomes one per channel on ``output``.
 
     Where an output's amplitude is the felt intensity (voice coils and LRAs on
@@ -167,9 +178,9 @@ class PenRenderer:
 
     def __init__(
         self,
-        texture_map: Any,
+        texture_map: PictureLookup,
         profile: Profile | None = None,
-        output: Any = None,
+        output: Output | None = None,
         *,
         tracker: StrokeTracker | None = None,
         channels: int = 2,
@@ -201,7 +212,7 @@ class PenRenderer:
         """The latest result."""
         return self._last
 
-    def set_texture(self, texture_map: Any, surface: Any = None) -> RenderResult:
+    def set_texture(self, texture_map: PictureLookup, surface: Any = None) -> RenderResult:
         """Show another picture (and its surface, for the surface rendering): the
         stroke restarts and the output stops."""
         self.texture_map = texture_map
@@ -301,7 +312,7 @@ class PenRenderer:
             self._sent = None  # the steady resend rule does not apply to events
             applied = sp.still_handed(events, requested, state.t_s)
             if applied is None:
-                applied = list(out.play_events([events] * self.channels, state.t_s, requested))
+                applied = list(cast(EventOutput, out).play_events([events] * self.channels, state.t_s, requested))
                 sp.handed(events, requested, applied, state.t_s)
         else:
             sp.handed_off()

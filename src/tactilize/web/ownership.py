@@ -30,7 +30,7 @@ import threading
 import time
 from typing import Any, Callable, Sequence, cast
 
-from ..actuators.base import Output
+from ..actuators.base import EventOutput, Output
 from ..drive import Drive
 from .state import ServerState
 
@@ -188,8 +188,8 @@ class LeasedOutput:
         # A stroke of events is a stroke: it claims the lease as apply() does (else a page could
         # replace the holder's events, and its after_batch() would never reach the output).
         if self.lease.claim(self):
-            # Only outputs that play events (``plays_events``) are handed them: not in Output's protocol.
-            return cast(Any, self.output).play_events(channels, now_s, equivalent)
+            # Only outputs that play events (``plays_events``) are handed them.
+            return cast(EventOutput, self.output).play_events(channels, now_s, equivalent)
         self.refused += 1
         if not self._told_refused:
             self.notify(self.lease.status(self))
