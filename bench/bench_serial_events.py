@@ -39,7 +39,7 @@ from tactilize.pen.tracker import StrokeTracker
 from tactilize.surface import surface_model
 from tactilize.surface.equivalent import equivalent_drive
 from tactilize.surface.events import PulseEvent
-from tactilize.surface.fields import bump_field, min_jerk_path
+from tactilize.surface.fields import bump_line_field, min_jerk_path
 from tactilize.surface.stroke import SurfaceStroke
 
 EMULATOR = r"""
@@ -99,15 +99,6 @@ class Emulator:
         return out
 
 
-def _field(seed: int, radius: float = 0.6e-3):
-    rng = np.random.default_rng(seed)
-    cx = 4e-3 + np.cumsum(2.8 * radius + rng.exponential(1.5e-3, 80))
-    cx = cx[cx < 76e-3]
-    y0 = 10e-3
-    centres = np.stack([cx, y0 + rng.uniform(-0.5, 0.5, cx.size) * radius], 1)
-    return bump_field(centres, radius, (80e-3, 20e-3), 0.05e-3), y0
-
-
 def _crossings(t, x, y0, centres, radius):
     td = np.linspace(t[0], t[-1], int((t[-1] - t[0]) * 20_000) + 2)
     xd = np.interp(td, t, x)
@@ -122,7 +113,7 @@ def _crossings(t, x, y0, centres, radius):
 def _stroke(out: SerialOutput, seed: int, events: bool) -> tuple[float, np.ndarray]:
     """One stroke in real time; returns (host time of stroke time 0, true crossings [s])."""
     radius = 0.6e-3
-    f, y0 = _field(seed, radius)
+    f, y0 = bump_line_field(seed, radius, beside=0)
     sm = surface_model(f.heights, pitch_m=f.pitch_m)
     t, x = min_jerk_path([3e-3, 41e-3, 24e-3, 62e-3], [0.7, 0.6, 0.9], [0.15, 0.2, 0.1])
     truth = _crossings(t, x, y0, f.centres_m, radius)

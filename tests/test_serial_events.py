@@ -33,12 +33,11 @@ from tactilize.pen import PenRenderer
 from tactilize.pen.samples import PenSample
 from tactilize.pen.tracker import StrokeTracker
 from tactilize.surface import surface_model
-from tactilize.surface.fields import min_jerk_path, true_crossings
+from tactilize.surface.fields import bump_line_field, min_jerk_path, true_crossings
 from tactilize.surface.stroke import SurfaceStroke
 
 from _virtual_board import Board
 from _waiting import wait_for as _wait
-from test_surface_events import _bump_line_field
 
 fw = load_firmware()
 PIN0 = fw.CHANNEL_PINS[0]
@@ -210,7 +209,7 @@ def _duplicate_event_frames(out):
 def _stroke(seed, radius=0.6e-3):
     """A bump field, a minimum-jerk stroke out, back and on over it (stops, a reversal, bumps
     beside the line never crossed), and its true crossings [s]."""
-    f, y0 = _bump_line_field(seed=seed, radius=radius)
+    f, y0 = bump_line_field(seed=seed, radius_m=radius)
     stops = [3e-3, 41e-3, 24e-3, 62e-3]
     # The pen never comes to rest on a bump (arriving on one is a touch the true
     # crossings, local closest approaches, do not count).

@@ -15,7 +15,13 @@ from tactilize.errors import ImageError
 from tactilize.pen.samples import PenSample
 from tactilize.surface import CompositeSurface, place_events, stroke_events, surface_model
 from tactilize.surface.events import MAX_RATE_HZ, RATE_ONLY_HZ, event_statistics
-from tactilize.surface.fields import bump_field, grain_field, grating_field, min_jerk_path, true_crossings
+from tactilize.surface.fields import (
+    bump_line_field,
+    grain_field,
+    grating_field,
+    min_jerk_path,
+    true_crossings,
+)
 from tactilize.pen.replay import replay_stroke
 
 FREQUENCY_JND = 0.2
@@ -24,19 +30,6 @@ FREQUENCY_JND = 0.2
 def _line(v_m_s: float, x0: float, x1: float, y: float, rate_hz: float = 500.0):
     t = np.arange(0.0, (x1 - x0) / v_m_s, 1.0 / rate_hz)
     return t, x0 + v_m_s * t, np.full(t.size, y)
-
-
-def _bump_line_field(seed: int, radius: float = 0.6e-3):
-    """Non-overlapping bumps, most on the stroke line y0 (within half a radius), some beside it."""
-    rng = np.random.default_rng(seed)
-    cx = 4e-3 + np.cumsum(2.8 * radius + rng.exponential(1.5e-3, 80))
-    cx = cx[cx < 76e-3]
-    y0 = 10e-3
-    on = np.stack([cx, y0 + rng.uniform(-0.5, 0.5, cx.size) * radius], 1)
-    side = np.stack([rng.uniform(4e-3, 76e-3, 20), y0 + rng.choice([-1, 1], 20) * rng.uniform(2.5, 5, 20) * radius], 1)
-    centres = np.concatenate([on, side])
-    f = bump_field(centres, radius, (80e-3, 20e-3), 0.05e-3)
-    return f, y0
 
 
 # ---------------------------------------------------------------- the model
@@ -80,7 +73,7 @@ def test_bad_height_fields_raise_one_error(bad):
 @pytest.mark.parametrize("v_mm_s", [10, 20, 40, 80, 160])
 def test_straight_strokes_match_true_crossings_both_ways(v_mm_s):
     radius = 0.6e-3
-    f, y0 = _bump_line_field(seed=v_mm_s, radius=radius)
+    f, y0 = bump_line_field(seed=v_mm_s, radius_m=radius)
     sm = surface_model(f.heights, pitch_m=f.pitch_m)
     v = v_mm_s / 1e3
     t, x, y = _line(v, 2e-3, 78e-3, y0)
@@ -131,7 +124,7 @@ def test_min_jerk_strokes_with_stops_and_reversal_in_simulated_time():
     errors, spurious, total = [], 0, 0
     for seed in range(3):
         radius = 0.6e-3
-        f, y0 = _bump_line_field(seed=100 + seed, radius=radius)
+        f, y0 = bump_line_field(seed=100 + seed, radius_m=radius)
         sm = surface_model(f.heights, pitch_m=f.pitch_m)
         points = [3e-3, 40e-3, 55e-3, 22e-3, 77e-3]
         t, x = min_jerk_path(points, [0.8, 0.35, 0.7, 1.0], [0.2, 0.15, 0.3, 0.1], rate_hz=500.0)
