@@ -17,27 +17,9 @@ from fastapi.testclient import TestClient
 from tactilize.experiments import flow as flow_mod
 from tactilize.experiments.web import create_experiment_app
 
-API = "/experiment/api"
+from _experiment_socket import API, open_session, pen_batch, until
+
 RATINGS = {"speed_match": 4, "speed_difference": 4}
-
-
-def _session(client, code):
-    token = client.post(f"{API}/sessions", json={"participant_id": code, "consent": True}).json()["session"]
-    st = client.post(f"{API}/sessions/{token}/calibration", json={"mm_per_px": 0.25, "felt": True}).json()
-    return token, st["trial"]
-
-
-def _batch(trial, image, batch, start=0, n=4):
-    return {"trial": trial, "image": image, "batch": batch,
-            "samples": [[(start + k) * 8.0, 1.0 + (start + k) * 0.5, 3.0, 0.4] for k in range(n)]}
-
-
-def _until(ws, kind):
-    seen = []
-    while not seen or seen[-1]["type"] != kind:
-        seen.append(ws.receive_json())
-        assert seen[-1]["type"] != "error", seen[-1]
-    return seen
 
 
 async def _pool_tokens(n):
@@ -50,12 +32,12 @@ async def _pool_tokens(n):
 def test_the_drive_does_not_wait_behind_answers_held_on_the_store(tmp_path, monkeypatch):
     db = str(tmp_path / "held.sqlite3")
     with TestClient(create_experiment_app("alpha-law", db), base_url="http://127.0.0.1") as client:
-        token, trial = _session(client, "P1")
-        others = [_session(client, f"A{i}")[0] for i in range(3)]
+        token, trial = open_session(client, "P1")
+        others = [open_session(client, f"A{i}")[0] for i in range(3)]
         image = trial["images"][0]["id"]
         with client.websocket_connect(f"ws://127.0.0.1/experiment/ws/{token}") as ws:
-            ws.send_json(_batch(0, image, "p-1"))
-            assert "drive" in [m["type"] for m in _until(ws, "ack")]
+            ws.send_json(pen_batch(0, image, "p-1", n=4))
+            assert "drive" in [m["type"] for m in until(ws, "ack")]
 
             client.portal.call(_pool_tokens, len(others))
             release, entered = threading.Event(), threading.Semaphore(0)
@@ -74,9 +56,9 @@ def test_the_drive_does_not_wait_behind_answers_held_on_the_store(tmp_path, monk
             try:
                 for _ in others:  # every answer holds its worker thread
                     assert entered.acquire(timeout=60)
-                ws.send_json(_batch(0, image, "p-2", start=4))
+                ws.send_json(pen_batch(0, image, "p-2", start=4, n=4))
                 got: list = []
-                reader = threading.Thread(target=lambda: got.append(_until(ws, "drive")), daemon=True)
+                reader = threading.Thread(target=lambda: got.append(until(ws, "drive")), daemon=True)
                 reader.start()
                 reader.join(60)  # the answers are still held: a drive queued behind them never comes
                 answered_while_held = bool(got)

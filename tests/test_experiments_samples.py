@@ -22,18 +22,7 @@ from tactilize.experiments.samples import SampleWriter, StrokeBatch, writer_for
 from tactilize.experiments.store import Store
 from tactilize.experiments.web import create_experiment_app
 
-API = "/experiment/api"
-
-
-def _session(client, code="S1"):
-    token = client.post(f"{API}/sessions", json={"participant_id": code, "consent": True}).json()["session"]
-    st = client.post(f"{API}/sessions/{token}/calibration", json={"mm_per_px": 0.25, "felt": True}).json()
-    return token, st["trial"]
-
-
-def _batch(trial, image, batch, start=0, n=5):
-    return {"trial": trial, "image": image, "batch": batch,
-            "samples": [[(start + k) * 8.0, 1.0 + (start + k) * 0.5, 3.0, 0.4] for k in range(n)]}
+from _experiment_socket import API, open_session, pen_batch, until
 
 
 def _rows(db, sql):
@@ -41,31 +30,22 @@ def _rows(db, sql):
         return con.execute(sql).fetchall()
 
 
-def _until(ws, kind):
-    """The messages up to and including the first of type ``kind``."""
-    seen = []
-    while not seen or seen[-1]["type"] != kind:
-        seen.append(ws.receive_json())
-        assert seen[-1]["type"] != "error" or kind == "error", seen[-1]
-    return seen
-
-
 @pytest.mark.timeout(180)  # a server that never acknowledges would keep the page waiting
 def test_a_batch_arriving_after_the_answer_is_stored_under_its_trial(tmp_path):
     db = str(tmp_path / "late.sqlite3")
     with TestClient(create_experiment_app("alpha-law", db), base_url="http://127.0.0.1") as client:
-        token, trial = _session(client)
+        token, trial = open_session(client)
         image = trial["images"][0]["id"]
         with client.websocket_connect(f"ws://127.0.0.1/experiment/ws/{token}") as ws:
-            ws.send_json(_batch(0, image, "p-1"))
-            kinds = [m["type"] for m in _until(ws, "ack")]
+            ws.send_json(pen_batch(0, image, "p-1"))
+            kinds = [m["type"] for m in until(ws, "ack")]
             assert "drive" in kinds
             r = client.post(f"{API}/sessions/{token}/answers",
                             json={"trial": 0, "ratings": {"speed_match": 4, "speed_difference": 4}})
             assert r.json()["state"] == "trial" and r.json()["trial"]["index"] == 1
             # The last samples of trial 1 were on their way when Save went.
-            ws.send_json(_batch(0, image, "p-2", start=5))
-            late = _until(ws, "ack")
+            ws.send_json(pen_batch(0, image, "p-2", start=5))
+            late = until(ws, "ack")
             assert [m["type"] for m in late] == ["ack"]  # logged, not felt: no drive for an answered trial
             assert late[-1]["stored"] == "stored" and late[-1]["trial"] == 0
     rows = _rows(db, 'select t."index", s.image_id, s.t_s from stroke_samples s join trials t on s.trial_id = t.id')
@@ -77,21 +57,21 @@ def test_a_batch_arriving_after_the_answer_is_stored_under_its_trial(tmp_path):
 def test_a_resent_batch_is_stored_once(tmp_path):
     db = str(tmp_path / "resent.sqlite3")
     with TestClient(create_experiment_app("alpha-law", db), base_url="http://127.0.0.1") as client:
-        token, trial = _session(client)
+        token, trial = open_session(client)
         image = trial["images"][0]["id"]
         with client.websocket_connect(f"ws://127.0.0.1/experiment/ws/{token}") as ws:
-            first = _batch(0, image, "p-7")
+            first = pen_batch(0, image, "p-7")
             ws.send_json(first)
-            assert _until(ws, "ack")[-1]["stored"] == "stored"
+            assert until(ws, "ack")[-1]["stored"] == "stored"
             # The page did not see that ack (the socket dropped) and sends it again, twice.
             ws.send_json(first)
             ws.send_json(first)
-            assert _until(ws, "ack")[-1]["stored"] == "duplicate"
-            assert _until(ws, "ack")[-1]["stored"] == "duplicate"
+            assert until(ws, "ack")[-1]["stored"] == "duplicate"
+            assert until(ws, "ack")[-1]["stored"] == "duplicate"
         # Over a new connection too (a reconnect after a server restart).
         with client.websocket_connect(f"ws://127.0.0.1/experiment/ws/{token}") as ws:
             ws.send_json(first)
-            assert _until(ws, "ack")[-1]["stored"] == "duplicate"
+            assert until(ws, "ack")[-1]["stored"] == "duplicate"
     assert _rows(db, "select count(*) from stroke_samples") == [(5,)]
     assert _rows(db, "select batch_id, n_samples from stroke_batches") == [("p-7", 5)]
 
@@ -99,10 +79,10 @@ def test_a_resent_batch_is_stored_once(tmp_path):
 def test_the_unique_key_not_only_a_check_keeps_a_batch_single(tmp_path):
     db = str(tmp_path / "unique.sqlite3")
     with TestClient(create_experiment_app("alpha-law", db), base_url="http://127.0.0.1") as client:
-        token, trial = _session(client)
+        token, trial = open_session(client)
         with client.websocket_connect(f"ws://127.0.0.1/experiment/ws/{token}") as ws:
-            ws.send_json(_batch(0, trial["images"][0]["id"], "p-1"))
-            _until(ws, "ack")
+            ws.send_json(pen_batch(0, trial["images"][0]["id"], "p-1"))
+            until(ws, "ack")
     store = Store(db)
     with pytest.raises(IntegrityError):
         with store.Session.begin() as s:
@@ -148,14 +128,14 @@ def test_the_ack_waits_for_the_commit_and_the_drive_does_not(tmp_path):
 
     event.listen(store.engine, "commit", hold_commit)
     with TestClient(app, base_url="http://127.0.0.1") as client:
-        token, trial = _session(client)
+        token, trial = open_session(client)
         with client.websocket_connect(f"ws://127.0.0.1/experiment/ws/{token}") as ws:
-            ws.send_json(_batch(0, trial["images"][0]["id"], "p-1"))
+            ws.send_json(pen_batch(0, trial["images"][0]["id"], "p-1"))
             drive = ws.receive_json()
             assert drive["type"] == "drive" and drive["batch"] == "p-1"  # the drive came back before the commit
             assert entered.wait(60)
             ws.send_json({"type": "ping"})
-            assert [m["type"] for m in _until(ws, "pong")] == ["pong"]  # no ack while the commit is held
+            assert [m["type"] for m in until(ws, "pong")] == ["pong"]  # no ack while the commit is held
             assert _rows(db, "select count(*) from stroke_samples") == [(0,)]
             release.set()
             ack = ws.receive_json()
@@ -168,7 +148,7 @@ def test_samples_still_being_written_count_for_the_every_image_rule(tmp_path):
     app = create_experiment_app("assessment", db)
     flow = app.state.experiment_flow
     with TestClient(app, base_url="http://127.0.0.1") as client:
-        token, trial = _session(client)
+        token, trial = open_session(client)
         handler = flow.stroke_handler(token)
         entered, release = threading.Event(), threading.Event()
 
@@ -178,7 +158,7 @@ def test_samples_still_being_written_count_for_the_every_image_rule(tmp_path):
                 assert release.wait(60)
 
         event.listen(flow.store.engine, "commit", hold_commit)
-        futures = [handler.take(_batch(0, im["id"], f"p-{i}"))[1] for i, im in enumerate(trial["images"])]
+        futures = [handler.take(pen_batch(0, im["id"], f"p-{i}"))[1] for i, im in enumerate(trial["images"])]
         assert entered.wait(60)
         ratings = {q["id"]: q["scale_min"] for q in trial["questions"]}
         answer = threading.Thread(target=lambda: client.post(f"{API}/sessions/{token}/answers",
@@ -242,12 +222,12 @@ def test_sigkill_mid_stroke_loses_nothing_the_page_kept(tmp_path):
     db = tmp_path / "kill.sqlite3"
     proc, base, port = _start(db)
     try:
-        token, trial = _session(httpx.Client(base_url=base))
+        token, trial = open_session(httpx.Client(base_url=base))
         image = trial["images"][0]["id"]
         page = Page(port, token)
         page.connect()
         for b in range(40):
-            page.send(_batch(0, image, f"p-{b}", start=5 * b))
+            page.send(pen_batch(0, image, f"p-{b}", start=5 * b))
             page.drain()
             if b == 19:  # mid-stroke: some batches committed, some in flight, some not yet sent
                 _kill(proc)
