@@ -154,7 +154,7 @@ from tactilize.surface import CompositeSurface, SurfaceStroke, surface_model, _k
 from tactilize.surface.fields import grain_field
 
 def signatures():
-    return {k: len(getattr(_kernels, k).signatures) for k in ("search_window", "predict_into", "bumps_into")}
+    return {k: len(getattr(_kernels, k).signatures) for k in ("search_window", "predict_into", "bumps_into", "place_crossings")}
 
 f = grain_field(1.2e-3, (30e-3, 10e-3), seed=3)
 sm = surface_model(f.heights, pitch_m=f.pitch_m)

@@ -34,7 +34,7 @@ from __future__ import annotations
 import threading
 import time
 from collections import deque
-from typing import TYPE_CHECKING, Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence, cast
 
 import numpy as np
 
@@ -168,6 +168,9 @@ class SimulatedOutput(OutputBase):
             for _ in range(channels)
         ]
         self._drives = [Drive.off()] * channels
+        #: The plan of the operating point the newest events came with (the page shows it).
+        self._events_shown: list[Drive] | None = None
+        self._handovers = 0  # steady drives, lifts and stops handed over so far
         self._lock = threading.RLock()
         self._pending_lock = threading.Lock()  # held for microseconds only
         self._pending: list[tuple[str, list[Drive] | None]] = []
@@ -236,16 +239,23 @@ class SimulatedOutput(OutputBase):
         Returns
         -------
         list of Drive
-            What :meth:`apply` would give for ``equivalent``.
+            What :meth:`apply` would give for ``equivalent`` (the page shows it): planned by
+            the simulation thread when it takes the events, so a batch gets the plan of the
+            operating point it took last (one tick old at most), the first batch after a
+            steady drive, a lift or a stop its own.
         """
         if self._closed:
             raise OutputError("<simulated>", "output is closed")
         drives = self._check(equivalent)
-        applied = planned_for_events(self, drives, now_s)
+        # The page's plan of the operating point is made by the simulation thread when it
+        # takes these events; until then (a tick at most) the newest one stands.
+        applied = self._events_shown
+        if applied is None:
+            applied = self._events_shown = planned_for_events(self, drives)
+            self._drives = applied
         rel = relative_events(channels, now_s, self.channels)
         with self._pending_lock:
             self._pending.append(("events", (drives, rel)))  # type: ignore[arg-type]
-        self._drives = applied
         return applied
 
     def _planned(self, ch: _Channel, d: Drive) -> Drive:
@@ -284,15 +294,22 @@ class SimulatedOutput(OutputBase):
         # and the next advance takes them at the simulated instant it starts from.
         with self._pending_lock:
             self._pending.append((kind, drives))
+            # Events after this are planned afresh (they follow a steady drive, a lift, a stop).
+            self._events_shown = None
+            self._handovers += 1
 
     def _take_pending(self) -> None:
         with self._pending_lock:
             pending, self._pending = self._pending, []
+            seen = self._handovers
         now = self._t_us * 1e-6
+        taken: list[Drive] | None = None  # the newest events' operating point, if nothing came after them
         for kind, drives in pending:
             if kind == "events":
                 take_events(self, drives, now)  # type: ignore[arg-type]
+                taken = cast(list, drives)[0]  # (drives, relative events)
                 continue
+            taken = None
             for c, ch in enumerate(self._chans):
                 ch.events = None
                 if kind == "stop":
@@ -301,6 +318,11 @@ class SimulatedOutput(OutputBase):
                     ch.ctrl.standby(now)
                 elif drives is not None:
                     ch.ctrl.command(drives[c], now)
+        if taken is not None:
+            shown = planned_for_events(self, taken)
+            with self._pending_lock:
+                if self._handovers == seen:  # no steady drive, lift or stop handed over since
+                    self._events_shown = self._drives = shown
 
     def close(self) -> None:
         """Stop, end the thread and wait for it."""

@@ -20,33 +20,22 @@ from typing import Any
 from ..drive import Drive
 from .sma.heat import RunningHeat
 
-__all__ = ["take_events", "event_starts", "run_event_block", "planned_for_events", "relative_events", "REPLAN_S"]
+__all__ = ["take_events", "event_starts", "run_event_block", "planned_for_events", "relative_events"]
 
 _US = 1_000_000
 _OFF = Drive.off()
-#: The equivalent Drive handed over again unchanged (the same object) is planned again
-#: after this long on the stroke's clock [s] only (the wire's state moves slowly; every
-#: pulse is planned afresh when it plays, this plan is what the page shows).
-REPLAN_S = 0.1
-
-
-def planned_for_events(out: Any, drives: list[Drive], now_s: float) -> list[Drive]:
+def planned_for_events(out: Any, drives: list[Drive]) -> list[Drive]:
     """What :meth:`~tactilize.actuators.simulated.SimulatedOutput.apply` would give for the
-    equivalent ``drives``, planned once per distinct Drive and reused for :data:`REPLAN_S`."""
-    last = getattr(out, "_events_plan", None)
-    if (
-        last is not None
-        and 0.0 <= now_s - last[0] < REPLAN_S
-        and len(last[1]) == len(drives)
-        and all(a is b for a, b in zip(last[1], drives))
-    ):
-        return last[2]
+    equivalent ``drives`` (both pins usually get the same drive: planned once).
+
+    This plan is only what the page shows (every pulse is planned afresh when it plays):
+    the simulation thread makes it when it takes the events (:func:`take_events`), and a
+    pen batch gets the newest one; only the first hand-over after a steady drive, a lift
+    or a stop plans on the pen's path."""
     applied: list[Drive] = []
     for ch, d in zip(out._chans, drives):
-        # Both pins usually get the same drive: plan it once.
         same = applied and d is drives[len(applied) - 1]
         applied.append(d if d.is_off else applied[-1] if same else out._planned(ch, d))
-    out._events_plan = (now_s, drives, applied)
     return applied
 
 

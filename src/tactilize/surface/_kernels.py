@@ -39,7 +39,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["bilinear", "heights_into", "predict_into", "bumps_into", "search_window", "warm"]
+__all__ = ["bilinear", "heights_into", "predict_into", "bumps_into", "search_window", "place_crossings", "warm"]
 
 _NAN = math.nan
 
@@ -212,3 +212,130 @@ def warm() -> None:
                   0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0, i.copy(), f.copy(), f.copy())
     predict_into(f, f.copy(), f.copy(), 0, 2, 0, 0.5, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0)
     bumps_into(f, i, f.copy(), 0, 8, i.copy(), f.copy())
+    place_crossings(i[:2], f[:2] + 0.5, f[:2], f + 0.1, 0, 0, 1e-4, f.copy(), 0, 1e-4, -1.0, 0.0, 1.0, math.nan,
+                    0.5, 150.0, 1 / 300, 1 / 150, f.copy(), f.copy(), i.copy(), f.copy())
+
+
+#: Bits of :func:`place_crossings`' flags: the names a :class:`~.events.PulseEvent` carries in
+#: ``clamped``, in the order :func:`~.events.place_events` and the stroke add them.
+RATE_ONLY, CLUSTER, MERGED, LATE = 1, 2, 4, 8
+
+
+@njit(cache=True)
+def _median_around(s, i, n):  # pragma: no cover - compiled
+    """``statistics.median(s[max(0, i - 3) : i + 4])`` (at most seven values)."""
+    lo = max(0, i - 3)
+    hi = min(n, i + 4)
+    m = hi - lo
+    v = np.empty(m)
+    for k in range(m):  # insertion sort: seven values at most
+        x = s[lo + k]
+        j = k - 1
+        while j >= 0 and v[j] > x:
+            v[j + 1] = v[j]
+            j -= 1
+        v[j + 1] = x
+    if m % 2 == 1:
+        return v[m // 2]
+    return (v[m // 2 - 1] + v[m // 2]) / 2
+
+
+@njit(cache=True)
+def place_crossings(idx, prom, tc, floors, fl0, k0, step, fired, nfired, same, late, now, scale, previous,
+                    full_prominence, rate_only_hz, min_interval_s, cluster_interval_s,
+                    out_t, out_s, out_flags, out_arc):  # pragma: no cover - compiled
+    """A batch's new pulse events from its window's bumps: the stroke's rule, then
+    :func:`~.events.strengths` and :func:`~.events.place_events`, in one pass.
+
+    Bump ``c`` (window index ``idx[c]``, prominence ``prom[c]``, time ``tc[c]`` [s], floor
+    ``floors[fl0 + idx[c]]``) is at arc ``(k0 + idx[c]) * step`` [m].  It is left out when its
+    time is at or before ``late`` [s], or when it is within ``same`` [m] of arc of one of the
+    ``nfired`` arcs in ``fired`` (already played).  The rest, at ``max(t, now)``, sorted by time
+    (stable), get their strengths (log scale from the floor to ``full_prominence``, times
+    ``scale``) and are placed after the pulse at ``previous`` [s] (NaN: none) as
+    ``place_events`` places them.  Each event is written to ``out_t`` [s], ``out_s``,
+    ``out_flags`` (:data:`RATE_ONLY` | :data:`CLUSTER` | :data:`MERGED` | :data:`LATE`, this last
+    for an event at ``now`` or before) and ``out_arc`` [m]; returns how many.
+    """
+    count = idx.shape[0]
+    t = np.empty(count)
+    arc = np.empty(count)
+    s = np.empty(count)
+    n = 0
+    for c in range(count):
+        ti = tc[c]
+        if ti <= late:
+            continue  # too late to be felt as this bump
+        si = (k0 + idx[c]) * step
+        played = False
+        for f in range(nfired):
+            d = fired[f] - si
+            if -same < d < same:
+                played = True
+                break
+        if played:
+            continue
+        lo = floors[fl0 + idx[c]]
+        span = math.log(max(full_prominence / lo, 1.0 + 1e-9))
+        t[n] = ti if ti > now else now
+        arc[n] = si
+        s[n] = min(1.0, max(0.0, math.log(max(prom[c], 1e-12) / lo) / span)) * scale
+        n += 1
+    if n == 0:
+        return 0
+    ordered = True
+    for i in range(1, n):
+        if t[i] < t[i - 1]:
+            ordered = False
+            break
+    if not ordered:  # path order is time order but for a reversal's edge
+        o = np.argsort(t[:n], kind="mergesort")
+        t[:n] = t[:n][o]
+        arc[:n] = arc[:n][o]
+        s[:n] = s[:n][o]
+    has_prev = not math.isnan(previous)
+    # Local rate above rate_only_hz at each crossing, the pulse before counted.
+    fast = np.zeros(n, dtype=np.bool_)
+    off = 1 if has_prev else 0
+    m = n + off
+    if m > 1:
+        any_fast = False
+        for i in range(n):
+            j = off + i
+            uj = t[i]
+            if j == 0:  # no pulse before (off is 0)
+                d = t[1] - uj
+            elif j == m - 1:
+                d = uj - (t[i - 1] if i > 0 else previous)
+            else:
+                d = (t[i + 1] - (t[i - 1] if i > 0 else previous)) / 2.0
+            fast[i] = d <= 0 or 1.0 / max(d, 1e-12) > rate_only_hz
+            any_fast = any_fast or fast[i]
+        if any_fast:
+            for i in range(n):
+                if fast[i]:
+                    s[i] = _median_around(s, i, n)
+    k = 0
+    last = previous
+    for i in range(n):
+        ti = t[i]
+        si = s[i]
+        flags = RATE_ONLY if fast[i] else 0
+        if has_prev or k > 0:
+            gap = ti - last
+            if gap < min_interval_s:
+                if k > 0:
+                    out_flags[k - 1] |= MERGED
+                continue
+            if gap < cluster_interval_s and not fast[i]:
+                si *= gap / cluster_interval_s
+                flags |= CLUSTER
+        if ti <= now:
+            flags |= LATE
+        out_t[k] = ti
+        out_s[k] = si
+        out_flags[k] = flags
+        out_arc[k] = arc[i]
+        k += 1
+        last = ti
+    return k

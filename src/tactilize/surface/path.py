@@ -109,6 +109,12 @@ class Window:
         idx, prom, t = self._search()
         return idx.tolist(), prom.tolist(), t.tolist()
 
+    def bump_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+        """The bumps for a compiled pass: indices, prominences, times [s], and the floors'
+        buffer with the offset of point 0 in it (point ``i``'s floor is ``floors[offset + i]``)."""
+        idx, prom, t = self._search()
+        return idx, prom, t, self._fl, self._a
+
     def _search(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         if self._found is None:
             idx, prom = bumps_in(self.h, self.ids, self.floors)

@@ -18,12 +18,14 @@ Units: SI (s, m).
 from __future__ import annotations
 
 import math
-from bisect import bisect_left
 from collections import deque
 from typing import Any, Iterable
 
-from .events import PulseEvent, place_events
-from .events import strengths as strengths_of
+import numpy as np
+
+from ._kernels import CLUSTER, LATE, MERGED, RATE_ONLY, place_crossings
+from .events import (CLUSTER_INTERVAL_S, FULL_PROMINENCE, MIN_INTERVAL_S, RATE_ONLY_HZ, REFERENCE_PRESSURE,
+                     PulseEvent)
 from .path import HISTORY_M, PathGrid
 
 __all__ = ["SurfaceStroke", "LOOKAHEAD_S", "HISTORY_M", "LATE_S"]
@@ -49,6 +51,18 @@ STILL_SPEED_M_S = 1e-3
 #: The prediction reaches at most this far ahead [m]: a fast hand stroke (1 m/s) for the
 #: look-ahead; a jump the tracker reads as faster must not predict metres of path.
 MAX_AHEAD_M = 0.025
+#: Fired pulses remembered (their arcs, to recognise a bump found again).
+FIRED_KEPT = 256
+
+
+def _names(flags: int) -> tuple[str, ...]:
+    """A PulseEvent's ``clamped`` for :func:`._kernels.place_crossings`' flags, in the order
+    :func:`.events.place_events` and the late rule add them."""
+    return tuple(name for bit, name in ((RATE_ONLY, "rate_only"), (CLUSTER, "cluster"), (MERGED, "merged"),
+                                        (LATE, "late")) if flags & bit)
+
+
+_CLAMPED = tuple(_names(f) for f in range(16))
 
 
 class SurfaceStroke:
@@ -68,7 +82,11 @@ class SurfaceStroke:
         self._path = PathGrid(surface)
         tip = getattr(surface, "tip_radius_m", 0.25e-3) / max(getattr(surface, "surface_per_display", 1.0), 1e-12)
         self._same_m = SAME_BUMP_SHARE * tip
-        self._fired: deque[tuple[PulseEvent, float]] = deque(maxlen=256)  # (event, s_m) handed out and due
+        self._fired: deque[tuple[PulseEvent, float]] = deque(maxlen=FIRED_KEPT)  # (event, s_m) handed out and due
+        # The same arcs in a ring for the compiled pass (the oldest overwritten, as the deque drops it).
+        self._fired_arc = np.zeros(FIRED_KEPT)
+        self._nfired = 0
+        self._out = tuple(np.empty(16, dtype=np.intp if i == 2 else np.float64) for i in range(4))
         self._pending: list[tuple[PulseEvent, float]] = []  # handed out, not yet due: (event, s_m)
         self._last_fired_t: float | None = None
         self.now_s: float | None = None
@@ -79,6 +97,7 @@ class SurfaceStroke:
         """Forget the stroke (lift, a new picture)."""
         self._path.reset()
         self._fired.clear()
+        self._nfired = 0
         self._pending = []
         self._last_fired_t = None
         self.now_s = None
@@ -140,57 +159,43 @@ class SurfaceStroke:
                 if ev.t_s <= played:
                     self.newly_fired += 1
                     self._fired.append((ev, s))
+                    self._fired_arc[self._nfired % FIRED_KEPT] = s
+                    self._nfired += 1
                     self._last_fired_t = ev.t_s if self._last_fired_t is None else max(self._last_fired_t, ev.t_s)
             self._pending = []
         moving = direction_rad is not None and speed_m_s > STILL_SPEED_M_S
         w = path.window(speed_m_s, direction_rad if moving else None, self.lookahead_s, MAX_AHEAD_M)
         if w is None:
             return []
-        idx, proms, tis = w.crossings()
-        if not idx:
+        idx, prom, tc, floors, fl0 = w.bump_arrays()
+        count = idx.shape[0]
+        if not count:
             return []
         same = self._same_m
-        k0, step = w.k0, w.step
-        # Fired arcs, in order (arc length only grows), within reach of this window.
+        # Fired arcs behind this window's reach are let go (arc length only grows); the
+        # compiled pass checks against every arc in its ring, those behind can never match.
         fired = self._fired
-        start = k0 * step
+        start = w.k0 * w.step
         while fired and fired[0][1] < start - same:
             fired.popleft()
-        fired_s = sorted([s for _, s in fired])
-        nf = len(fired_s)
         late = now - LATE_S if previous is None else now - min(LOOKAHEAD_S, max(LATE_S, now - previous))
-        times, arcs, prom, floor = [], [], [], []
-        for i, p, ti in zip(idx, proms, tis):
-            if ti <= late:
-                continue  # too late to be felt as this bump
-            si = (k0 + i) * step
-            k = bisect_left(fired_s, si)
-            if (k < nf and fired_s[k] - si < same) or (k > 0 and si - fired_s[k - 1] < same):
-                continue
-            times.append(ti if ti > now else now)
-            arcs.append(si)
-            prom.append(p)
-            floor.append(w.floor_at(i))
-        if not times:
+        scale = 1.0 if pressure is None else min(1.0, max(0.0, float(pressure)) / REFERENCE_PRESSURE)
+        if count > self._out[0].shape[0]:
+            self._out = tuple(np.empty(2 * count, dtype=np.intp if i == 2 else np.float64) for i in range(4))
+        ot, os_, of, oa = self._out
+        prev = self._last_fired_t
+        n = place_crossings(
+            idx, prom, tc, floors, fl0, w.k0, w.step, self._fired_arc, min(self._nfired, FIRED_KEPT), same, late, now, scale,
+            math.nan if prev is None else prev, FULL_PROMINENCE, RATE_ONLY_HZ, MIN_INTERVAL_S, CLUSTER_INTERVAL_S,
+            ot, os_, of, oa)
+        if not n:
             return []
-        strengths = strengths_of(prom, floor, pressure)
-        if len(times) > 1 and times != sorted(times):  # path order is time order but for a reversal's edge
-            order = sorted(range(len(times)), key=times.__getitem__)  # stable, as argsort's was
-            times = [times[i] for i in order]
-            arcs = [arcs[i] for i in order]
-            strengths = [strengths[i] for i in order]
-        events = place_events(times, strengths, previous_t_s=self._last_fired_t)
         out = []
         pending = self._pending
-        # place_events may drop crossings (merged): match events back to arcs by time.
-        j, n, final = 0, len(times), len(arcs) - 1
-        for ev in events:
-            while j < n and times[j] < ev.t_s:
-                j += 1
-            if ev.t_s <= now:
-                ev = ev._replace(t_s=now, clamped=ev.clamped + ("late",))
+        for t, st, f, arc in zip(ot[:n].tolist(), os_[:n].tolist(), of[:n].tolist(), oa[:n].tolist()):
+            ev = PulseEvent(t, st, _CLAMPED[f])
             out.append(ev)
-            pending.append((ev, arcs[j if j < final else final]))
+            pending.append((ev, arc))
         return out
 
     def recent(self, window_s: float) -> list[PulseEvent]:

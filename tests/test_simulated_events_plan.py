@@ -1,0 +1,93 @@
+"""The page's plan of the operating point while the simulated wire plays events.
+
+Every pulse is planned when it plays; the plan of the window's equivalent drive is only
+what the page shows.  It is made by the simulation thread when it takes the events, so a
+pen batch does not plan it again: a batch gets the newest plan, the first batch after a
+steady drive, a lift or a stop its own.
+"""
+
+from __future__ import annotations
+
+from tactilize.actuators.simulated import SimulatedOutput
+from tactilize.drive import Drive
+from tactilize.surface.events import PulseEvent
+
+
+def _eq(rate_hz: float, strength: float = 0.6) -> Drive:
+    return Drive(rate_hz, 3e-4, 1.0, (), strength, 0.8)
+
+
+def _events(now_s: float) -> list[PulseEvent]:
+    return [PulseEvent(now_s + 0.005, 0.6), PulseEvent(now_s + 0.015, 0.7)]
+
+
+def _counting(out: SimulatedOutput) -> list[int]:
+    calls = [0]
+    for ch in out._chans:
+        plan = ch.ctrl.plan
+
+        def counted(d, _plan=plan):
+            calls[0] += 1
+            return _plan(d)
+
+        ch.ctrl.plan = counted  # type: ignore[method-assign]
+    return calls
+
+
+def test_batches_get_the_plan_the_wire_made_and_do_not_plan_it_again():
+    out = SimulatedOutput(start=False)
+    calls = _counting(out)
+    first = _eq(60.0)
+    shown = out.play_events([_events(1.0)] * 2, 1.0, [first, first])
+    assert calls[0] == 1  # the first hand-over plans its own (both pins share one plan)
+    assert shown[0].pulse_frequency_hz == 60.0
+    for k in range(1, 6):  # new operating points, no simulation step in between
+        d = _eq(60.0 + 10 * k)
+        again = out.play_events([_events(1.0 + 0.004 * k)] * 2, 1.0 + 0.004 * k, [d, d])
+        assert again is shown
+    assert calls[0] == 1
+    out.advance(0.004)  # the wire takes the newest events and plans their operating point
+    assert calls[0] == 2
+    later = _eq(130.0)
+    newest = out.play_events([_events(1.03)] * 2, 1.03, [later, later])
+    assert newest is not shown
+    # The plan of the operating point the wire took: the last handed over before the step (110 Hz).
+    expected = out._planned(out._chans[0], _eq(110.0))
+    assert newest[0].pulse_frequency_hz == 110.0
+    assert newest[0].pulse_width_s == expected.pulse_width_s and newest[0].amplitude == expected.amplitude
+    assert calls[0] == 3  # (the line above planned once itself)
+
+
+def test_after_a_steady_drive_or_a_stop_the_next_events_are_planned_afresh():
+    out = SimulatedOutput(start=False)
+    a = _eq(50.0)
+    out.play_events([_events(1.0)] * 2, 1.0, [a, a])
+    out.advance(0.004)
+    out.apply([_eq(200.0, 0.3)] * 2)
+    b = _eq(150.0)
+    shown = out.play_events([_events(1.1)] * 2, 1.1, [b, b])
+    assert shown[0].pulse_frequency_hz == 150.0  # not the 50 Hz plan from before the steady drive
+    out.advance(0.004)
+    out.stop()
+    c = _eq(90.0)
+    assert out.play_events([_events(1.2)] * 2, 1.2, [c, c])[0].pulse_frequency_hz == 90.0
+
+
+def test_a_plan_the_wire_made_before_a_stop_is_not_shown_after_it():
+    """The stop lands between the wire taking events and storing their plan: the plan is dropped."""
+    out = SimulatedOutput(start=False)
+    a = _eq(50.0)
+    out.play_events([_events(1.0)] * 2, 1.0, [a, a])
+    b = _eq(70.0)
+    out.play_events([_events(1.004)] * 2, 1.004, [b, b])
+    planned = out._planned
+
+    def stop_meanwhile(ch, d):
+        out.stop()  # the pen lifts while the wire plans
+        return planned(ch, d)
+
+    out._planned = stop_meanwhile  # type: ignore[method-assign]
+    out.advance(0.004)
+    out._planned = planned  # type: ignore[method-assign]
+    c = _eq(120.0)
+    assert out.play_events([_events(1.3)] * 2, 1.3, [c, c])[0].pulse_frequency_hz == 120.0
