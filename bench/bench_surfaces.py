@@ -194,11 +194,10 @@ def batch_costs(batches: int, rounds: int) -> dict:
     res["load_average"] = os.getloadavg()
     print(f"  machine load average (1, 5, 15 min) {res['load_average'][0]:.2f} {res['load_average'][1]:.2f} "
           f"{res['load_average'][2]:.2f} on {os.cpu_count()} cores")
-    print("  The surface rendering's window is one compiled pass; its page now holds the wire's lease, so the\n"
-          "  wire steps in the gap after each batch (before, 1 % of surface batches waited 0.5-1 ms for it).\n"
-          "  What is left is Python per batch (the stroke's bookkeeping, the hand-off) and, on the batches\n"
-          "  whose events changed (about half), the equivalent Drive and the wire's plan of it: those set the\n"
-          "  p99. Batches over 1 ms were pre-empted: compare p99 ratios between runs on a quiet machine.")
+    print("  The surface rendering's window, its stroke's bookkeeping and its equivalent Drive's statistics\n"
+          "  are compiled passes; the wire plans the page's operating point in its own thread, in the gap after\n"
+          "  a batch. What is left is Python per batch (the tracker, shared; the hand-off; the message).\n"
+          "  Batches over 1 ms were pre-empted: compare p99 ratios between runs on a quiet machine.")
     return res
 
 

@@ -150,11 +150,14 @@ def test_one_pass_search_is_regions_then_bumps_in(seed, angle, kept, npred):
 _FRESH = """
 import json
 from tactilize.pen.samples import PenSample
-from tactilize.surface import CompositeSurface, SurfaceStroke, surface_model, _kernels
+from tactilize.surface import CompositeSurface, SurfaceStroke, surface_model, _kernels, _stroke_kernels
 from tactilize.surface.fields import grain_field
 
 def signatures():
-    return {k: len(getattr(_kernels, k).signatures) for k in ("search_window", "predict_into", "bumps_into", "place_crossings")}
+    got = {k: len(getattr(_kernels, k).signatures) for k in ("search_window", "predict_into", "bumps_into")}
+    for k in ("place_crossings", "fire_due", "window_stats"):
+        got[k] = len(getattr(_stroke_kernels, k).signatures)
+    return got
 
 f = grain_field(1.2e-3, (30e-3, 10e-3), seed=3)
 sm = surface_model(f.heights, pitch_m=f.pitch_m)
@@ -166,6 +169,7 @@ for stroke in strokes:
     for k in range(200):
         t = 0.004 * k
         stroke.update([PenSample(t, 2e-3 + 0.04 * t, 5e-3)], 0.04, 0.0)
+        stroke.window_statistics(0.15)
         fired += stroke.newly_fired
 print(json.dumps({"before": before, "ready": ready, "after": signatures(), "fired": fired}))
 """

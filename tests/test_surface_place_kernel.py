@@ -1,4 +1,4 @@
-"""The stroke's compiled pass (``_kernels.place_crossings``) against its readable rule.
+"""The stroke's compiled pass (``_stroke_kernels.place_crossings``) against its readable rule.
 
 A batch's bumps become pulse events by the stroke's rule (too late, or already
 played within half a tip radius of arc: left out; the rest at the newest sample's
@@ -19,7 +19,7 @@ import numpy as np
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from tactilize.surface import _kernels
+from tactilize.surface import _stroke_kernels
 from tactilize.surface import stroke as stroke_mod
 from tactilize.surface.events import (CLUSTER_INTERVAL_S, FULL_PROMINENCE, MIN_INTERVAL_S, RATE_ONLY_HZ,
                                       REFERENCE_PRESSURE, place_events, strengths)
@@ -62,18 +62,18 @@ def reference(idx, prom, tc, floors, k0, step, fired, same, late, now, pressure,
 
 def compiled(idx, prom, tc, floors, k0, step, fired, same, late, now, pressure, previous):
     n = len(idx)
-    ot, os_, oa = np.zeros(n + 1), np.zeros(n + 1), np.zeros(n + 1)
-    of = np.zeros(n + 1, dtype=np.intp)
-    ring = np.zeros(max(len(fired), 1))
-    ring[: len(fired)] = fired
+    out = np.zeros((4, n + 1))
+    ring = np.zeros((4, max(len(fired), 1)))
+    ring[3, : len(fired)] = fired
     scale = 1.0 if pressure is None else min(1.0, max(0.0, float(pressure)) / REFERENCE_PRESSURE)
     # Floors sit in a longer buffer, at an offset, as in the path's grid.
     buf = np.concatenate((np.full(3, -1.0), np.asarray(floors, dtype=np.float64)))
-    k = _kernels.place_crossings(
+    k = _stroke_kernels.place_crossings(
         np.asarray(idx, dtype=np.intp), np.asarray(prom, dtype=np.float64), np.asarray(tc, dtype=np.float64), buf,
         3, k0, step, ring, len(fired), same, late, now, scale, math.nan if previous is None else previous,
-        FULL_PROMINENCE, RATE_ONLY_HZ, MIN_INTERVAL_S, CLUSTER_INTERVAL_S, ot, os_, of, oa)
-    return [(stroke_mod.PulseEvent(ot[i], os_[i], stroke_mod._CLAMPED[of[i]]), oa[i]) for i in range(k)]
+        FULL_PROMINENCE, RATE_ONLY_HZ, MIN_INTERVAL_S, CLUSTER_INTERVAL_S, out)
+    return [(stroke_mod.PulseEvent(out[0, i], out[1, i], stroke_mod._CLAMPED[int(out[2, i])]), out[3, i])
+            for i in range(k)]
 
 
 def _same(got, want):

@@ -355,7 +355,7 @@ class _SurfacePath:
     def __init__(self, surface: Any) -> None:
         self.surface = surface
         self.stroke = None
-        self._drive_key: tuple[Any, list] | None = None
+        self._drive_key: tuple[Any, tuple] | None = None  # (profile, window statistics)
         self._drive = Drive.off()
         self._handed: tuple[list, list, list, float] | None = None  # (events, requested, applied, t_s)
         if surface is not None:
@@ -383,16 +383,16 @@ class _SurfacePath:
             stroke.rest()
             return [], Drive.off()
         events = stroke.update(batch, state.speed_m_s, state.direction_rad, state.pressure, played_until_s)
-        # The drive depends only on the events in the window and the profile: most batches
-        # bring the same ones, their predicted times moved by microseconds (a Drive and its
-        # limits cost more than comparing a few events).  Kept, the same Drive object also
+        # The drive depends only on the window's statistics and the profile: most batches
+        # bring the same events, their predicted times moved by microseconds (a Drive and its
+        # limits cost more than comparing five numbers).  Kept, the same Drive object also
         # spares the output its plan.
         eq = self._equivalent
-        window = stroke.recent(eq.WINDOW_S)
+        stats = stroke.window_statistics(eq.WINDOW_S)
         key = self._drive_key
-        if key is None or profile is not key[0] or not _same_events(window, key[1]):
-            self._drive = eq.equivalent_drive(window, state.t_s, profile)
-            self._drive_key = (profile, window)
+        if key is None or profile is not key[0] or not _same_statistics(stats, key[1]):
+            self._drive = eq.drive_of_statistics(stats, profile)
+            self._drive_key = (profile, stats)
         return events, self._drive
 
     def still_handed(self, events: list, requested: list[Drive], now_s: float) -> list[Drive] | None:
@@ -422,12 +422,28 @@ class _SurfacePath:
 #: so its plan of the equivalent drive (what the page shows) follows the wire (as ``refresh_s``
 #: does for steady drives).
 HAND_AGAIN_S = 0.1
-#: Events within this of each other [s] count as the same for the equivalent Drive: over a
-#: window's events (typically 50 ms or more apart end to end) it moves the rate by under the
-#: 0.5 % resend rule of steady drives; the events themselves are handed over exact.
+#: Events within this of each other [s] count as the same when the output already holds them
+#: (over a window's events, typically 50 ms or more apart end to end, it moves the rate by under
+#: the 0.5 % resend rule of steady drives); the events themselves are handed over exact.
 SAME_EVENT_S = 1e-4
-#: ...and strengths within this (a hundredth of the felt band).
+#: ...and strengths within this (a hundredth of the felt band); the equivalent Drive's mean strength too.
 SAME_STRENGTH = 0.01
+
+
+#: The equivalent Drive is made again when its window's rate moves by more than this share (the
+#: 0.5 % resend rule of steady drives), ...
+SAME_RATE_REL = 0.005
+#: ...or the intervals' coefficient of variation by more than this (its regularity by 0.02).
+SAME_CV = 0.005
+
+
+def _same_statistics(a: tuple, b: tuple) -> bool:
+    """Two windows' :func:`~tactilize.surface.equivalent.window_statistics` make the same Drive:
+    the same count and names, rate within :data:`SAME_RATE_REL`, CV within :data:`SAME_CV`,
+    mean strength within :data:`SAME_STRENGTH`."""
+    n, rate, cv, strength, names = a
+    return (n == b[0] and names == b[4] and abs(rate - b[1]) <= SAME_RATE_REL * b[1]
+            and -SAME_CV <= cv - b[2] <= SAME_CV and -SAME_STRENGTH <= strength - b[3] <= SAME_STRENGTH)
 
 
 def _same_events(a: Sequence[Any], b: Sequence[Any]) -> bool:

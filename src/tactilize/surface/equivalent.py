@@ -20,7 +20,7 @@ from typing import Any, Sequence
 from ..drive import Drive
 from .events import PulseEvent
 
-__all__ = ["equivalent_drive", "regularity_of_cv", "WINDOW_S"]
+__all__ = ["equivalent_drive", "window_statistics", "drive_of_statistics", "regularity_of_cv", "WINDOW_S"]
 
 #: Events this far behind the newest sample still count towards the window [s].
 WINDOW_S = 0.15
@@ -31,6 +31,66 @@ _FULL_JITTER_CV = 0.6 / math.sqrt(6.0)
 def regularity_of_cv(cv: float) -> float:
     """The ``Drive.regularity`` whose jittered train has intervals of coefficient of variation ``cv``."""
     return float(min(1.0, max(0.0, 1.0 - cv / _FULL_JITTER_CV)))
+
+
+def window_statistics(
+    events: Sequence[PulseEvent], now_s: float, window_s: float = WINDOW_S
+) -> tuple[int, float, float, float, tuple[str, ...]]:
+    """What the equivalent drive is made of: the events from ``now_s - window_s`` [s] on.
+
+    Returns
+    -------
+    tuple
+        Count; rate [1/s] ((n - 1) over their span, ``1 / window_s`` for a lone event);
+        the coefficient of variation of their intervals (0 below two intervals); mean
+        strength; the names that clamped any of them, sorted.  Zeros and () for none.
+    """
+    # Plain Python in one pass, the sums left to right (the pen path's compiled pass,
+    # _stroke_kernels.window_stats, adds in the same order and gives the same bits).
+    since = now_s - window_s
+    t: list[float] = []
+    total = 0.0
+    names: set[str] = set()
+    for e in events:
+        if e.t_s >= since:
+            t.append(e.t_s)
+            total += e.strength
+            if e.clamped:
+                names.update(e.clamped)
+    n = len(t)
+    if not n:
+        return 0, 0.0, 0.0, 0.0, ()
+    t.sort()
+    if n >= 2 and t[-1] > t[0]:
+        iv = [b - a for a, b in zip(t, t[1:])]
+        acc = 0.0
+        for x in iv:
+            acc += x
+        mean = acc / len(iv)
+        cv = 0.0
+        if len(iv) > 1:
+            sq = 0.0
+            for x in iv:
+                d = x - mean
+                sq += d * d
+            cv = math.sqrt(sq / len(iv)) / mean
+        rate = (n - 1) / (t[-1] - t[0])
+    else:
+        rate, cv = 1.0 / window_s, 0.0
+    return n, rate, cv, total / n, tuple(sorted(names))
+
+
+def drive_of_statistics(stats: tuple[int, float, float, float, tuple[str, ...]], profile: Any = None) -> Drive:
+    """The steady drive of a window's :func:`window_statistics` (see :func:`equivalent_drive`)."""
+    n, rate, cv, strength, clamped = stats
+    if not n:
+        return Drive.off()
+    width_law = getattr(profile, "width", None)
+    width = float(width_law(strength)) if width_law is not None else 4e-4 * strength
+    width = max(width, 2e-5)
+    d = Drive(float(rate), width, 1.0, clamped, min(1.0, max(0.0, strength)), regularity_of_cv(cv))
+    limits = getattr(profile, "limits", None)
+    return limits.apply(d) if limits is not None else d
 
 
 def equivalent_drive(
@@ -57,34 +117,4 @@ def equivalent_drive(
     Drive
         Off when no event is in the window.
     """
-    # Plain Python in one pass: a window holds a few dozen events, where each NumPy call
-    # costs more than the sums.
-    since = now_s - window_s
-    t: list[float] = []
-    st: list[float] = []
-    names: set[str] = set()
-    for e in events:
-        if e.t_s >= since:
-            t.append(e.t_s)
-            st.append(e.strength)
-            if e.clamped:
-                names.update(e.clamped)
-    if not t:
-        return Drive.off()
-    n = len(t)
-    t.sort()
-    strength = math.fsum(st) / n
-    if n >= 2 and t[-1] > t[0]:
-        iv = [b - a for a, b in zip(t, t[1:])]
-        rate = (n - 1) / (t[-1] - t[0])
-        mean = math.fsum(iv) / len(iv)
-        cv = math.sqrt(math.fsum([(x - mean) ** 2 for x in iv]) / len(iv)) / mean if len(iv) > 1 else 0.0
-    else:
-        rate, cv = 1.0 / window_s, 0.0
-    width_law = getattr(profile, "width", None)
-    width = float(width_law(strength)) if width_law is not None else 4e-4 * strength
-    width = max(width, 2e-5)
-    clamped = tuple(sorted(names))
-    d = Drive(float(rate), width, 1.0, clamped, min(1.0, max(0.0, strength)), regularity_of_cv(cv))
-    limits = getattr(profile, "limits", None)
-    return limits.apply(d) if limits is not None else d
+    return drive_of_statistics(window_statistics(events, now_s, window_s), profile)

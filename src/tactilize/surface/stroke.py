@@ -18,12 +18,12 @@ Units: SI (s, m).
 from __future__ import annotations
 
 import math
-from collections import deque
 from typing import Any, Iterable
 
 import numpy as np
 
-from ._kernels import CLUSTER, LATE, MERGED, RATE_ONLY, place_crossings
+from . import _stroke_kernels
+from ._stroke_kernels import CLUSTER, LATE, MERGED, RATE_ONLY, fire_due, place_crossings, window_stats
 from .events import (CLUSTER_INTERVAL_S, FULL_PROMINENCE, MIN_INTERVAL_S, RATE_ONLY_HZ, REFERENCE_PRESSURE,
                      PulseEvent)
 from .path import HISTORY_M, PathGrid
@@ -51,18 +51,22 @@ STILL_SPEED_M_S = 1e-3
 #: The prediction reaches at most this far ahead [m]: a fast hand stroke (1 m/s) for the
 #: look-ahead; a jump the tracker reads as faster must not predict metres of path.
 MAX_AHEAD_M = 0.025
-#: Fired pulses remembered (their arcs, to recognise a bump found again).
+#: Fired pulses remembered (their arcs recognise a bump found again; their times, the
+#: equivalent Drive's window, at most 300 pulses/s for 0.15 s).
 FIRED_KEPT = 256
 
 
 def _names(flags: int) -> tuple[str, ...]:
-    """A PulseEvent's ``clamped`` for :func:`._kernels.place_crossings`' flags, in the order
+    """A PulseEvent's ``clamped`` for :func:`._stroke_kernels.place_crossings`' flags, in the order
     :func:`.events.place_events` and the late rule add them."""
     return tuple(name for bit, name in ((RATE_ONLY, "rate_only"), (CLUSTER, "cluster"), (MERGED, "merged"),
                                         (LATE, "late")) if flags & bit)
 
 
 _CLAMPED = tuple(_names(f) for f in range(16))
+#: The same, sorted (the equivalent Drive's ``clamped``: every name in its window).
+_SORTED = tuple(tuple(sorted(c)) for c in _CLAMPED)
+_warm = False
 
 
 class SurfaceStroke:
@@ -82,13 +86,18 @@ class SurfaceStroke:
         self._path = PathGrid(surface)
         tip = getattr(surface, "tip_radius_m", 0.25e-3) / max(getattr(surface, "surface_per_display", 1.0), 1e-12)
         self._same_m = SAME_BUMP_SHARE * tip
-        self._fired: deque[tuple[PulseEvent, float]] = deque(maxlen=FIRED_KEPT)  # (event, s_m) handed out and due
-        # The same arcs in a ring for the compiled pass (the oldest overwritten, as the deque drops it).
-        self._fired_arc = np.zeros(FIRED_KEPT)
-        self._nfired = 0
-        self._out = tuple(np.empty(16, dtype=np.intp if i == 2 else np.float64) for i in range(4))
-        self._pending: list[tuple[PulseEvent, float]] = []  # handed out, not yet due: (event, s_m)
-        self._last_fired_t: float | None = None
+        global _warm
+        if not _warm:
+            _stroke_kernels.warm()
+            _warm = True
+        # Rows: time [s], strength, flags, arc [m]: events handed out and due, the newest
+        # FIRED_KEPT in a ring, and those handed out by the latest batch, not yet due.
+        self._ring = np.zeros((4, FIRED_KEPT))
+        self._nfired = 0  # fired so far (the ring holds the newest)
+        self._pend = np.zeros((4, 16))
+        self._npend = 0
+        self._stats = np.zeros(5)
+        self._last_fired_t = math.nan
         self.now_s: float | None = None
         #: Pulses that became due with the latest update (handed out before, due by now).
         self.newly_fired = 0
@@ -96,10 +105,9 @@ class SurfaceStroke:
     def reset(self) -> None:
         """Forget the stroke (lift, a new picture)."""
         self._path.reset()
-        self._fired.clear()
         self._nfired = 0
-        self._pending = []
-        self._last_fired_t = None
+        self._npend = 0
+        self._last_fired_t = math.nan
         self.now_s = None
 
     def update(
@@ -153,16 +161,13 @@ class SurfaceStroke:
         previous, self.now_s = self.now_s, now
         # What was handed out and is due by now (by the output's clock) has fired.
         self.newly_fired = 0
-        if self._pending:
+        if self._npend:
             played = now if played_until_s is None or played_until_s < now else played_until_s
-            for ev, s in self._pending:
-                if ev.t_s <= played:
-                    self.newly_fired += 1
-                    self._fired.append((ev, s))
-                    self._fired_arc[self._nfired % FIRED_KEPT] = s
-                    self._nfired += 1
-                    self._last_fired_t = ev.t_s if self._last_fired_t is None else max(self._last_fired_t, ev.t_s)
-            self._pending = []
+            before = self._nfired
+            self._nfired, self._last_fired_t = fire_due(self._pend, self._npend, played, self._ring, before,
+                                                        self._last_fired_t)
+            self.newly_fired = self._nfired - before
+            self._npend = 0
         moving = direction_rad is not None and speed_m_s > STILL_SPEED_M_S
         w = path.window(speed_m_s, direction_rad if moving else None, self.lookahead_s, MAX_AHEAD_M)
         if w is None:
@@ -171,41 +176,46 @@ class SurfaceStroke:
         count = idx.shape[0]
         if not count:
             return []
-        same = self._same_m
-        # Fired arcs behind this window's reach are let go (arc length only grows); the
-        # compiled pass checks against every arc in its ring, those behind can never match.
-        fired = self._fired
-        start = w.k0 * w.step
-        while fired and fired[0][1] < start - same:
-            fired.popleft()
         late = now - LATE_S if previous is None else now - min(LOOKAHEAD_S, max(LATE_S, now - previous))
         scale = 1.0 if pressure is None else min(1.0, max(0.0, float(pressure)) / REFERENCE_PRESSURE)
-        if count > self._out[0].shape[0]:
-            self._out = tuple(np.empty(2 * count, dtype=np.intp if i == 2 else np.float64) for i in range(4))
-        ot, os_, of, oa = self._out
-        prev = self._last_fired_t
+        if count > self._pend.shape[1]:
+            self._pend = np.zeros((4, 2 * count))
+        pend = self._pend
+        # Every fired arc in the ring is checked: those behind this window can never match.
         n = place_crossings(
-            idx, prom, tc, floors, fl0, w.k0, w.step, self._fired_arc, min(self._nfired, FIRED_KEPT), same, late, now, scale,
-            math.nan if prev is None else prev, FULL_PROMINENCE, RATE_ONLY_HZ, MIN_INTERVAL_S, CLUSTER_INTERVAL_S,
-            ot, os_, of, oa)
+            idx, prom, tc, floors, fl0, w.k0, w.step, self._ring, min(self._nfired, FIRED_KEPT), self._same_m,
+            late, now, scale, self._last_fired_t, FULL_PROMINENCE, RATE_ONLY_HZ, MIN_INTERVAL_S, CLUSTER_INTERVAL_S,
+            pend)
+        self._npend = n
         if not n:
             return []
-        out = []
-        pending = self._pending
-        for t, st, f, arc in zip(ot[:n].tolist(), os_[:n].tolist(), of[:n].tolist(), oa[:n].tolist()):
-            ev = PulseEvent(t, st, _CLAMPED[f])
-            out.append(ev)
-            pending.append((ev, arc))
-        return out
+        clamped = _CLAMPED
+        return [PulseEvent(t, st, clamped[int(f)])
+                for t, st, f in zip(pend[0, :n].tolist(), pend[1, :n].tolist(), pend[2, :n].tolist())]
 
     def recent(self, window_s: float) -> list[PulseEvent]:
-        """Events fired in the last ``window_s`` [s] before the newest sample, and those scheduled."""
+        """Events fired in the last ``window_s`` [s] before the newest sample (oldest first), and
+        those scheduled."""
         if self.now_s is None:
             return []
         since = self.now_s - window_s
-        return [e for e, _ in self._fired if e.t_s >= since] + [e for e, _ in self._pending]
+        nr = min(self._nfired, FIRED_KEPT)
+        order = [(self._nfired - nr + j) % FIRED_KEPT for j in range(nr)]
+        cols = [(self._ring, c) for c in order] + [(self._pend, k) for k in range(self._npend)]
+        return [PulseEvent(float(a[0, c]), float(a[1, c]), _CLAMPED[int(a[2, c])]) for a, c in cols
+                if a[0, c] >= since]
+
+    def window_statistics(self, window_s: float) -> tuple[int, float, float, float, tuple[str, ...]]:
+        """:func:`~.equivalent.window_statistics` of :meth:`recent` events, without making them:
+        count, rate [1/s], intervals' CV, mean strength and the names that clamped them."""
+        if self.now_s is None:
+            return 0, 0.0, 0.0, 0.0, ()
+        out = self._stats
+        window_stats(self._ring, self._nfired, self._pend, self._npend, self.now_s - window_s, window_s, out)
+        n, rate, cv, strength, flags = out.tolist()
+        return int(n), rate, cv, strength, _SORTED[int(flags)]
 
     def rest(self) -> list[PulseEvent]:
         """The pen rests: nothing more is predicted, what was pending is withdrawn."""
-        self._pending = []
+        self._npend = 0
         return []
