@@ -95,19 +95,10 @@ class Window:
         """Arc length [m] of point ``i``."""
         return (self.k0 + i) * self.step
 
-    def floor_at(self, i: int) -> float:
-        """Prominence floor at point ``i``."""
-        return float(self._fl[self._a + i])
-
     def bumps(self) -> tuple[np.ndarray, np.ndarray]:
         """(indices, prominences) of the profile's bumps (:func:`~tactilize.surface.bumps.bumps_in`)."""
         idx, prom, _ = self._search()
         return idx, prom
-
-    def crossings(self) -> tuple[list[int], list[float], list[float]]:
-        """The bumps as plain lists (a batch has a handful): indices, prominences, times [s]."""
-        idx, prom, t = self._search()
-        return idx.tolist(), prom.tolist(), t.tolist()
 
     def bump_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
         """The bumps for a compiled pass: indices, prominences, times [s], and the floors'
