@@ -188,3 +188,30 @@ def test_no_compilation_lands_on_a_pen_batch():
     assert all(v >= 1 for v in got["ready"].values())
     assert got["fired"] > 20  # the search did run and find bumps
     assert got["after"] == got["ready"]
+
+
+_SERVER = """
+import json
+from tactilize.actuators.simulated import SimulatedOutput
+from tactilize.mapping import Profile
+from tactilize.surface import _kernels, _stroke_kernels
+from tactilize.web.state import ServerState
+
+names = {_kernels: ("search_window", "predict_into", "bumps_into"),
+         _stroke_kernels: ("place_crossings", "fire_due", "window_stats")}
+count = lambda: {k: len(getattr(m, k).signatures) for m, ks in names.items() for k in ks}
+before = count()
+ServerState(SimulatedOutput(start=False), Profile.preset("surface")).warm()
+print(json.dumps({"before": before, "after": count()}))
+"""
+
+
+def test_a_server_readies_every_kernel_of_the_pen_path_when_it_starts():
+    import json
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", _SERVER], capture_output=True, text=True, check=True).stdout
+    got = json.loads(out.strip().splitlines()[-1])
+    assert all(v == 0 for v in got["before"].values())
+    assert all(v >= 1 for v in got["after"].values()), got["after"]

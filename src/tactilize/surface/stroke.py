@@ -27,8 +27,9 @@ from ._stroke_kernels import CLUSTER, LATE, MERGED, RATE_ONLY, fire_due, place_c
 from .events import (CLUSTER_INTERVAL_S, FULL_PROMINENCE, MIN_INTERVAL_S, RATE_ONLY_HZ, REFERENCE_PRESSURE,
                      PulseEvent)
 from .path import HISTORY_M, PathGrid
+from .path import warm as path_warm
 
-__all__ = ["SurfaceStroke", "LOOKAHEAD_S", "HISTORY_M", "LATE_S"]
+__all__ = ["SurfaceStroke", "LOOKAHEAD_S", "HISTORY_M", "LATE_S", "warm"]
 
 #: How far ahead the path is predicted [s]: more than a batch and its transport
 #: (4 + 1 ms on the page), so a crossing between batches is scheduled before it
@@ -66,6 +67,18 @@ def _names(flags: int) -> tuple[str, ...]:
 _CLAMPED = tuple(_names(f) for f in range(16))
 #: The same, sorted (the equivalent Drive's ``clamped``: every name in its window).
 _SORTED = tuple(tuple(sorted(c)) for c in _CLAMPED)
+
+
+def warm() -> None:
+    """Make every compiled pass of the pen's surface path ready in this process (the window's search,
+    the stroke's bookkeeping): once, at the first stroke or when a server starts, never on a pen batch."""
+    global _warm
+    path_warm()
+    if not _warm:
+        _stroke_kernels.warm()
+        _warm = True
+
+
 _warm = False
 
 
@@ -86,10 +99,7 @@ class SurfaceStroke:
         self._path = PathGrid(surface)
         tip = getattr(surface, "tip_radius_m", 0.25e-3) / max(getattr(surface, "surface_per_display", 1.0), 1e-12)
         self._same_m = SAME_BUMP_SHARE * tip
-        global _warm
-        if not _warm:
-            _stroke_kernels.warm()
-            _warm = True
+        warm()
         # Rows: time [s], strength, flags, arc [m]: events handed out and due, the newest
         # FIRED_KEPT in a ring, and those handed out by the latest batch, not yet due.
         self._ring = np.zeros((4, FIRED_KEPT))
