@@ -22,7 +22,7 @@ from tactilize.image import load_image
 from tactilize.mapping import Profile
 from tactilize.maps.texturemap import texture_map
 
-from test_export_stroke import DPI, accelerating_rows, two_textures
+from test_export_stroke import DPI, accelerating_rows, tapping_profile, two_textures
 
 FORMATS = ("hjif", "haptic", "ahap", "android")
 
@@ -31,7 +31,7 @@ FORMATS = ("hjif", "haptic", "ahap", "android")
 def stroke_timeline():
     tmap = texture_map(load_image(two_textures(), dpi=DPI))
     stroke = parse_stroke(accelerating_rows(), "<test>", tmap.width_m, tmap.height_m)
-    return run_stroke(stroke, tmap, Profile.preset("paper"), meta={"image": "two-textures"})
+    return run_stroke(stroke, tmap, tapping_profile(), meta={"image": "two-textures"})
 
 
 @pytest.fixture(scope="module")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import subprocess
 import sys
@@ -29,6 +30,8 @@ from tactilize.export import (
     read_stroke,
     render,
     run_stroke,
+    SHARPNESS_HIGH_HZ,
+    SHARPNESS_LOW_HZ,
     sharpness_from_frequency,
     stroke_csv,
     stroke_json,
@@ -36,10 +39,19 @@ from tactilize.export import (
 from tactilize.export.haptic import HAPTIC_HIGH_HZ, HAPTIC_LOW_HZ
 from tactilize.image import load_image
 from tactilize.mapping import Profile
+from tactilize.mapping.laws import PowerSpeed
 from tactilize.maps.texturemap import texture_map
 
 DPI = 100.0
 MM_PER_PX = 25.4 / DPI
+
+
+def tapping_profile() -> Profile:
+    """The paper's laws with a speed factor proportional to speed (the paper's sigmoid never falls
+    below about 46 Hz here): the accelerating stroke's slow start taps (pulses over 22 ms apart),
+    its fast end vibrates (65 Hz and more), and between them pulses come too close for a player
+    to tap them apart, so those play continuously too."""
+    return dataclasses.replace(Profile.preset("paper"), name="paper-proportional", speed=PowerSpeed(160.0, 1.0))
 
 
 def two_textures() -> np.ndarray:
@@ -69,6 +81,13 @@ def timeline(tmap):
     return run_stroke(stroke, tmap, Profile.preset("paper"), meta={"image": "two-textures"})
 
 
+@pytest.fixture(scope="module")
+def tapping(tmap):
+    """The same stroke with :func:`tapping_profile`: taps, close pulses and continuous vibration."""
+    stroke = parse_stroke(accelerating_rows(), "<test>", tmap.width_m, tmap.height_m)
+    return run_stroke(stroke, tmap, tapping_profile(), meta={"image": "two-textures"})
+
+
 def test_the_stroke_crosses_two_textures_and_speeds_up(timeline, tmap):
     # the fixture itself: what the other tests rely on
     assert timeline.x_m[0] < tmap.width_m / 2 < timeline.x_m[-1]
@@ -88,7 +107,8 @@ def _ahap_parts(doc):
     return events, curves
 
 
-def test_ahap_structure_rules_on_the_accelerating_stroke(timeline):
+def test_ahap_structure_rules_on_the_accelerating_stroke(tapping):
+    timeline = tapping  # taps, then a continuous run to the end
     doc = ahap_document(timeline)
     assert doc["Version"] == 1.0 and isinstance(doc["Metadata"], dict)
     for entry in doc["Pattern"]:
@@ -162,39 +182,109 @@ def _close_to_drive(tl, p, *, fmin=0.0, fmax=np.inf):
     return False
 
 
-def _check_taps(tl, taps, with_frequency=True):
-    starts = [q for q in tl.pulses() if q.drive.pulse_frequency_hz < 65.0]
-    assert len(taps) == len(starts) > 0
-    for tap, pulse in zip(taps, starts):
+def _expected_taps(tl, min_interval_s):
+    """The pulses below 65 Hz at least ``min_interval_s`` from the slow pulse before and after:
+    those a player plays apart as taps (closer ones play continuously)."""
+    slow = [q for q in tl.pulses() if q.drive.pulse_frequency_hz < 65.0]
+    times = [-np.inf] + [q.t_s for q in slow] + [np.inf]
+    return [q for i, q in enumerate(slow) if q.t_s - times[i] >= min_interval_s and times[i + 2] - q.t_s >= min_interval_s]
+
+
+def _check_taps(tl, track, min_interval_s, with_frequency=True, fmin=0.0, fmax=np.inf):
+    """Taps where the rule puts them; frequencies as the format can say them (clipped to its
+    range, whole hertz in .hjif)."""
+    taps, expected = track.taps, _expected_taps(tl, min_interval_s)
+    assert len(taps) == len(expected)
+    for tap, pulse in zip(taps, expected):
         assert abs(tap.t_s - pulse.t_s) <= 1e-3
         assert tap.amplitude == pytest.approx(pulse.amplitude, abs=0.02)
         if with_frequency:
-            assert tap.frequency_hz == pytest.approx(pulse.drive.pulse_frequency_hz, rel=0.01)
+            f = min(max(pulse.drive.pulse_frequency_hz, fmin), fmax)
+            assert tap.frequency_hz == pytest.approx(f, rel=0.01, abs=0.5)
+    gaps = np.diff([t.t_s for t in taps])
+    assert np.all(gaps >= min_interval_s - 1e-3)  # (times in whole milliseconds)
+    close = [q.t_s for q in tl.pulses() if q.drive.pulse_frequency_hz < 65.0 and q not in expected]
+    return len(expected), len(close)
 
 
-def test_round_trip_ahap(timeline):
-    track = read_ahap(json.loads(render(timeline, "ahap")))
+@pytest.mark.parametrize("which", ["timeline", "tapping"])
+def test_round_trip_ahap(which, request):
+    tl = request.getfixturevalue(which)
+    track = read_ahap(json.loads(render(tl, "ahap")))
     assert len(track.points) > 20
-    assert all(_close_to_drive(timeline, p) for p in track.points)
-    _check_taps(timeline, track.taps, with_frequency=False)  # AHAP taps carry no frequency of their own
-    # ...the train's frequency is in their spacing
-    assert track.taps[0].frequency_hz == pytest.approx(timeline.pulses()[0].drive.pulse_frequency_hz, rel=0.02)
+    # AHAP's sharpness says 65 .. 300 Hz: a continuous stretch below 65 Hz reads back as 65 Hz
+    assert all(_close_to_drive(tl, p, fmin=SHARPNESS_LOW_HZ, fmax=SHARPNESS_HIGH_HZ) for p in track.points)
+    taps, close = _check_taps(tl, track, 0.020, with_frequency=False)  # AHAP taps carry no frequency of their own
+    if which == "tapping":
+        assert taps > 5 and close > 5
+        # ...the train's frequency is in their spacing
+        first, second = _expected_taps(tl, 0.020)[:2]
+        assert track.taps[0].frequency_hz == pytest.approx(1.0 / (second.t_s - first.t_s), rel=0.02)
+    else:
+        # The paper's law keeps this stroke at 46 Hz and more: pulses under 22 ms apart, no taps.
+        assert taps == 0 and close > 0
 
 
-def test_round_trip_hjif(timeline):
-    doc = json.loads(render(timeline, "hjif"))
+@pytest.mark.parametrize("which", ["timeline", "tapping"])
+def test_round_trip_hjif(which, request):
+    tl = request.getfixturevalue(which)
+    doc = json.loads(render(tl, "hjif"))
     for c in range(2):
         track = read_hjif(doc, channel=c)
         assert track.channels == 2 and len(track.points) > 20
-        assert all(_close_to_drive(timeline, p) for p in track.points)
-        _check_taps(timeline, track.taps)
+        assert all(_close_to_drive(tl, p) for p in track.points)
+        taps, close = _check_taps(tl, track, 0.022)
+        assert (taps > 5 and close > 5) if which == "tapping" else (taps == 0 and close > 0)
 
 
-def test_round_trip_haptic(timeline):
-    track = read_haptic(render(timeline, "haptic"))
+@pytest.mark.parametrize("which", ["timeline", "tapping"])
+def test_round_trip_haptic(which, request):
+    tl = request.getfixturevalue(which)
+    track = read_haptic(render(tl, "haptic"))
     assert len(track.points) > 20
-    assert all(_close_to_drive(timeline, p, fmin=HAPTIC_LOW_HZ, fmax=HAPTIC_HIGH_HZ) for p in track.points)
-    _check_taps(timeline, track.taps)
+    assert all(_close_to_drive(tl, p, fmin=HAPTIC_LOW_HZ, fmax=HAPTIC_HIGH_HZ) for p in track.points)
+    taps, close = _check_taps(tl, track, 0.020, fmin=HAPTIC_LOW_HZ, fmax=HAPTIC_HIGH_HZ)
+    assert (taps > 5 and close > 5) if which == "tapping" else (taps == 0 and close > 0)
+
+
+def _wave_spans_ms(doc, channel):
+    """(start, end) [ms] of each VectorialWave effect of a .hjif channel."""
+    (perc,) = doc["perceptions"]
+    out = []
+    for band in perc["channels"][channel]["bands"]:
+        if band["band_type"] == "VectorialWave":
+            out += [(e["position"], e["position"] + e["keyframes"][-1]["relative_position"]) for e in band["effects"]]
+    return out
+
+
+@pytest.mark.parametrize("profile", ["paper", "perceptual", "physical"])
+def test_no_player_gets_taps_closer_than_it_plays_them_apart(profile):
+    """The MPEG reference synthesiser plays a transient over 22 ms and a phone's actuator needs 20 ms:
+    closer taps overlap and smear (found running the reference software on a physical-profile
+    sandpaper stroke: 47 of 82 gaps under 22 ms).  Pulses that close play in a wave instead."""
+    from tactilize.data import builtin_map
+    from tactilize.export import synthetic_stroke
+
+    tmap = builtin_map("sandpaper")
+    stroke = synthetic_stroke(tmap.width_m, tmap.height_m, 0.050, 2.0)
+    tl = run_stroke(stroke, tmap, Profile.preset(profile), start_s=0.0, end_s=2.0, mirror=True)
+    slow = [q.t_s for q in tl.pulses() if q.drive.pulse_frequency_hz < 65.0]
+    doc = json.loads(render(tl, "hjif"))
+    for c in range(2):
+        (perc,) = doc["perceptions"]
+        taps = [e["position"] for b in perc["channels"][c]["bands"] if b["band_type"] == "Transient"
+                for e in b["effects"]]
+        assert all(b - a >= 22 for a, b in zip(taps, taps[1:])), np.diff(taps).min()
+        # every slow pulse is played: a tap at its millisecond or inside a wave
+        spans = _wave_spans_ms(doc, c)
+        tapped = set(taps)
+        # (positions are whole milliseconds)
+        assert all(round(t * 1e3) in tapped or any(a - 1 <= t * 1e3 <= b + 1 for a, b in spans) for t in slow)
+    for fmt, read in (("ahap", lambda d: read_ahap(json.loads(d))), ("haptic", read_haptic)):
+        taps = [t.t_s for t in read(render(tl, fmt)).taps]
+        assert all(b - a >= 0.020 - 1e-6 for a, b in zip(taps, taps[1:])), (fmt, np.diff(taps).min())
+    if profile == "physical":
+        assert len(slow) > 50  # the case that overlapped: most pulses under 65 Hz
 
 
 def test_frequency_rises_with_speed_in_every_format_that_carries_it(timeline):
@@ -215,8 +305,8 @@ def test_frequency_rises_with_speed_in_every_format_that_carries_it(timeline):
 # ----------------------------------------------------------------- .hjif and .haptic fields
 
 
-def test_hjif_field_names_and_types(timeline):
-    doc = json.loads(render(timeline, "hjif"))
+def test_hjif_field_names_and_types(tapping):
+    doc = json.loads(render(tapping, "hjif"))
     assert set(doc) == {"version", "profile", "level", "date", "description", "timescale", "avatars", "perceptions", "syncs"}
     assert doc["profile"] in ("Main", "Simple Parametric") and isinstance(doc["timescale"], int) and doc["timescale"] == 1000
     # id 0 is reserved for "unspecified" (the MPEG reference reader refuses it); the perception names it

@@ -16,7 +16,9 @@ and (AHAP sharpness and frequency)):
 * Where it is below 65 Hz (a phone cannot vibrate there continuously), one
   transient per pulse, at the pulse's own time: the taps of a rough texture.
   Intensity is the pulse height; sharpness follows the pulse's bandwidth,
-  1 / width.
+  1 / width.  A pulse closer than 20 ms to the next or the one before (a train
+  from 50 to 65 Hz, an irregular train's close pairs: a phone's actuator does not
+  play them apart) is part of a continuous event instead (:func:`~.events.steady_plan`).
 * Intensity of a continuous event is the pulse train's fundamental relative to
   a 10 % duty train (:func:`~.timeline.intensity_from_drive`); sharpness maps
   the pulse frequency linearly onto 0..1 over 65..300 Hz.
@@ -40,12 +42,12 @@ from functools import partial
 from typing import Any, Callable
 
 from ..drive import Drive
-from .events import PHONE_TRANSIENT_S, event_intensity, plan_events, run_points
+from .events import PHONE_TRANSIENT_S, event_intensity, plan_events, run_points, steady_plan
 from .timeline import (
     CONTROL_STEP_S,
-    SHARPNESS_LOW_HZ,
     ControlPoint,
     DriveTimeline,
+    continuous_spans,
     control_points,
     sharpness_from_frequency,
 )
@@ -60,21 +62,6 @@ AHAP_MAX_CURVE_POINTS = 16
 
 def _r(x: float, nd: int = 6) -> float:
     return round(float(x), nd) + 0.0
-
-
-def continuous_spans(tl: DriveTimeline, kind: str = "profile", channel: int = 0) -> list[tuple[float, float]]:
-    """``(start, end)`` [s] of the runs of rows whose drive is on at 65 Hz or more."""
-    drives = tl.drives(kind, channel)
-    bounds = list(tl.t_s[1:]) + [tl.end_s]
-    spans: list[tuple[float, float]] = []
-    for t0, t1, d in zip(tl.t_s, bounds, drives):
-        if d.is_off or d.pulse_frequency_hz < SHARPNESS_LOW_HZ:
-            continue
-        if spans and spans[-1][1] == t0:
-            spans[-1] = (spans[-1][0], t1)
-        else:
-            spans.append((t0, t1))
-    return spans
 
 
 def _curve(pid: str, t0: float, pts: list[tuple[float, float]]) -> dict[str, Any]:
@@ -124,13 +111,13 @@ def ahap_document(tl: DriveTimeline, kind: str = "profile", channel: int = 0, st
         return _surface_document(tl, step_s)
     events: list[dict[str, Any]] = []
     curves: list[dict[str, Any]] = []
-    for a, b in continuous_spans(tl, kind, channel):
+    spans, taps = steady_plan(tl, kind, channel, PHONE_TRANSIENT_S)
+    for a, b in spans:
         _continuous(events, curves, a, b, tl.end_s,
                     lambda t0, t1: control_points(tl, kind, channel, step_s, start_s=t0, end_s=t1))
-    for p in tl.pulses(kind, channel):
-        if p.drive.pulse_frequency_hz < SHARPNESS_LOW_HZ:
-            tap_sharpness = sharpness_from_frequency(1.0 / max(p.width_s, 1e-6))
-            events.append(_event(p.t_s, "HapticTransient", p.amplitude, tap_sharpness))
+    for p in taps:
+        tap_sharpness = sharpness_from_frequency(1.0 / max(p.width_s, 1e-6))
+        events.append(_event(p.t_s, "HapticTransient", p.amplitude, tap_sharpness))
     events.sort(key=lambda e: e["Event"]["Time"])
     meta = tl.meta
     first = tl.drives(kind, channel)[0]

@@ -43,7 +43,7 @@ from typing import Any, NamedTuple, Sequence
 
 import numpy as np
 
-from .timeline import CONTROL_STEP_S, ControlPoint, _simplify
+from .timeline import CONTROL_STEP_S, SHARPNESS_LOW_HZ, ControlPoint, Pulse, _simplify, continuous_spans
 
 __all__ = [
     "BumpEvent",
@@ -55,6 +55,7 @@ __all__ = [
     "event_intensity",
     "PHONE_TRANSIENT_S",
     "HJIF_TRANSIENT_S",
+    "steady_plan",
     "INTENSITY_FLOOR",
 ]
 
@@ -189,6 +190,46 @@ def plan_events(events: Sequence[BumpEvent], min_interval_s: float, end_s: float
         if end > g[0].t_s:
             runs.append(Run(g[0].t_s, end, tuple(g)))
     return EventPlan(tuple(transients), tuple(runs), float(min_interval_s))
+
+
+def steady_plan(tl: Any, kind: str, channel: int, min_interval_s: float) -> tuple[list[tuple[float, float]], list[Pulse]]:
+    """Where a steady drive plays as a continuous vibration, and which of its pulses are taps,
+    for a player whose transients need ``min_interval_s`` [s] between them.
+
+    A drive at :data:`~.timeline.SHARPNESS_LOW_HZ` or more is continuous; below it each
+    pulse is a tap, unless it comes closer than ``min_interval_s`` to the tap before or
+    after (a train above ``1 / min_interval_s``, or an irregular one's close pairs): then
+    its run of close pulses plays continuously too, from its first pulse to one period
+    after its last (never into the next tap), as :func:`plan_events` does with bumps.
+
+    Returns
+    -------
+    spans : list of (start [s], end [s])
+        In time order, none overlapping.
+    taps : list of Pulse
+    """
+    spans = continuous_spans(tl, kind, channel)
+    slow = [p for p in tl.pulses(kind, channel) if p.drive.pulse_frequency_hz < SHARPNESS_LOW_HZ]
+    groups: list[list[Pulse]] = []
+    for p in slow:
+        if groups and p.t_s - groups[-1][-1].t_s < min_interval_s:
+            groups[-1].append(p)
+        else:
+            groups.append([p])
+    taps: list[Pulse] = []
+    for i, g in enumerate(groups):
+        if len(g) == 1:
+            taps.append(g[0])
+            continue
+        nxt = groups[i + 1][0].t_s if i + 1 < len(groups) else math.inf
+        spans.append((g[0].t_s, min(g[-1].t_s + g[-1].drive.period_s, nxt, tl.end_s)))
+    merged: list[tuple[float, float]] = []
+    for a, b in sorted(spans):
+        if merged and a <= merged[-1][1]:
+            merged[-1] = (merged[-1][0], max(merged[-1][1], b))
+        elif b > a:
+            merged.append((a, b))
+    return merged, taps
 
 
 def run_points(run: Run, start_s: float | None = None, end_s: float | None = None,

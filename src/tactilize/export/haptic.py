@@ -14,7 +14,8 @@ Breakpoint times increase strictly (a run's last value stands 0.5 ms before its
 end, where the amplitude steps to zero).  Where the train is at 65 Hz and
 above the envelopes follow the stroke on the
 control grid; where it is slower each pulse is a short amplitude bump with an
-*emphasis* (Meta's tap) at its start.  Frequency is mapped linearly from
+*emphasis* (Meta's tap) at its start, unless it comes within 20 ms of another
+(then its run follows the envelopes too: :func:`~.events.steady_plan`).  Frequency is mapped linearly from
 :data:`HAPTIC_LOW_HZ` .. :data:`HAPTIC_HIGH_HZ` (the example range of section
 6) and clipped; the metadata states the mapping so a reader can undo it.
 
@@ -32,8 +33,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from .events import PHONE_TRANSIENT_S, event_intensity, plan_events, run_points
-from .timeline import CONTROL_STEP_S, SHARPNESS_LOW_HZ, DriveTimeline, control_points
+from .events import PHONE_TRANSIENT_S, event_intensity, plan_events, run_points, steady_plan
+from .timeline import CONTROL_STEP_S, DriveTimeline, control_points
 
 __all__ = ["haptic_document", "HAPTIC_LOW_HZ", "HAPTIC_HIGH_HZ", "haptic_frequency", "haptic_hz"]
 
@@ -58,8 +59,6 @@ def haptic_hz(frequency: float) -> float:
 
 def haptic_document(tl: DriveTimeline, kind: str = "profile", channel: int = 0, step_s: float = CONTROL_STEP_S) -> dict[str, Any]:
     """The ``.haptic`` document of one channel of a timeline (see the module docstring)."""
-    from .ahap import continuous_spans
-
     # (time, priority, amplitude breakpoint, frequency breakpoint); breakpoint
     # times must increase, so of two at one time the higher priority stays:
     # a tap over a point of the continuous run over the run's closing zero.
@@ -88,13 +87,13 @@ def haptic_document(tl: DriveTimeline, kind: str = "profile", channel: int = 0, 
             add(ev.t_s, event_intensity(ev.strength), ev.frequency_hz, 2, emphasis=True)
             add(ev.t_s + TAP_S, 0.0, ev.frequency_hz, 0)
     else:
-        for a, b in continuous_spans(tl, kind, channel):
+        spans, taps = steady_plan(tl, kind, channel, PHONE_TRANSIENT_S)
+        for a, b in spans:
             run(b, control_points(tl, kind, channel, step_s, start_s=a, end_s=b))
-        for p in tl.pulses(kind, channel):
-            if p.drive.pulse_frequency_hz < SHARPNESS_LOW_HZ:
-                f = p.drive.pulse_frequency_hz
-                add(p.t_s, p.amplitude, f, 2, emphasis=True)
-                add(p.t_s + min(TAP_S, 0.5 * p.drive.period_s), 0.0, f, 0)
+        for p in taps:
+            f = p.drive.pulse_frequency_hz
+            add(p.t_s, p.amplitude, f, 2, emphasis=True)
+            add(p.t_s + min(TAP_S, 0.5 * p.drive.period_s), 0.0, f, 0)
     entries.sort(key=lambda e: (e[0], -e[1]))
     amp: list[dict[str, Any]] = []
     freq: list[dict[str, Any]] = []

@@ -12,7 +12,9 @@ Vibrotactile perception; one channel per actuator (the pen's two); in each,
   ``frequency_modulation`` [Hz] over the stroke, on a ``Sine`` base signal;
 * a ``Transient`` band with one effect per pulse where the train is slower
   (the taps), its keyframe carrying the tap's amplitude and the train's
-  pulse frequency [Hz].
+  pulse frequency [Hz]; a pulse within 22 ms of another (the reference
+  synthesiser's transient lasts 22 ms, so such taps would overlap and smear)
+  is played by the ``VectorialWave`` band instead (:func:`~.events.steady_plan`).
 
 A stroke over a surface (``tl.events``) plays its bumps (:mod:`.events`): a
 ``Transient`` effect per bump at least 22 ms from its neighbours (the reference
@@ -41,8 +43,8 @@ import math
 from functools import partial
 from typing import Any, Callable
 
-from .events import HJIF_TRANSIENT_S, event_intensity, plan_events, run_points
-from .timeline import CONTROL_STEP_S, SHARPNESS_LOW_HZ, DriveTimeline, control_points
+from .events import HJIF_TRANSIENT_S, event_intensity, plan_events, run_points, steady_plan
+from .timeline import CONTROL_STEP_S, DriveTimeline, control_points
 
 __all__ = ["hjif_document", "HJIF_TIMESCALE", "HJIF_VERSION", "HJIF_MAX_EFFECT_TICKS"]
 
@@ -93,8 +95,6 @@ def _keyframes(pts: list[Any], pos: int) -> list[dict[str, Any]]:
 
 
 def _channel(tl: DriveTimeline, kind: str, c: int, step_s: float) -> dict[str, Any]:
-    from .ahap import continuous_spans
-
     effects: list[dict[str, Any]] = []
     freqs: list[int] = []
 
@@ -129,11 +129,13 @@ def _channel(tl: DriveTimeline, kind: str, c: int, step_s: float) -> dict[str, A
         for ev in plan.transients:
             tap(ev.t_s, event_intensity(ev.strength), max(ev.frequency_hz, 1.0))
     else:
-        for a0, b0 in continuous_spans(tl, kind, c):
+        # Taps the reference synthesiser plays apart (its transient lasts 22 ms); closer pulses
+        # (a train between 45 and 65 Hz, an irregular one's close pairs) play as a wave.
+        spans, taps_ = steady_plan(tl, kind, c, HJIF_TRANSIENT_S)
+        for a0, b0 in spans:
             wave(a0, b0, lambda a, b: control_points(tl, kind, c, step_s, start_s=a, end_s=b))
-        for p in tl.pulses(kind, c):
-            if p.drive.pulse_frequency_hz < SHARPNESS_LOW_HZ:
-                tap(p.t_s, p.amplitude, p.drive.pulse_frequency_hz)
+        for p in taps_:
+            tap(p.t_s, p.amplitude, p.drive.pulse_frequency_hz)
     bands = []
     if effects:
         lo, hi = _band_limits(freqs)

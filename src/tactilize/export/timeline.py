@@ -52,6 +52,7 @@ __all__ = [
     "SHARPNESS_HIGH_HZ",
     "FULL_INTENSITY_DUTY",
     "CONTROL_STEP_S",
+    "continuous_spans",
 ]
 
 #: AHAP sharpness 0..1 is commonly mapped to 65..300 Hz:
@@ -326,3 +327,18 @@ def _simplify(pts: list[ControlPoint], freq_rel: float, amp_abs: float, max_gap_
         i += 1
     kept.append(pts[-1])
     return kept
+
+
+def continuous_spans(tl: DriveTimeline, kind: str = "profile", channel: int = 0) -> list[tuple[float, float]]:
+    """``(start, end)`` [s] of the runs of rows whose drive is on at 65 Hz or more."""
+    drives = tl.drives(kind, channel)
+    bounds = list(tl.t_s[1:]) + [tl.end_s]
+    spans: list[tuple[float, float]] = []
+    for t0, t1, d in zip(tl.t_s, bounds, drives):
+        if d.is_off or d.pulse_frequency_hz < SHARPNESS_LOW_HZ:
+            continue
+        if spans and spans[-1][1] == t0:
+            spans[-1] = (spans[-1][0], t1)
+        else:
+            spans.append((t0, t1))
+    return spans
