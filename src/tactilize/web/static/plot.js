@@ -8,6 +8,11 @@ const WINDOW_S = 0.5;
 // the drawing worker (drawing.js), but on a two-core machine that worker shares the
 // processors with the browser's network and the server.
 const DRAW_INTERVAL_S = 1 / 30;
+// The wire's trace follows a growing lag by at most this much per message [s] (messages
+// come about every 20 ms: 0.1 % of real time plus a little), and re-aligns at once
+// when the lag jumps by more than WIRE_RESYNC_S [s].
+const WIRE_CATCH_UP_S = 0.002;
+const WIRE_RESYNC_S = 0.25;
 // In the page and in dedicated workers alike.
 const nextFrame = typeof requestAnimationFrame === "function" ? (f) => requestAnimationFrame(f) : (f) => setTimeout(f, 16);
 
@@ -43,14 +48,28 @@ export class Plot {
     });
   }
 
-  /** Wire samples on the server's simulated clock, one array per channel;
-   *  aligned so that the newest is "now". */
+  /** Wire samples on the server's simulated clock, one array per channel, placed on
+   *  the page's clock by the least lag seen: a message that came late (the network, a
+   *  busy page) is drawn where its samples belong, not stretched back over the one
+   *  before (each message re-aligned to "now" drew the trace backwards in places). */
   addWire(tS, dispUm, state) {
     if (Array.isArray(state)) this.wireState = state;
     if (!tS.length) return;
     const now = performance.now() / 1e3;
-    this.wireOffset = now - tS[tS.length - 1];
-    for (let i = 0; i < tS.length; i++) this.wire.push([tS[i] + this.wireOffset, dispUm.map((ch) => ch[i])]);
+    const offset = now - tS[tS.length - 1];
+    // A smaller offset is a message that came sooner: take it at once. A larger one is
+    // late, or the simulation fell behind the page's clock: follow it slowly, and at
+    // once after a jump (a new wire, a stall).
+    if (this.wireOffset === null || offset < this.wireOffset || offset - this.wireOffset > WIRE_RESYNC_S) {
+      this.wireOffset = offset;
+    } else {
+      this.wireOffset = Math.min(offset, this.wireOffset + WIRE_CATCH_UP_S);
+    }
+    const last = this.wire.length ? this.wire[this.wire.length - 1][0] : -Infinity;
+    for (let i = 0; i < tS.length; i++) {
+      const t = tS[i] + this.wireOffset;
+      if (t > last) this.wire.push([t, dispUm.map((ch) => ch[i])]);  // never back in time
+    }
     const from = now - WINDOW_S;
     while (this.wire.length && this.wire[0][0] < from) this.wire.shift();
   }
