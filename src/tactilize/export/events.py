@@ -39,7 +39,7 @@ References
 from __future__ import annotations
 
 import math
-from typing import Any, NamedTuple, Sequence
+from typing import Any, NamedTuple, Protocol, Sequence, TypeVar
 
 import numpy as np
 
@@ -58,6 +58,14 @@ __all__ = [
     "steady_plan",
     "INTENSITY_FLOOR",
 ]
+
+
+class _HasTime(Protocol):
+    @property
+    def t_s(self) -> float: ...
+
+
+_Timed = TypeVar("_Timed", bound=_HasTime)
 
 #: Shortest interval [s] at which a phone's actuator plays two transients apart: an
 #: LRA's click lasts 10 .. 20 ms (docs/references.md, section 6 (phone transients)).
@@ -164,19 +172,26 @@ def stroke_bump_events(stroke: Any, surface: Any, *, origin_s: float = 0.0,
     return tuple(out)
 
 
+def close_groups(items: Sequence[_Timed], min_interval_s: float) -> list[list[_Timed]]:
+    """``items`` (in time order, each with ``t_s`` [s]) in groups: one that comes less than
+    ``min_interval_s`` [s] after the one before joins its group.  A group of one is a tap
+    a player plays apart; a longer one plays as a continuous stretch."""
+    groups: list[list[_Timed]] = []
+    for e in items:
+        if groups and e.t_s - groups[-1][-1].t_s < min_interval_s:
+            groups[-1].append(e)
+        else:
+            groups.append([e])
+    return groups
+
+
 def plan_events(events: Sequence[BumpEvent], min_interval_s: float, end_s: float = math.inf) -> EventPlan:
     """Split ``events`` into transients and continuous runs for a player's ``min_interval_s`` [s].
 
     Consecutive events closer than ``min_interval_s`` form a run; an event at
     least that far from both neighbours is a transient (none for strength 0).
     """
-    ev = sorted(events, key=lambda e: e.t_s)
-    groups: list[list[BumpEvent]] = []
-    for e in ev:
-        if groups and e.t_s - groups[-1][-1].t_s < min_interval_s:
-            groups[-1].append(e)
-        else:
-            groups.append([e])
+    groups = close_groups(sorted(events, key=lambda e: e.t_s), min_interval_s)
     transients: list[BumpEvent] = []
     runs: list[Run] = []
     for i, g in enumerate(groups):
@@ -210,12 +225,7 @@ def steady_plan(tl: Any, kind: str, channel: int, min_interval_s: float) -> tupl
     """
     spans = continuous_spans(tl, kind, channel)
     slow = [p for p in tl.pulses(kind, channel) if p.drive.pulse_frequency_hz < SHARPNESS_LOW_HZ]
-    groups: list[list[Pulse]] = []
-    for p in slow:
-        if groups and p.t_s - groups[-1][-1].t_s < min_interval_s:
-            groups[-1].append(p)
-        else:
-            groups.append([p])
+    groups = close_groups(slow, min_interval_s)
     taps: list[Pulse] = []
     for i, g in enumerate(groups):
         if len(g) == 1:
