@@ -1,12 +1,18 @@
-"""The page's plan of the operating point while the simulated wire plays events.
+"""The plan of the operating point while the simulated wire plays events.
 
-Every pulse is planned when it plays; the plan of the window's equivalent drive is only
-what the page shows.  It is made by the simulation thread when it takes the events, so a
-pen batch does not plan it again: a batch gets the newest plan, the first batch after a
-steady drive, a lift or a stop its own.
+Every pulse is planned when it plays; the plan of the window's equivalent drive is what
+``play_events`` reports (the page shows it; an export records it as the wire's drive).
+Stepped by ``advance`` (offline: a stroke run for an export) each call gets its own plan.
+Running in real time (the pen server) the simulation thread makes it when it takes the
+events, so a pen batch does not plan it again: a batch gets the newest plan, the first
+batch after a steady drive, a lift or a stop its own.  The tests below step that mode by
+hand (``_plan_on_take``, which ``start`` sets) so the thread's moments are the test's.
 """
 
 from __future__ import annotations
+
+import threading
+import time
 
 from tactilize.actuators.simulated import SimulatedOutput
 from tactilize.drive import Drive
@@ -34,8 +40,62 @@ def _counting(out: SimulatedOutput) -> list[int]:
     return calls
 
 
-def test_batches_get_the_plan_the_wire_made_and_do_not_plan_it_again():
+def _live() -> SimulatedOutput:
+    """The real-time mode, stepped by hand."""
     out = SimulatedOutput(start=False)
+    out._plan_on_take = True
+    return out
+
+
+def test_offline_every_hand_over_gets_the_plan_of_its_own_operating_point():
+    """A stroke run offline (an export's wire column): no lag, whatever the steps."""
+    out = SimulatedOutput(start=False)
+    for k in range(6):
+        d = _eq(60.0 + 10 * k)
+        shown = out.play_events([_events(1.0 + 0.004 * k)] * 2, 1.0 + 0.004 * k, [d, d])
+        want = out._planned(out._chans[0], d)
+        assert shown[0].pulse_frequency_hz == d.pulse_frequency_hz
+        assert shown[0].pulse_width_s == want.pulse_width_s and shown[0].amplitude == want.amplitude
+        if k % 2:
+            out.advance(0.004)
+
+
+def test_in_real_time_the_pen_thread_plans_once_and_the_wire_thread_the_rest():
+    out = SimulatedOutput()  # its thread running
+    try:
+        by_thread: dict[str, int] = {}
+        for ch in out._chans:
+            plan = ch.ctrl.plan
+
+            def counted(d, _plan=plan):
+                name = threading.current_thread().name
+                by_thread[name] = by_thread.get(name, 0) + 1
+                return _plan(d)
+
+            ch.ctrl.plan = counted  # type: ignore[method-assign]
+        me = threading.current_thread().name
+        for k in range(20):
+            d = _eq(60.0 + 5 * k)
+            out.play_events([_events(1.0 + 0.004 * k)] * 2, 1.0 + 0.004 * k, [d, d])
+        assert by_thread.get(me) == 1  # the first hand-over only
+        last = _eq(60.0 + 5 * 19)
+        # The wire's thread takes the newest events within a tick and plans their operating point.
+        def shown_hz() -> float | None:
+            shown = out._events_shown
+            return shown[0].pulse_frequency_hz if shown else None
+
+        deadline = time.monotonic() + 10.0  # a generous wait, not a timing assertion
+        while time.monotonic() < deadline and shown_hz() != last.pulse_frequency_hz:
+            time.sleep(0.01)
+        assert shown_hz() == last.pulse_frequency_hz
+        assert sum(v for k, v in by_thread.items() if k != me) >= 1
+        assert by_thread.get(me) == 1
+    finally:
+        out.close()
+
+
+def test_batches_get_the_plan_the_wire_made_and_do_not_plan_it_again():
+    out = _live()
     calls = _counting(out)
     first = _eq(60.0)
     shown = out.play_events([_events(1.0)] * 2, 1.0, [first, first])
@@ -59,7 +119,7 @@ def test_batches_get_the_plan_the_wire_made_and_do_not_plan_it_again():
 
 
 def test_after_a_steady_drive_or_a_stop_the_next_events_are_planned_afresh():
-    out = SimulatedOutput(start=False)
+    out = _live()
     a = _eq(50.0)
     out.play_events([_events(1.0)] * 2, 1.0, [a, a])
     out.advance(0.004)
@@ -75,7 +135,7 @@ def test_after_a_steady_drive_or_a_stop_the_next_events_are_planned_afresh():
 
 def test_a_plan_the_wire_made_before_a_stop_is_not_shown_after_it():
     """The stop lands between the wire taking events and storing their plan: the plan is dropped."""
-    out = SimulatedOutput(start=False)
+    out = _live()
     a = _eq(50.0)
     out.play_events([_events(1.0)] * 2, 1.0, [a, a])
     b = _eq(70.0)

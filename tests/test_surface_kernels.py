@@ -171,6 +171,10 @@ for stroke in strokes:
         stroke.update([PenSample(t, 2e-3 + 0.04 * t, 5e-3)], 0.04, 0.0)
         stroke.window_statistics(0.15)
         fired += stroke.newly_fired
+# An API caller's integer times and positions (whole seconds, metres) compile nothing new either.
+whole = SurfaceStroke(sm)
+for k in range(3):
+    whole.update([PenSample(k, 0, 0)], 0.0, None)
 print(json.dumps({"before": before, "ready": ready, "after": signatures(), "fired": fired}))
 """
 

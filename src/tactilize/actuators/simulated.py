@@ -170,6 +170,9 @@ class SimulatedOutput(OutputBase):
         self._drives = [Drive.off()] * channels
         #: The plan of the operating point the newest events came with (the page shows it).
         self._events_shown: list[Drive] | None = None
+        # Running in real time, the thread plans the operating point of the events it takes
+        # (only the page shows that plan): a pen batch is spared it.
+        self._plan_on_take = False
         self._handovers = 0  # steady drives, lifts and stops handed over so far
         self._lock = threading.RLock()
         self._pending_lock = threading.Lock()  # held for microseconds only
@@ -239,20 +242,23 @@ class SimulatedOutput(OutputBase):
         Returns
         -------
         list of Drive
-            What :meth:`apply` would give for ``equivalent`` (the page shows it): planned by
-            the simulation thread when it takes the events, so a batch gets the plan of the
-            operating point it took last (one tick old at most), the first batch after a
-            steady drive, a lift or a stop its own.
+            What :meth:`apply` would give for ``equivalent``.  Stepped by :meth:`advance`
+            (a stroke run offline, an export) that is its own plan; running in real time
+            (:meth:`start`, the pen server) the simulation thread makes it when it takes the
+            events, and a pen batch gets the plan of the operating point the wire holds (a
+            tick old at most; the first batch after a steady drive, a lift or a stop its own).
         """
         if self._closed:
             raise OutputError("<simulated>", "output is closed")
+        if self._failure is not None:
+            raise OutputError("<simulated>", self._failure)
         drives = self._check(equivalent)
-        # The page's plan of the operating point is made by the simulation thread when it
-        # takes these events; until then (a tick at most) the newest one stands.
-        applied = self._events_shown
+        applied = self._events_shown if self._plan_on_take else None
         if applied is None:
-            applied = self._events_shown = planned_for_events(self, drives)
+            applied = planned_for_events(self, drives)
             self._drives = applied
+            if self._plan_on_take:
+                self._events_shown = applied
         rel = relative_events(channels, now_s, self.channels)
         with self._pending_lock:
             self._pending.append(("events", (drives, rel)))  # type: ignore[arg-type]
@@ -318,7 +324,7 @@ class SimulatedOutput(OutputBase):
                     ch.ctrl.standby(now)
                 elif drives is not None:
                     ch.ctrl.command(drives[c], now)
-        if taken is not None:
+        if taken is not None and self._plan_on_take:
             shown = planned_for_events(self, taken)
             with self._pending_lock:
                 if self._handovers == seen:  # no steady drive, lift or stop handed over since
@@ -341,6 +347,7 @@ class SimulatedOutput(OutputBase):
         if self._thread is not None:
             return
         self._running = True
+        self._plan_on_take = True
         self._thread = threading.Thread(target=self._guarded_loop, name="tactilize-simulated-wire", daemon=True)
         self._thread.start()
 

@@ -60,6 +60,10 @@ __all__ = [
 ]
 
 
+#: Times this close [s] are the same instant (float rounding of whole microseconds).
+TIME_TOLERANCE_S = 1e-9
+
+
 class _HasTime(Protocol):
     @property
     def t_s(self) -> float: ...
@@ -178,7 +182,9 @@ def close_groups(items: Sequence[_Timed], min_interval_s: float) -> list[list[_T
     a player plays apart; a longer one plays as a continuous stretch."""
     groups: list[list[_Timed]] = []
     for e in items:
-        if groups and e.t_s - groups[-1][-1].t_s < min_interval_s:
+        # (within a nanosecond counts as the interval itself: a 50 Hz train's pulses, 20 ms
+        # apart in whole microseconds, differ from 0.02 by float rounding either way)
+        if groups and e.t_s - groups[-1][-1].t_s < min_interval_s - TIME_TOLERANCE_S:
             groups[-1].append(e)
         else:
             groups.append([e])
@@ -235,7 +241,7 @@ def steady_plan(tl: Any, kind: str, channel: int, min_interval_s: float) -> tupl
         spans.append((g[0].t_s, min(g[-1].t_s + g[-1].drive.period_s, nxt, tl.end_s)))
     merged: list[tuple[float, float]] = []
     for a, b in sorted(spans):
-        if merged and a <= merged[-1][1]:
+        if merged and a <= merged[-1][1] + TIME_TOLERANCE_S:
             merged[-1] = (merged[-1][0], max(merged[-1][1], b))
         elif b > a:
             merged.append((a, b))

@@ -194,6 +194,9 @@ class PathGrid:
 
     def add(self, t: float, x: float, y: float) -> None:
         """A sample whose time is after the newest one's [s, m]: its segment's points join the path."""
+        # Floats, whatever the caller passed: an integer time would make the compiled passes
+        # compile again for it on a pen batch (seconds, once).
+        t, x, y = float(t), float(x), float(y)
         last = self.last
         if last is None:
             self.last = (t, x, y, 0.0)

@@ -9,8 +9,9 @@ const WINDOW_S = 0.5;
 // processors with the browser's network and the server.
 const DRAW_INTERVAL_S = 1 / 30;
 // The wire's trace follows a growing lag by at most this much per message [s] (messages
-// come about every 20 ms: 0.1 % of real time plus a little), and re-aligns at once
-// when the lag jumps by more than WIRE_RESYNC_S [s].
+// come about every 20 ms, so up to 10 % of real time: a simulation falling behind is
+// followed within a few messages), and re-aligns at once when the lag jumps by more
+// than WIRE_RESYNC_S [s].
 const WIRE_CATCH_UP_S = 0.002;
 const WIRE_RESYNC_S = 0.25;
 // In the page and in dedicated workers alike.
