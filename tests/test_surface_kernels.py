@@ -16,11 +16,9 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from tactilize.pen.samples import PenSample
-from tactilize.surface import CompositeSurface, SurfaceStroke, surface_model
+from tactilize.surface import surface_model
 from tactilize.surface import _kernels
 from tactilize.surface.bumps import bumps_in
-from tactilize.surface.fields import grain_field
 
 SETTINGS = settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

@@ -9,7 +9,6 @@ Units: SI (Hz, s); ``amplitude`` and ``strength`` are fractions in [0, 1].
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
