@@ -44,7 +44,7 @@ from ..synthesis import PulseScheduler
 from .base import OutputBase
 from .sma import Circuit, SafetyEnvelope, WireController, WireModel, WireSpec, build_envelope
 from .sma.controller import STATES, ControllerState
-from .simulated_events import event_starts, planned_for_events, relative_events, run_event_block, take_events
+from .simulated_events import event_starts, plan_to_show, relative_events, run_event_block, show_taken_plan, take_events
 
 if TYPE_CHECKING:
     from .sma.heat import RunningHeat
@@ -253,12 +253,7 @@ class SimulatedOutput(OutputBase):
         if self._failure is not None:
             raise OutputError("<simulated>", self._failure)
         drives = self._check(equivalent)
-        applied = self._events_shown if self._plan_on_take else None
-        if applied is None:
-            applied = planned_for_events(self, drives)
-            self._drives = applied
-            if self._plan_on_take:
-                self._events_shown = applied
+        applied = plan_to_show(self, drives)
         rel = relative_events(channels, now_s, self.channels)
         with self._pending_lock:
             self._pending.append(("events", (drives, rel)))  # type: ignore[arg-type]
@@ -325,10 +320,7 @@ class SimulatedOutput(OutputBase):
                 elif drives is not None:
                     ch.ctrl.command(drives[c], now)
         if taken is not None and self._plan_on_take:
-            shown = planned_for_events(self, taken)
-            with self._pending_lock:
-                if self._handovers == seen:  # no steady drive, lift or stop handed over since
-                    self._events_shown = self._drives = shown
+            show_taken_plan(self, taken, seen)
 
     def close(self) -> None:
         """Stop, end the thread and wait for it."""

@@ -20,7 +20,8 @@ from typing import Any
 from ..drive import Drive
 from .sma.heat import RunningHeat
 
-__all__ = ["take_events", "event_starts", "run_event_block", "planned_for_events", "relative_events"]
+__all__ = ["take_events", "event_starts", "run_event_block", "planned_for_events", "plan_to_show", "show_taken_plan",
+           "relative_events"]
 
 _US = 1_000_000
 _OFF = Drive.off()
@@ -37,6 +38,28 @@ def planned_for_events(out: Any, drives: list[Drive]) -> list[Drive]:
         same = applied and d is drives[len(applied) - 1]
         applied.append(d if d.is_off else applied[-1] if same else out._planned(ch, d))
     return applied
+
+
+def plan_to_show(out: Any, drives: list[Drive]) -> list[Drive]:
+    """What a hand-over of events reports: its own plan when the simulation is stepped by hand
+    (offline), the newest plan the simulation thread made when it runs in real time (the first
+    hand-over after a steady drive, a lift or a stop plans its own)."""
+    applied = out._events_shown if out._plan_on_take else None
+    if applied is None:
+        applied = planned_for_events(out, drives)
+        out._drives = applied
+        if out._plan_on_take:
+            out._events_shown = applied
+    return applied
+
+
+def show_taken_plan(out: Any, taken: list[Drive], seen: int) -> None:
+    """The simulation thread took events with operating point ``taken``: plan it for the page,
+    unless a steady drive, a lift or a stop was handed over since (``seen`` hand-overs then)."""
+    shown = planned_for_events(out, taken)
+    with out._pending_lock:
+        if out._handovers == seen:
+            out._events_shown = out._drives = shown
 
 
 def relative_events(channels: Any, now_s: float, n: int) -> list[list[tuple[float, float]]]:
