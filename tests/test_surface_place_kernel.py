@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 from tactilize.surface import _stroke_kernels
 from tactilize.surface import stroke as stroke_mod
 from tactilize.surface.events import (CLUSTER_INTERVAL_S, FULL_PROMINENCE, MIN_INTERVAL_S, RATE_ONLY_HZ,
-                                      REFERENCE_PRESSURE, place_events, strengths)
+                                      pressure_scale, place_events, strengths)
 
 SETTINGS = settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -65,7 +65,7 @@ def compiled(idx, prom, tc, floors, k0, step, fired, same, late, now, pressure, 
     out = np.zeros((4, n + 1))
     ring = np.zeros((4, max(len(fired), 1)))
     ring[3, : len(fired)] = fired
-    scale = 1.0 if pressure is None else min(1.0, max(0.0, float(pressure)) / REFERENCE_PRESSURE)
+    scale = pressure_scale(pressure)
     # Floors sit in a longer buffer, at an offset, as in the path's grid.
     buf = np.concatenate((np.full(3, -1.0), np.asarray(floors, dtype=np.float64)))
     k = _stroke_kernels.place_crossings(

@@ -29,10 +29,8 @@ def planned_for_events(out: Any, drives: list[Drive]) -> list[Drive]:
     """What :meth:`~tactilize.actuators.simulated.SimulatedOutput.apply` would give for the
     equivalent ``drives`` (both pins usually get the same drive: planned once).
 
-    This plan is only what the page shows (every pulse is planned afresh when it plays):
-    the simulation thread makes it when it takes the events (:func:`take_events`), and a
-    pen batch gets the newest one; only the first hand-over after a steady drive, a lift
-    or a stop plans on the pen's path."""
+    Every pulse is planned afresh when it plays; this plan is what a hand-over of events
+    reports (:func:`plan_to_show` says when it is made)."""
     applied: list[Drive] = []
     for ch, d in zip(out._chans, drives):
         same = applied and d is drives[len(applied) - 1]

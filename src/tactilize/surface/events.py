@@ -33,6 +33,7 @@ __all__ = [
     "MIN_INTERVAL_S",
     "CLUSTER_INTERVAL_S",
     "REFERENCE_PRESSURE",
+    "pressure_scale",
     "event_statistics",
     "local_rate_hz",
 ]
@@ -76,6 +77,12 @@ class PulseEvent(NamedTuple):
     clamped: tuple[str, ...] = ()
 
 
+def pressure_scale(pressure: float | None) -> float:
+    """What pressure in [0, 1] multiplies strength by: 1 at :data:`REFERENCE_PRESSURE` or more,
+    and without a pressure sensor (None)."""
+    return 1.0 if pressure is None else min(1.0, max(0.0, float(pressure)) / REFERENCE_PRESSURE)
+
+
 def strength_of(prominence: Any, floor: Any, pressure: float | None = None) -> np.ndarray:
     """Strength in [0, 1] of bumps of ``prominence`` on a picture with prominence ``floor``
     (log scale from the floor to :data:`FULL_PROMINENCE`), scaled by ``pressure``."""
@@ -87,7 +94,7 @@ def strength_of(prominence: Any, floor: Any, pressure: float | None = None) -> n
 def strengths(prominence: Sequence[float], floor: Sequence[float], pressure: float | None = None) -> list[float]:
     """:func:`strength_of` on plain lists: a pen batch has a handful of bumps, where each
     NumPy call costs more than the arithmetic."""
-    scale = 1.0 if pressure is None else min(1.0, max(0.0, float(pressure)) / REFERENCE_PRESSURE)
+    scale = pressure_scale(pressure)
     out = []
     for p, lo in zip(prominence, floor):
         span = math.log(max(FULL_PROMINENCE / lo, 1.0 + 1e-9))

@@ -24,8 +24,8 @@ import numpy as np
 
 from . import _stroke_kernels
 from ._stroke_kernels import CLUSTER, LATE, MERGED, RATE_ONLY, fire_due, place_crossings, window_stats
-from .events import (CLUSTER_INTERVAL_S, FULL_PROMINENCE, MIN_INTERVAL_S, RATE_ONLY_HZ, REFERENCE_PRESSURE,
-                     PulseEvent)
+from .events import (CLUSTER_INTERVAL_S, FULL_PROMINENCE, MIN_INTERVAL_S, RATE_ONLY_HZ, PulseEvent,
+                     pressure_scale)
 from .path import HISTORY_M, PathGrid
 from .path import warm as path_warm
 
@@ -187,7 +187,7 @@ class SurfaceStroke:
         if not count:
             return []
         late = now - LATE_S if previous is None else now - min(LOOKAHEAD_S, max(LATE_S, now - previous))
-        scale = 1.0 if pressure is None else min(1.0, max(0.0, float(pressure)) / REFERENCE_PRESSURE)
+        scale = pressure_scale(pressure)
         if count > self._pend.shape[1]:
             self._pend = np.zeros((4, 2 * count))
         pend = self._pend
