@@ -46,7 +46,7 @@ EMULATOR = r"""
 import sys, time
 from tactilize.boardhost import host_machine
 from tactilize.boardhost.emulator import ControllerEmulator
-emu = ControllerEmulator().start()
+emu = ControllerEmulator(assume_cold=True).start()
 shift = time.monotonic() - time.perf_counter()
 pin = emu.firmware.CHANNEL_PINS[0]
 def edge(t, kind, p, detail):

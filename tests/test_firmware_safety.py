@@ -40,7 +40,7 @@ def _fresh_board():
 def _controller(tmp_path, circuit: str = "aa-resistor"):
     (tmp_path / W.CONFIG_FILE).write_text(board_config_text(None, circuit))
     sent: list[bytes] = []
-    ctl = fw.Controller(sent.append, store=str(tmp_path) + "/")
+    ctl = fw.Controller(sent.append, store=str(tmp_path) + "/", assume_cold=True)
     ctl.sent = sent  # type: ignore[attr-defined]
     return ctl
 
@@ -162,8 +162,8 @@ def test_no_frame_sequence_heats_the_wire_past_its_maximum(tmp_path, circuit, fr
 # ------------------------------------------------------------------ the hold across sagging cells
 
 
-def _sag_run(closed: bool, seconds: float = 8.0) -> list[float]:
-    """60 Hz texture at a third of the felt band, cells from 3.0 to 2.2 V over
+def _sag_run(closed: bool, seconds: float = 8.0, end_v: float = 2.9) -> list[float]:
+    """60 Hz texture at a third of the felt band, cells from 3.0 to ``end_v`` over
     three quarters of the run; the board's Hold (the firmware's own code) sets
     width and bias from what the wire model's sense path shows."""
     ctrl = WireController(SPEC, "aa-resistor")
@@ -179,7 +179,7 @@ def _sag_run(closed: bool, seconds: float = 8.0) -> list[float]:
     period, t, r, p, i = 1 / f, 0.0, 0.0, 0.0, 0.0
     xs = []
     while t < seconds:
-        model.circuit = circ.replace(supply_v=3.0 - 0.8 * min(1.0, t / (0.75 * seconds)))
+        model.circuit = circ.replace(supply_v=3.0 - (3.0 - end_v) * min(1.0, t / (0.75 * seconds)))
         if closed:
             w, b = hold.step(r, p, period, 3e-4, i)
             w = w or energy / p_nominal
@@ -199,49 +199,51 @@ def test_the_boards_hold_keeps_the_band_as_the_cells_sag():
     last_second = closed[-60:]
     assert 0.7 <= min(last_second) and max(last_second) <= 0.9, (min(last_second), max(last_second))
     # open loop, the same heat planned for fresh cells, loses the band
-    assert min(_sag_run(False)[-60:]) > 0.99
+    assert not 0.7 <= min(_sag_run(False)[-60:]) <= max(_sag_run(False)[-60:]) <= 0.9
 
 
-# ------------------------------------------------------------------ glitch-free retuning
+def test_a_deep_sag_cools_the_wire_rather_than_loosen_the_limit():
+    # At 2.2 V the hold would need more bias than the circuit's worst case
+    # allows: a reading never loosens that limit (a wrong ADC reference reads
+    # current and rail alike), so the wire cools out of the band, never hot.
+    last_second = _sag_run(True, end_v=2.2)[-60:]
+    assert min(last_second) > 0.9
 
 
-def _retunes(channel_set, n: int = 8) -> tuple[list[tuple[float, float]], set[float]]:
-    widths = {300.0: 1.5e-3, 20.0: 4e-3}
-    seq = [300.0, 20.0] * (n // 2)
-    for f in seq:
-        channel_set(f, widths[f])
-        time.sleep(0.004 + 0.013 * (len(seq) % 3))
-    time.sleep(0.06)
-    return host_machine.pwm_pulses(PIN0), set(widths.values())
+# ------------------------------------------------------------------ the gate pins carry no PWM
 
 
-def test_retuning_300_to_20_hz_and_back_never_stretches_a_pulse():
+def test_no_train_puts_a_gate_pin_on_a_pwm_slice():
+    # A slice carries its counter over deinit() and PWM() and latches TOP and
+    # compare only at a wrap: a pulse the heat gate never saw.  So every pulse is
+    # a timed, gated one, fast and even trains too.
+    host_machine.reset()
     ch = fw.Channel(0, PIN0)
-    pulses, widths = _retunes(lambda f, w: ch.set(int(f * 1e3), int(w * 1e9), 0xFFFF))
+    for f_hz, w_s in ((300.0, 1.5e-3), (20.0, 4e-3), (150.0, 1e-3)):
+        ch.set(int(f_hz * 1e3), int(w_s * 1e9), 0xFFFF)
+        time.sleep(0.03)
     ch.off()
-    assert len(pulses) > 10
-    for start, width in pulses:
-        # every pulse is one of the two asked for (to one counter tick)
-        assert min(abs(width - w) for w in widths) < 2e-6, (start, width)
+    assert all(kind != "pwm" for _, kind, pin, _ in list(host_machine.events) if pin == PIN0)
+    assert any(kind == "gpio" and d.get("value") == 1 for _, kind, pin, d in list(host_machine.events) if pin == PIN0)
 
 
 def test_the_timing_model_sees_the_stretch_of_a_naive_retune():
-    # The same retunes done the naive way (divider mid-pulse): the model must
-    # catch a stretched pulse, or the test above proves nothing.
-    ch = fw.Channel(0, PIN0)
-    ch.set(300_000, 3_000_000, 0xFFFF)  # 90 % duty: a retune nearly always lands mid-pulse
+    # The RP2040 applies a new divider at once and TOP and compare at the wrap:
+    # a retune mid-pulse stretches it.  Why no gate pin is on a slice.
+    host_machine.reset()
+    pwm = host_machine.PWM(host_machine.Pin(PIN0), freq=300, duty_ns=3_000_000)  # 90 % duty
 
     def naive(f: float, w: float) -> None:
-        ch.pwm.duty_ns(0)
-        ch.pwm.freq(int(f))
-        ch.pwm.duty_ns(int(w * 1e9))
+        pwm.duty_ns(0)
+        pwm.freq(int(f))
+        pwm.duty_ns(int(w * 1e9))
 
     widths = {300.0: 3e-3, 20.0: 4e-3}
     for f in [20.0, 300.0] * 4:
         naive(f, widths[f])
         time.sleep(0.02)
     pulses = host_machine.pwm_pulses(PIN0)
-    ch.off()
+    pwm.deinit()
     assert max(w for _, w in pulses) > 4e-3 + 1e-4
 
 
@@ -255,7 +257,7 @@ def test_a_hung_vm_is_reset_by_the_hardware_watchdog(tmp_path):
     # loop hangs.
     ctl = _controller(tmp_path)
     ctl.feed(P.encode_frame(1, P.Command.SET, P.encode_set_channel(0, 120.0, 300e-6, 1.0)))
-    assert host_machine.pin_state(PIN0)["mode"] == "pwm"
+    assert ctl.channels[0].on
     hung, passes = threading.Event(), [0]
 
     def read(timeout_ms: int) -> bytes:
@@ -326,13 +328,14 @@ def test_the_second_channel_starts_at_the_onset_offset_timed_on_the_board(tmp_pa
     ctl.on_change = lambda ch, on, f, w, why: seen.setdefault(ch, time.perf_counter()) if on else None
     ctl.feed(P.encode_frame(1, P.Command.PAIR, P.encode_pair(0.08, (100.0, 200e-6, 1.0), (100.0, 200e-6, 1.0))))
     assert P.Command(_replies(ctl)[0].command) == P.Command.ACK
-    assert armed == [pytest.approx(80.0, abs=1e-3)]
+    # the onset's timer, beside channel 0's first pulse (due at once)
+    assert [a for a in armed if a > 10.0] == [pytest.approx(80.0, abs=1e-3)]
     deadline = time.monotonic() + 30.0  # a bound only
     while 1 not in seen and time.monotonic() < deadline:
         time.sleep(0.001)
     # never before the offset (a loaded host may only make it later)
     assert seen[1] - seen[0] >= 0.079, seen
-    assert host_machine.pin_state(PIN1)["duty_ns"] == 200_000
+    assert ctl.channels[1].width_ns == 200_000
     ctl.all_off("exit")
 
 

@@ -47,7 +47,7 @@ OPERATING = Drive(40.0, 1e-3, strength=0.5)
 @pytest.fixture
 def emu():
     host_machine.reset()
-    e = ControllerEmulator().start()
+    e = ControllerEmulator(assume_cold=True).start()
     yield e
     e.stop()
     host_machine.reset()
@@ -59,7 +59,7 @@ EMULATOR = r'''
 import sys, time
 from tactilize.boardhost import host_machine
 from tactilize.boardhost.emulator import ControllerEmulator
-emu = ControllerEmulator().start()
+emu = ControllerEmulator(assume_cold=True).start()
 shift = time.monotonic() - time.perf_counter()
 def edge(t, kind, pin, detail):
     if kind == "gpio" and pin == %d and detail.get("value") == 1:

@@ -46,7 +46,7 @@ class HalfWidth:
 def emu():
     host_machine.reset()
     events: list[dict] = []
-    e = ControllerEmulator(on_change=events.append).start()
+    e = ControllerEmulator(on_change=events.append, assume_cold=True).start()
     e.events = events  # type: ignore[attr-defined]
     yield e
     e.stop()

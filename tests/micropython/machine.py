@@ -41,10 +41,14 @@ class Pin:
 
 
 class PWM:
-    def __init__(self, pin):
+    def __init__(self, pin, freq=None, duty_u16=None):
         self.pin = pin.id
         self.f = 1000
         log.append(["PWM", self.pin])
+        if freq is not None:
+            self.freq(freq)
+        if duty_u16 is not None:
+            self.duty_u16(duty_u16)
 
     def freq(self, f=None):
         if f is None:

@@ -28,8 +28,12 @@ __all__ = ["board_config", "board_config_text", "energy_budget", "AA_PLANNING_CA
 AA_PLANNING_CAPACITY_AH = 1.5
 
 
-def board_config(wire: WireSpec | str | None = None, circuit: Circuit | str | None = None) -> dict[str, float]:
+def board_config(wire: WireSpec | str | None = None, circuit: Circuit | str | None = None,
+                 design_air_c: float | None = None) -> dict[str, float]:
     """The numbers ``tactile_wire.py`` limits the wire with, for a wire and circuit.
+
+    ``design_air_c`` [C]: the hottest air the board must be safe in (default the
+    envelope's design ambient, 30 C); a warmer room needs a config made for it.
 
     Returns
     -------
@@ -38,9 +42,10 @@ def board_config(wire: WireSpec | str | None = None, circuit: Circuit | str | No
         ``max_power_w`` [W] (the circuit's worst case into this wire),
         ``r_martensite_ohm`` and ``r_austenite_ohm`` [ohm], ``current_min_a`` [A]
         (the least current the circuit gives the wire over that range) and
-        ``current_spread`` [1] (see ``tactile_wire.WireLimits``).
+        ``current_spread`` [1] (see ``tactile_wire.WireLimits``), ``design_air_c``
+        [C].
     """
-    env = build_envelope(wire, circuit)
+    env = build_envelope(wire, circuit) if design_air_c is None else build_envelope(wire, circuit, design_ambient_c=design_air_c)
     spec = env.spec
     return {
         "conductance_w_k": spec.conductance_w_k,
@@ -51,6 +56,7 @@ def board_config(wire: WireSpec | str | None = None, circuit: Circuit | str | No
         "r_austenite_ohm": spec.resistance_austenite_ohm,
         "current_min_a": min(env.circuit.current_at(r) for r in (spec.resistance_martensite_ohm, spec.resistance_austenite_ohm)),
         "current_spread": _current_spread(env.circuit, spec),
+        "design_air_c": max(env.design_ambient_c, spec.ambient_c),
     }
 
 
@@ -63,11 +69,14 @@ def _current_spread(circuit: Circuit, spec: WireSpec) -> float:
     return (circuit.source_ohm + hi) / (circuit.source_ohm + lo)
 
 
-def board_config_text(wire: WireSpec | str | None = None, circuit: Circuit | str | None = None) -> str:
-    """``tactile_cfg.txt`` for a wire and circuit (key value lines)."""
+def board_config_text(wire: WireSpec | str | None = None, circuit: Circuit | str | None = None,
+                      design_air_c: float | None = None) -> str:
+    """``tactile_cfg.txt`` for a wire and circuit (key value lines), safe in air up to ``design_air_c`` [C]."""
+    cfg = board_config(wire, circuit, design_air_c)
     env = build_envelope(wire, circuit)
-    head = f"# tactilize board config: wire {env.spec.name}, circuit {env.circuit.name}\n"
-    return head + "".join(f"{k} {v!r}\n" for k, v in board_config(wire, circuit).items())
+    head = (f"# tactilize board config: wire {env.spec.name}, circuit {env.circuit.name}, "
+            f"air up to {cfg['design_air_c']:g} C\n")
+    return head + "".join(f"{k} {v!r}\n" for k, v in cfg.items())
 
 
 def energy_budget(

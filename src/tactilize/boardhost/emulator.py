@@ -65,7 +65,8 @@ class ControllerEmulator:
         The path to open (the link when given, else the pty slave).
     """
 
-    def __init__(self, on_change: Callable[[dict[str, Any]], None] | None = None, link: str | Path | None = None):
+    def __init__(self, on_change: Callable[[dict[str, Any]], None] | None = None, link: str | Path | None = None,
+                 *, assume_cold: bool = False):
         self.firmware = load_firmware()
         self._user_on_change = on_change
         self._t0 = time.monotonic()
@@ -83,7 +84,9 @@ class ControllerEmulator:
             os.symlink(self.slave_path, tmp)
             os.replace(tmp, self.link)
         self.device = str(self.link) if self.link is not None else self.slave_path
-        self.controller = self.firmware.Controller(self._write, on_change=self._changed)
+        # A board starts with its wires' estimates at the budget; assume_cold is
+        # a board idle for long enough that they have cooled (tests, benches).
+        self.controller = self.firmware.Controller(self._write, on_change=self._changed, assume_cold=assume_cold)
         self.dropped_bytes = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -112,15 +115,10 @@ class ControllerEmulator:
     def _changed(self, channel: int, on: bool, frequency_mhz: int, width_ns: int, reason: str) -> None:
         event: dict[str, Any] = {"channel": channel, "on": bool(on)}
         pin_id = self.firmware.CHANNEL_PINS[channel]
-        hw = host_machine.pin_state(pin_id)
         if on:
-            if hw.get("mode") == "pwm":
-                event["frequency_hz"] = hw["frequency_hz"]
-                event["pulse_width_us"] = hw["duty_ns"] / 1e3
-            else:
-                # Soft-timer train: the hardware state is the timer's period.
-                event["frequency_hz"] = frequency_mhz / 1e3
-                event["pulse_width_us"] = width_ns / 1e3
+            # Every train is timed: the hardware state is the timer's period.
+            event["frequency_hz"] = frequency_mhz / 1e3
+            event["pulse_width_us"] = width_ns / 1e3
         else:
             event["reason"] = reason
         event["t_s"] = round(time.monotonic() - self._t0, 6)

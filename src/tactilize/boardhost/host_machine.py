@@ -242,7 +242,8 @@ class PWM:
     """A PWM slice output on a pin (``machine.PWM``), RP2040 limits enforced,
     including the frequency shared by the two pins of a slice."""
 
-    def __init__(self, pin: Pin, *, freq: int | None = None, duty_ns: int | None = None) -> None:
+    def __init__(self, pin: Pin, *, freq: int | None = None, duty_ns: int | None = None,
+                 duty_u16: int | None = None) -> None:
         self._pin = pin
         self._freq = 1000
         self._duty_ns = 0
@@ -261,6 +262,8 @@ class PWM:
             self.freq(freq)
         if duty_ns is not None:
             self.duty_ns(duty_ns)
+        if duty_u16 is not None:
+            self.duty_u16(duty_u16)
 
     def freq(self, value: int | None = None) -> int | None:
         if value is None:

@@ -74,7 +74,7 @@ class VirtualMachine:
                 vm._edge(self.id, int(bool(v)))
 
         class PWM:
-            def __init__(self, pin):
+            def __init__(self, pin, freq=None, duty_u16=None):
                 self.pin = pin.id
                 self._hz = 1000
                 self._next = float(vm.now_us)
@@ -82,6 +82,10 @@ class VirtualMachine:
                 self._pending = 0
                 self._u16 = None
                 vm._pwms.append(self)
+                if freq is not None:
+                    self.freq(freq)
+                if duty_u16 is not None:
+                    self.duty_u16(duty_u16)
 
             def _advance(self, until_us):
                 period = 1e6 / self._hz
@@ -310,7 +314,10 @@ class VirtualBoard:
         How to patch the firmware module (``monkeypatch.setattr`` in tests);
         by default the patches are undone on :meth:`close`.
     after_watchdog_reset : bool
-        The board starts as after a watchdog reset.
+        The board has just started (after a watchdog reset, or any other): its
+        heat estimates start at the budget, as every board's do.  By default
+        the board has been idle long enough for them to have cooled, as the
+        wire the judge starts from (``Controller(assume_cold=True)``).
     """
 
     def __init__(self, store: str | Path | None = None, circuit: str | Circuit = "aa-resistor", *,
@@ -327,7 +334,7 @@ class VirtualBoard:
             setattr(self.vm, "reset_cause", lambda: 3)
         (root / fw.W.CONFIG_FILE).write_text(board_config_text(None, circuit))
         self.sent: list[bytes] = []
-        self.ctl = fw.Controller(self.sent.append, store=str(root) + "/")
+        self.ctl = fw.Controller(self.sent.append, store=str(root) + "/", assume_cold=not after_watchdog_reset)
         self.circuit = circuit
         self.seq = 0
 

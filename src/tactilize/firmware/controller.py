@@ -87,8 +87,16 @@ WDT_TIMEOUT_MS = 100
 HOLD_MS = 10
 # How long the main loop waits for input before checking the watchdog [ms].
 POLL_MS = 5
-PWM_MIN_FREQUENCY_MHZ = C.PWM_MIN_FREQUENCY_MHZ
 Channel = C.Channel
+# ADC input of the RP2040's own temperature sensor, and its line: V = 0.706 V at
+# 27 C, -1.721 mV/K (docs/references.md, section 8 (RP2040 temperature sensor)).
+TEMP_ADC = 4
+TEMP_V27 = 0.706
+TEMP_SLOPE_V_K = 0.001721
+# Readings outside this range [C] are not a temperature: they tighten nothing.
+TEMP_PLAUSIBLE_C = (-40.0, 125.0)
+# How often the chip's temperature is read [ms].
+TEMP_MS = 1000
 
 # ---------------------------------------------------------------- protocol
 CMD_SET = 0x01
@@ -117,6 +125,9 @@ REFUSED_CHANNEL = 4
 REFUSED_ENERGY = 5
 FLAG_WATCHDOG_TRIPPED = 0x01
 FLAG_SENSE_FAULT = 0x02
+# An exception was caught in the firmware since the last STOP: every output went
+# off and the heat estimates went to the budget, and the loop went on.
+FLAG_FIRMWARE_ERROR = 0x04
 SET_FORMAT = ">BIIH"
 STATUS_FORMAT = ">BBIII" + "BIIH" * 2 + "IIIIIH"
 HOLD_FORMAT = ">BIII"  # channel, pulse heat [nJ], bias heat [uW], target resistance [uohm]
@@ -135,27 +146,43 @@ class Controller:
     write(bytes) sends to the host; on_change(channel, on, frequency_mhz,
     width_ns, reason), if given, is called whenever an output changes (the
     emulator prints it; the board lights its LED).
+
+    Every board starts with its wires' estimates at the budget (tactile_heat.py):
+    it cannot know how long it was off.  ``assume_cold`` is for the host's
+    simulations of a board that has been idle for longer than that; main()
+    never sets it and no frame can.
     """
 
-    def __init__(self, write, on_change=None, pins=CHANNEL_PINS, bias_pins=BIAS_PINS, store=""):
+    def __init__(self, write, on_change=None, pins=CHANNEL_PINS, bias_pins=BIAS_PINS, store="",
+                 assume_cold=False):
         self.write = write
         self.on_change = on_change
+        self.errors = 0
+        self.error_flag = False
         # The wire and circuit stored on the board; the host cannot change them.
         self.config = W.parse_config(W.read_text(store + W.CONFIG_FILE), W.DEFAULT_CONFIG)
         self.limits = W.WireLimits(self.config)
         self.store = store
         cal = W.load_calibration(W.read_text(store + W.CAL_FILE), len(pins))
-        rail = machine.ADC(RAIL_ADC_PIN)
-        # After a watchdog reset the wire may still be as hot as the board let it be.
-        hot = machine.reset_cause() == getattr(machine, "WDT_RESET", 3) if hasattr(machine, "reset_cause") else False
         self.channels = []
         for i, p in enumerate(pins):
-            sense = W.Sense(machine.ADC(SENSE_ADC_PINS[i % 2]), rail, cal[i][0], cal[i][1], self.config)
+            # Every gate low before anything that may fail below.
             bias_pin = bias_pins[i] if bias_pins is not None and i < len(bias_pins) else None
-            heat = H.HeatEstimate(self.config, _ticks_diff, hot)
-            ch = Channel(i, p, bias_pin, sense, W.Hold(self.limits, self.config), heat)
+            heat = H.HeatEstimate(self.config, _ticks_diff, not assume_cold)
+            ch = Channel(i, p, bias_pin, None, W.Hold(self.limits, self.config), heat, self._channel_error)
             ch.p_w = self.limits.p_max
             self.channels.append(ch)
+        rail = machine.ADC(RAIL_ADC_PIN)
+        for i, ch in enumerate(self.channels):
+            ch.sense = W.Sense(machine.ADC(SENSE_ADC_PINS[i % 2]), rail, cal[i][0], cal[i][1], self.config)
+        try:
+            self.temp_adc = machine.ADC(TEMP_ADC)
+        except (ValueError, TypeError, OSError):
+            self.temp_adc = None
+        self.air_c = self.config["design_air_c"]
+        self.chip_c = None
+        self.temp_ms = _ticks_ms()
+        self._read_temperature()
         try:
             self.led = machine.Pin(LED_PIN, machine.Pin.OUT, value=0)
         except (ValueError, TypeError):
@@ -173,11 +200,67 @@ class Controller:
 
     # -- input
     def feed(self, data):
-        self.decoder.feed(data)
+        try:
+            self.decoder.feed(data)
+        except Exception as exc:
+            self.fail(exc)
 
     def tick(self):
         """Called from the main loop at least every POLL_MS: watchdog, stale
-        frames, the sense readings and the hold."""
+        frames, the chip's temperature, the sense readings and the hold."""
+        try:
+            self._tick()
+        except Exception as exc:
+            self.fail(exc)
+
+    def fail(self, exc):
+        """Whatever raised: every output off, every estimate at its budget, the
+        decoder cleared; the loop goes on and the next reply carries
+        FLAG_FIRMWARE_ERROR (a STOP clears it)."""
+        self.errors = (self.errors + 1) & 0xFFFFFFFF
+        self.error_flag = True
+        try:
+            self._cancel_pair()
+        except Exception:
+            self.pair_timer = None
+        for ch in self.channels:
+            ch.fail()
+        try:
+            self.decoder = Decoder(self._on_frame, self._on_bad)
+        except Exception:
+            pass
+        try:
+            self._changed(self.channels[0], "error")
+        except Exception:
+            pass
+
+    def _channel_error(self, exc):
+        # A timer's callback failed on one channel: the whole board goes safe.
+        self.fail(exc)
+
+    def _read_temperature(self):
+        """The room may be warmer than the design air: the chip's own sensor
+        (it runs at or above the air around the board) may only lower the budget."""
+        self.temp_ms = _ticks_ms()
+        air = self.config["design_air_c"]
+        if self.temp_adc is not None:
+            v = 0.0
+            for _ in range(4):
+                v += self.temp_adc.read_u16() * W.ADC_FULL_SCALE_V / 65535.0
+            chip = 27.0 - (v / 4 - TEMP_V27) / TEMP_SLOPE_V_K
+            if TEMP_PLAUSIBLE_C[0] <= chip <= TEMP_PLAUSIBLE_C[1]:
+                self.chip_c = chip
+                if chip > air:
+                    air = chip
+        self.air_c = air
+        budget = self.config["budget_k"] - (air - self.config["design_air_c"])
+        if budget < 0:
+            budget = 0.0
+        self.limits.budget = budget
+        for ch in self.channels:
+            ch.heat.set_budget(budget)
+
+    def _tick(self):
         now = _ticks_ms()
         self.clock.now(_ticks_us())  # carried forward before the ticks wrap
         self.decoder.expire(now)
@@ -185,6 +268,8 @@ class Controller:
             if any(ch.live for ch in self.channels) or self.pair_timer is not None:
                 self.all_off("watchdog")
                 self.watchdog_tripped = True
+        if _ticks_diff(now, self.temp_ms) >= TEMP_MS:
+            self._read_temperature()
         now_us = _ticks_us()
         for ch in self.channels:
             if ch.live:
@@ -235,6 +320,8 @@ class Controller:
         flags = FLAG_WATCHDOG_TRIPPED if self.watchdog_tripped else 0
         if self.sense_faults():
             flags |= FLAG_SENSE_FAULT
+        if self.error_flag:
+            flags |= FLAG_FIRMWARE_ERROR
         return flags
 
     def sense_faults(self):
@@ -268,7 +355,9 @@ class Controller:
         if cmd == CMD_STOP:
             self.all_off("stop")
             self.watchdog_tripped = False
-            return self._ack(seq, cmd)
+            ack = self._ack(seq, cmd)  # says what happened, once more
+            self.error_flag = False
+            return ack
         if cmd == CMD_STATUS:
             return self._reply(seq, CMD_STATUS_REPLY, self.status_payload())
         if cmd == CMD_SENSE:
@@ -317,7 +406,9 @@ class Controller:
             self._cancel_pair()
         was_on = ch.on
         self.watchdog_tripped = False
-        ch.play(now, lambda off: F._ticks_add(now, ahead + off), entries)
+        # Starts relative to now: a base far behind makes them late, never a
+        # tick sum out of ticks_add's range.
+        ch.play(now, [(eid, ahead + off, w) for eid, off, w in entries])
         if was_on:
             self._changed(ch, "events")
         return self._ack(seq, CMD_EVENTS)
@@ -354,7 +445,7 @@ class Controller:
         # The heat of what runs: whole hertz on a PWM slice, and a jittered
         # train's closest pulses.  The pulses come first: the bias is cut to the
         # room they leave (_apply).
-        _, applied, _, j = C.plan(f_mhz, w_ns, reg)
+        applied, _, j = C.plan(f_mhz, w_ns, reg)
         if not self._fits(ch, max(f_mhz, applied), w_ns, 0.0, j):
             return REFUSED_ENERGY
         return REFUSED_NONE
@@ -374,7 +465,7 @@ class Controller:
             return
         before = (ch.frequency_mhz, ch.width_ns)
         p = self.limits.power(ch.sense.current_bound_a(_ticks_ms(), _ticks_diff))
-        _, applied, _, j = C.plan(f_mhz, w_ns, reg)
+        applied, _, j = C.plan(f_mhz, w_ns, reg)
         room = self.limits.max_bias(max(f_mhz, applied) / 1000.0, w_ns / 1e9, p, j)
         ch.p_w = p
         if ch.bias_q16 > int(room * 65536):
@@ -427,7 +518,10 @@ class Controller:
 
             def start(timer):
                 self.pair_timer = None
-                self._apply(ch1, d1[0], d1[1], d1[2])
+                try:
+                    self._apply(ch1, d1[0], d1[1], d1[2])
+                except Exception as exc:
+                    self.fail(exc)
 
             self.pair_timer = machine.Timer(mode=machine.Timer.ONE_SHOT, freq=1000000.0 / soa_us, callback=start)
         return self._ack(seq, CMD_PAIR)

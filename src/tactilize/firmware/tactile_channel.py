@@ -3,9 +3,14 @@
 # bias, and the gate that holds every pulse to the wire's running heat estimate
 # (tactile_heat.py).
 #
-# Fast even trains run on a PWM slice; slow (< 20 Hz) and irregular ones place
-# each pulse with a one-shot timer, as do the host's scheduled pulses (protocol
-# version 4, tactile_events.py).  A changed drive never restarts a train: its
+# Every pulse on a gate pin is placed by a one-shot timer and busy-waited, and
+# passes the heat gate first: trains even and irregular, and the host's
+# scheduled pulses (protocol version 4, tactile_events.py).  No PWM slice drives
+# a gate pin, because a slice carries its counter, compare and TOP over from
+# before (deinit() and PWM() keep the counter; TOP and compare latch only at a
+# wrap): a slice left near its wrap emits a pulse no gate saw (docs/references.md,
+# section 8 (RP2040 PWM slice)).  Only the 20 kHz standby bias uses a slice, and
+# what it can carry over (one bias period) is counted.  A changed drive never restarts a train: its
 # first pulse starts at max(last start + new period, now, last end + 1 us), the
 # host's PulseScheduler rule (tactilize.synthesis), so a host that resends its
 # drive cannot multiply the pulse rate nor silence a slow train.
@@ -24,10 +29,15 @@ except ImportError:  # on the host, inside the package
     from tactilize.firmware import tactile_wire as W
 
 BIAS_HZ = 20000
-# Below this frequency the RP2040 PWM cannot make the period from an integer Hz
-# setting accurately (MicroPython's PWM.freq takes integers; 0.5 Hz rounding is
-# 2.5 % at 20 Hz), so slower trains use timers and a busy-waited pulse.
-PWM_MIN_FREQUENCY_MHZ = 20000
+# One bias period [us]: the longest a bias slice can go on at its old compare
+# after a change (the compare latches at the wrap), or at what it held before a
+# soft reset once it is enabled again (machine_pwm_deinit_all stops the slice
+# mid-period; this firmware only ever runs the bias slices at BIAS_HZ).
+BIAS_PERIOD_US = 1000000 // BIAS_HZ
+# A pulse older than this [us] is forgotten: no rule looks further back than a
+# period (at most 1 s), and MicroPython's ticks wrap at 2^30 us, so a remembered
+# tick older than 2^29 us would read as a time in the future.
+STALE_US = 10000000
 # A pulse the heat gate would cut below this [us] is left out.
 GATE_MIN_US = 10
 # The hardware watchdog once run() started it (fed also during a retune's wait).
@@ -47,28 +57,29 @@ def _irq_on(state):
 
 
 def plan(frequency_mhz, width_ns, regularity_q16):
-    """What a drive runs as: (mode, applied frequency [mHz], period [us], jitter
-    depth [periods]).  A PWM slice runs whole hertz; a timed train's period is
-    rounded up, so it never runs faster than asked."""
+    """What a drive runs as: (applied frequency [mHz], period [us], jitter depth
+    [periods]).  The period is rounded up to the microsecond, so a train never
+    runs faster than asked."""
     period_us = (1000000000 + frequency_mhz - 1) // frequency_mhz
     j = W.jitter_depth(regularity_q16, period_us, width_ns // 1000)
-    if j <= 0 and frequency_mhz >= PWM_MIN_FREQUENCY_MHZ:
-        hz = (frequency_mhz + 500) // 1000
-        return "pwm", hz * 1000, 1000000 // hz, 0.0
-    return "timed", (1000000000 + period_us // 2) // period_us, period_us, j
+    return (1000000000 + period_us // 2) // period_us, period_us, j
 
 
 class Channel:
-    """One actuator output: a PWM slice or timers for the pulses, a second slice
-    for the standby bias, the sense path, the hold, and the heat estimate
-    (``heat``; None: no gate, for bench use of the timing alone)."""
+    """One actuator output: timers for the pulses on a GPIO, a PWM slice for the
+    standby bias, the sense path, the hold, and the heat estimate (``heat``;
+    None: no gate, for bench use of the timing alone).  ``on_error``, if given,
+    is called with the exception when a timer's callback fails (the channel is
+    already off and its estimate at the budget)."""
 
-    def __init__(self, index, pin_id, bias_pin_id=None, sense=None, hold=None, heat=None):
+    def __init__(self, index, pin_id, bias_pin_id=None, sense=None, hold=None, heat=None, on_error=None):
         self.index = index
         self.pin_id = pin_id
+        # A GPIO low before anything else: a pad a soft reset left on a slice
+        # goes back to the pin's own level.
         self.pin = machine.Pin(pin_id, machine.Pin.OUT, value=0)
-        self.pwm = None
-        self.pwm_duty_ns = 0
+        self.on_error = on_error
+        self.error = None
         self.timer = None
         self.mode = None
         self.request = None
@@ -76,6 +87,8 @@ class Channel:
         self.width_ns = 0
         self.amplitude_q16 = 0
         self.bias_pin_id = bias_pin_id
+        if bias_pin_id is not None:
+            machine.Pin(bias_pin_id, machine.Pin.OUT, value=0)
         self.bias_pwm = None
         self.bias_q16 = 0
         self.sense = sense
@@ -102,7 +115,7 @@ class Channel:
         return self.frequency_mhz > 0 or self.bias_q16 > 0 or len(self.queue.pending) > 0
 
     def off(self):
-        self._stop_train(F._ticks_us())
+        self._cancel_timer()
         self.queue.clear()
         self.pin = machine.Pin(self.pin_id, machine.Pin.OUT, value=0)
         self.mode = None
@@ -115,59 +128,102 @@ class Channel:
         if self.hold is not None:
             self.hold.clear()
 
+    def fail(self, exc=None):
+        """Outputs off whatever state the channel is in, the estimate at its budget."""
+        self.gen += 1
+        for step in (self._cancel_timer, self.queue.clear):
+            try:
+                step()
+            except Exception:
+                pass
+        try:
+            self.pin = machine.Pin(self.pin_id, machine.Pin.OUT, value=0)
+        except Exception:
+            pass
+        try:
+            self.set_bias(0)
+        except Exception:
+            if self.bias_pin_id is not None:
+                machine.Pin(self.bias_pin_id, machine.Pin.OUT, value=0)
+            self.bias_pwm = None
+            self.bias_q16 = 0
+        self.mode = None
+        self.request = None
+        self.frequency_mhz = 0
+        self.width_ns = 0
+        self.amplitude_q16 = 0
+        if self.hold is not None:
+            self.hold.clear()
+        if self.heat is not None:
+            self.heat.assume_hot()
+        if exc is not None:
+            self.error = exc
+
+    def _guard(self, fn):
+        # A timer's callback runs outside the main loop: whatever it raises, the
+        # channel goes off and the controller hears of it (no exception may stop
+        # the board with a gate high).
+        try:
+            fn()
+        except Exception as exc:
+            self.fail(exc)
+            if self.on_error is not None:
+                self.on_error(exc)
+
     def set_bias(self, q16):
-        """Standby bias: the switch chopped at BIAS_HZ, conducting q16 / 65536 of the time."""
+        """Standby bias: the switch chopped at BIAS_HZ, conducting q16 / 65536 of the time.
+
+        The slice is made once and then only its compare changes: a new compare
+        latches at the wrap, so the old level may run one more bias period,
+        which the estimate counts as a pulse."""
         if self.bias_pin_id is None:
             return
-        if q16 <= 0:
-            if self.bias_pwm is not None:
-                self.bias_pwm.duty_u16(0)
-                self.bias_pwm.deinit()
-                self.bias_pwm = None
-                machine.Pin(self.bias_pin_id, machine.Pin.OUT, value=0)
-            self.bias_q16 = 0
-        else:
-            if self.bias_pwm is None:
-                self.bias_pwm = machine.PWM(machine.Pin(self.bias_pin_id))
-                self.bias_pwm.duty_u16(0)
-                self.bias_pwm.freq(BIAS_HZ)
-            q16 = min(q16, 65535)
-            self.bias_pwm.duty_u16(q16)
-            self.bias_q16 = q16
-        self._heat_changed(F._ticks_us())
+        q16 = 0 if q16 <= 0 else min(q16, 65535)
+        if q16 == self.bias_q16 and (q16 == 0 or self.bias_pwm is not None):
+            return
+        now = F._ticks_us()
+        carry = self.bias_q16
+        if self.bias_pwm is None:
+            if q16 == 0:
+                return
+            # freq and a zero compare before the pad is switched to the slice
+            # (MicroPython's PWM() selects the pad last); the slice then runs on
+            # from wherever it stopped: at most one period at what it held.
+            self.bias_pwm = machine.PWM(machine.Pin(self.bias_pin_id), freq=BIAS_HZ, duty_u16=0)
+            carry = 65535
+        self.bias_pwm.duty_u16(q16)
+        self.bias_q16 = q16
+        if self.heat is not None and carry > 0:
+            state = _irq_off()
+            self.heat.add(now, carry / 65536.0 * BIAS_PERIOD_US * 1e-6 * self.p_w)
+            _irq_on(state)
+        self._heat_changed(now)
 
     def set(self, frequency_mhz, width_ns, amplitude_q16, regularity_q16=W.REGULARITY_EVEN):
         """Start or change the pulse train (the caller checked the limits at the
         frequency plan() says runs).  Returns that frequency [mHz]."""
-        mode, applied, period_us, j = plan(frequency_mhz, width_ns, regularity_q16)
+        applied, period_us, j = plan(frequency_mhz, width_ns, regularity_q16)
         now = F._ticks_us()
         was_on = self.on
         self.queue.clear()  # a train replaces the scheduled pulses
         self.width_ns = width_ns
         self.amplitude_q16 = amplitude_q16
         self.request = (frequency_mhz, width_ns, amplitude_q16, regularity_q16)
-        if mode == "pwm":
-            self._cancel_timer()
-            self.mode = "pwm"
-            self.frequency_mhz = applied
-            self._pwm(applied // 1000, now)
-        else:
-            if self.mode == "pwm":
-                self._stop_train(now)
-            self._cancel_timer()
-            # The host's PulseScheduler rule: never sooner than a period after
-            # the last start, never on top of the last pulse.
-            delay = 0
-            if self.last_start_us is not None:
-                delay = max(0, F._ticks_diff(self.last_start_us, now) + period_us,
-                            F._ticks_diff(self.last_end_us, now) + 1)
-            self.mode = "timed"
-            self.period_us, self.jitter_j, self.k = period_us, j, 0
-            # Pulse 0's jitter only delays it, and not at all after silence.
-            self.lead = 1.0 if was_on and self.last_start_us is not None else 0.0
-            self.anchor_us = F._ticks_add(now, delay)
-            self.frequency_mhz = applied
-            self._arm()
+        self._cancel_timer()
+        # The host's PulseScheduler rule: never sooner than a period after
+        # the last start, never on top of the last pulse.
+        self.forget_stale(now)
+        delay = 0
+        if self.last_start_us is not None:
+            delay = max(0, F._ticks_diff(self.last_start_us, now) + period_us,
+                        F._ticks_diff(self.last_end_us, now) + 1)
+        self.mode = "timed"
+        self.period_us, self.jitter_j, self.k = period_us, j, 0
+        # Pulse 0's jitter only delays it, and not at all after silence.
+        self.lead = 1.0 if was_on and self.last_start_us is not None else 0.0
+        self.anchor_us = F._ticks_add(now, delay)
+        self.frequency_mhz = applied
+        self._arm()
         self._heat_changed(now)
         return applied
 
@@ -177,66 +233,20 @@ class Channel:
         if self.request is not None:
             r = self.request
             self.request = (r[0], width_ns, r[2], r[3])
-        now = F._ticks_us()
-        if self.mode == "pwm":
-            self._gate_pwm(now)
-        self._heat_changed(now)
 
     def service(self, now_us, p_w):
         """Called by the main loop: the bound on the heat while on [W] now, the
-        heat estimate brought up to date, a PWM train held while it would not fit."""
+        heat estimate brought up to date, ticks too old to compare forgotten."""
         self.p_w = p_w
-        if self.mode == "pwm":
-            self._gate_pwm(now_us)
+        self.forget_stale(now_us)
         self._heat_changed(now_us)
 
-    # -- the PWM slice
-
-    def _pwm(self, hz, now):
-        if self.pwm is None:
-            # A fresh slice: its output is low until the first wrap latches these.
-            self.pwm = machine.PWM(self.pin)
-            self.pwm.duty_ns(0)
-            self.pwm_duty_ns = 0
-            self.pwm.freq(hz)
-        elif self.pwm.freq() != hz:
-            # The RP2040 applies a new divider at once but TOP and compare at
-            # the wrap (docs/references.md, section 8 (PWM retune)): a pulse in
-            # flight would stretch.  So: compare 0, wait one old period (a wrap
-            # latches the 0 and the last pulse ends), then the new divider and
-            # TOP, and the new compare latches with TOP at the next wrap.
-            old_us = 1000000 // self.pwm.freq()
-            self.pwm.duty_ns(0)
-            self.pwm_duty_ns = 0
-            F._sleep_us(old_us + 50)
-            if WDT[0] is not None:
-                WDT[0].feed()  # a train of retunes in one pass must not reset the chip
-            self.pwm.freq(hz)
-        self._gate_pwm(now)
-
-    def _gate_pwm(self, now):
-        # A PWM pulse lands on the wire as the estimate stands (its train is
-        # counted as a mean heat, which bounds each period's lowest temperature).
-        pwm = self.pwm
-        if pwm is None:
-            return  # no slice, no train to gate (mode "pwm" always has one)
-        want = self.width_ns
-        if self.heat is not None:
-            state = _irq_off()
-            fits = self.heat.room_j(now) >= self.width_ns * 1e-9 * self.p_w
-            _irq_on(state)
-            if not fits:
-                want = 0
-        if want != self.pwm_duty_ns:
-            pwm.duty_ns(want)  # same divider and TOP: latches at the wrap
-            self.pwm_duty_ns = want
-            if want == 0:
-                self._mark(now, self.width_ns // 1000)
-
-    def _mark(self, now, us):
-        # A PWM pulse may have just started: count it as the last one.
-        self.last_start_us = now
-        self.last_end_us = F._ticks_add(now, us)
+    def forget_stale(self, now_us):
+        """Forget the last pulse once it is STALE_US old (before the ticks wrap)."""
+        if self.last_start_us is not None:
+            if not (0 <= F._ticks_diff(now_us, self.last_start_us) <= STALE_US):
+                self.last_start_us = None
+                self.last_end_us = None
 
     # -- timed trains
 
@@ -246,20 +256,9 @@ class Channel:
             self.timer.deinit()
             self.timer = None
 
-    def _stop_train(self, now):
-        self._cancel_timer()
-        if self.pwm is not None:
-            if self.pwm_duty_ns > 0:
-                self._mark(now, self.pwm_duty_ns // 1000)
-            self.pwm.duty_ns(0)
-            self.pwm.deinit()
-            self.pwm = None
-            self.pwm_duty_ns = 0
-            self.pin = machine.Pin(self.pin_id, machine.Pin.OUT, value=0)
-
     def _arm(self):
         # Pulse k: (k + j u_k) periods after the train's start; the anchor moves
-        # on by a period per pulse (ticks_add takes at most 2^29 us at a time).
+        # on by a period per pulse.
         now = F._ticks_us()
         P = self.period_us
         if self.k > 0:
@@ -267,8 +266,9 @@ class Channel:
             # pulses closer than max(0.4, 0.9 - j) periods (never closer than the
             # jitter itself brings neighbours), and skips what it missed by more
             # than two periods rather than running a burst.
-            while F._ticks_diff(now, self.anchor_us) > 2 * P:
-                self.anchor_us = F._ticks_add(self.anchor_us, P)
+            late = F._ticks_diff(now, self.anchor_us)
+            if late > 2 * P:
+                self.anchor_us = F._ticks_add(now, -(P + late % P))
         u = self.rng.next() if self.jitter_j > 0 else 0.0
         if self.k == 0:
             u = max(u, 0.0) * self.lead
@@ -280,7 +280,7 @@ class Channel:
         delay = max(1, F._ticks_diff(due, now))
         gen = self.gen
         self.timer = machine.Timer(mode=machine.Timer.ONE_SHOT, freq=1000000.0 / delay,
-                                   callback=lambda t: self._due(gen))
+                                   callback=lambda t: self._guard(lambda: self._due(gen)))
 
     def _due(self, gen):
         if gen != self.gen or self.mode != "timed":
@@ -296,8 +296,9 @@ class Channel:
     def _pulse(self, now, us):
         # Soft-IRQ context on the board: the pulse is busy-waited so its width is
         # exact to a microsecond even though the timer's edge may jitter; the
-        # sense path is read in the middle of it.  Returns the width fired [us]
-        # (0: the heat estimate left it out).
+        # sense path is read in the middle of it.  This is the only place a
+        # gate pin goes high.  Returns the width fired [us] (0: the heat
+        # estimate left it out).
         if self.heat is not None:
             state = _irq_off()
             room = self.heat.room_j(now)
@@ -311,32 +312,33 @@ class Channel:
         self.last_start_us = now
         self.last_end_us = F._ticks_add(now, us)
         pin = self.pin
-        pin.value(1)
-        F._sleep_us(us // 2)
-        if self.sense is not None:
-            self.sense.sample(F._ticks_ms())
-        F._sleep_us(us - us // 2)
-        pin.value(0)
+        try:
+            pin.value(1)
+            F._sleep_us(us // 2)
+            if self.sense is not None:
+                self.sense.sample(F._ticks_ms())
+            F._sleep_us(us - us // 2)
+        finally:
+            pin.value(0)
         return us
 
     # -- scheduled pulses (protocol version 4)
 
-    def play(self, now, due_of, entries):
-        """The host's pulses from now on (tactile_events.EventQueue.replace with
-        ``due_of(offset)`` their ticks), replacing those not yet fired; a train stops."""
+    def play(self, now, rel_entries):
+        """The host's pulses from now on (tactile_events.EventQueue.replace:
+        ``rel_entries`` as (id, start after now [us], width [us])), replacing
+        those not yet fired; a train stops."""
         # The timer first, outside the lock: on the host, deinit waits for a
         # callback that may itself be waiting for the lock.
         self._cancel_timer()
         state = _irq_off()
         if self.mode != "events":
-            if self.mode == "pwm":
-                self._stop_train(now)
             self.mode = "events"
             self.request = None
             self.frequency_mhz = 0
             self.width_ns = 0
             self.jitter_j = 0.0
-        self.queue.replace(now, due_of, entries, F._ticks_diff)
+        self.queue.replace(now, rel_entries, F._ticks_add)
         self._arm_event()
         _irq_on(state)
         self._heat_changed(now)
@@ -356,7 +358,7 @@ class Channel:
         delay = F._ticks_diff(self.queue.pending[0][0], F._ticks_us()) - E.EARLY_US
         gen = self.gen
         self.timer = machine.Timer(mode=machine.Timer.ONE_SHOT, freq=1000000.0 / max(1, delay),
-                                   callback=lambda t: self._event_due(gen))
+                                   callback=lambda t: self._guard(lambda: self._event_due(gen)))
 
     def _event_due(self, gen):
         state = _irq_off()
@@ -382,10 +384,10 @@ class Channel:
         asked = us
         if self.last_start_us is not None:
             gap = F._ticks_diff(now, self.last_start_us)
-            if gap < E.MIN_GAP_US:
+            if 0 <= gap < E.MIN_GAP_US:
                 q.count(E.SKIPPED)
                 return
-            if us > gap // 2:
+            if 0 <= gap and us > gap // 2:
                 us = gap // 2
         fired = self._pulse(now, us)
         if fired <= 0:
@@ -398,9 +400,6 @@ class Channel:
     def _heat_changed(self, now):
         if self.heat is None:
             return
-        mean = self.bias_q16 / 65536.0
-        if self.mode == "pwm" and self.pwm_duty_ns > 0:
-            mean += self.frequency_mhz * 1e-3 * self.pwm_duty_ns * 1e-9
         state = _irq_off()
-        self.heat.set_power(now, mean * self.p_w)
+        self.heat.set_power(now, self.bias_q16 / 65536.0 * self.p_w)
         _irq_on(state)

@@ -103,19 +103,20 @@ class EventQueue:
     def count(self, which):
         self.counts[which] = (self.counts[which] + 1) & 0xFFFF
 
-    def replace(self, now, due_of, entries, ticks_diff):
-        """The channel's new schedule: ``entries`` as from parse(), ``due_of(offset)``
-        their ticks.  Replaces every pulse not yet fired."""
+    def replace(self, now, rel_entries, ticks_add):
+        """The channel's new schedule: ``rel_entries`` as (id, start after ``now``
+        [us], width [us]).  Replaces every pulse not yet fired.  A start more
+        than LATE_US past is dropped before any tick arithmetic: ticks_add
+        refuses intervals of 2^29 us or more."""
         pending = []
-        for eid, off, w in entries:
+        for eid, rel, w in rel_entries:
             if eid in self.fired:
                 self.count(REPEATED)
                 continue
-            due = due_of(off)
-            if ticks_diff(now, due) > LATE_US:
+            if rel < -LATE_US:
                 self.count(LATE)
                 continue
-            pending.append((due, eid, w))
+            pending.append((ticks_add(now, rel), eid, w))
         self.pending = pending
 
     def pop(self):

@@ -26,10 +26,13 @@ class HeatEstimate:
     """One wire's temperature rise above the hottest design air [K], from the
     heat the board gave it (``cfg``: conductance_w_k, heat_capacity_j_k,
     budget_k as in tactile_wire.DEFAULT_CONFIG).  ``ticks_diff(a, b)`` is the
-    board's tick difference [us].  ``hot``: start at the budget (after a
-    watchdog reset the wire may still be as hot as the board ever let it be)."""
+    board's tick difference [us].  It starts at the budget: after any reset or
+    power-up the board cannot know how long it was off, so the wire may still be
+    as hot as the board ever let it be, and it cools in the estimate before full
+    energy is admitted (about 2 s: a few time constants C / (h A)).  ``hot=False``
+    is for the host's simulations of a board that has been idle that long."""
 
-    def __init__(self, cfg, ticks_diff, hot=False):
+    def __init__(self, cfg, ticks_diff, hot=True):
         self.hA = cfg["conductance_w_k"]
         self.c = cfg["heat_capacity_j_k"]
         self.budget = cfg["budget_k"]
@@ -38,6 +41,15 @@ class HeatEstimate:
         self.rise_k = self.budget if hot else 0.0
         self.power_w = 0.0
         self.at_us = None
+
+    def assume_hot(self):
+        """The wire may be at the budget (after a fault nothing below it is known)."""
+        if self.rise_k < self.budget:
+            self.rise_k = self.budget
+
+    def set_budget(self, budget_k):
+        """A new budget [K] (the room turned out warmer than the design air)."""
+        self.budget = budget_k
 
     def advance(self, now_us):
         """Bring the estimate to ``now_us`` under the continuous heat."""
