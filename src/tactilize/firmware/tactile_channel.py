@@ -99,6 +99,7 @@ class Channel:
         self.period_us = 0
         self.k = 0
         self.anchor_us = 0
+        self.due_us = 0
         self.lead = 0.0
         self.gen = 0
         self.last_start_us = None
@@ -277,7 +278,11 @@ class Channel:
             earliest = F._ticks_add(self.last_start_us, int(max(0.4, 0.9 - self.jitter_j) * P))
             if F._ticks_diff(due, earliest) < 0:
                 due = earliest
-        delay = max(1, F._ticks_diff(due, now))
+        # Armed early and the rest busy-waited, as the scheduled pulses: the
+        # pulse starts on its microsecond whatever the timer's grain (a timer
+        # made from a frequency may fire a microsecond early or late).
+        self.due_us = due
+        delay = max(1, F._ticks_diff(due, now) - E.EARLY_US)
         gen = self.gen
         self.timer = machine.Timer(mode=machine.Timer.ONE_SHOT, freq=1000000.0 / delay,
                                    callback=lambda t: self._guard(lambda: self._due(gen)))
@@ -285,6 +290,9 @@ class Channel:
     def _due(self, gen):
         if gen != self.gen or self.mode != "timed":
             return
+        wait = F._ticks_diff(self.due_us, F._ticks_us())
+        if wait > 0:
+            F._sleep_us(wait)
         self._fire()
         self.k += 1
         self.anchor_us = F._ticks_add(self.anchor_us, self.period_us)
