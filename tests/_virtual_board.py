@@ -15,5 +15,6 @@ BIAS0, BIAS1 = fw.BIAS_PINS
 class Board(VirtualBoard):
     """The firmware on a virtual board, with its store in ``tmp``."""
 
-    def __init__(self, monkeypatch, tmp, circuit="aa-resistor", after_watchdog_reset=False):
-        super().__init__(tmp, circuit, set_attr=monkeypatch.setattr, after_watchdog_reset=after_watchdog_reset)
+    def __init__(self, monkeypatch, tmp, circuit="aa-resistor", after_watchdog_reset=False, **options):
+        super().__init__(tmp, circuit, set_attr=monkeypatch.setattr, after_watchdog_reset=after_watchdog_reset,
+                         **options)

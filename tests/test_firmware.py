@@ -129,12 +129,11 @@ def test_set_round_trip_drives_the_gate_pin(emu, link):
     assert host_machine.pin_state(PIN0)["mode"] == "gpio"  # no PWM slice on a gate pin
     assert len(_pulses(PIN1)[0]) == 0
     status = P.decode_status(link.request(P.Command.STATUS).payload)
-    # a timed train's period is rounded up to the microsecond: 8334 us
-    assert status.channels[0] == P.ChannelStatus(True, 119.99, 300e-6, 1.0)  # mHz: 10^9 // 8334 us
+    assert status.channels[0] == P.ChannelStatus(True, 120.0, 300e-6, 1.0)
     assert not status.channels[1].on
     assert status.max_frequency_hz == 300.0 and status.watchdog_s == 0.2
     on = [e for e in emu.events if e["on"]]
-    assert on[0]["channel"] == 0 and on[0]["frequency_hz"] == 119.99 and on[0]["pulse_width_us"] == 300.0
+    assert on[0]["channel"] == 0 and on[0]["frequency_hz"] == 120.0 and on[0]["pulse_width_us"] == 300.0
 
 
 def test_two_channels_run_different_frequencies(emu, link):

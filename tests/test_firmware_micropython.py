@@ -131,10 +131,14 @@ def test_micropython_answers_the_protocol():
     assert status.version == P.PROTOCOL_VERSION == 4 and status.channels[0] == P.ChannelStatus(True, 120.0, 300e-6, 1.0)
     assert P.decode_sense(got[5].payload).channels[0].count == 0
     assert got[6].command == P.Command.ACK
-    # the PWM calls a real RP2040 would see: 120 Hz, 300 us, then off
+    # what a real RP2040 would see: the gate pin a GPIO, never a PWM slice; a
+    # one-shot timer armed for the first pulse; STOP cancels it and holds the pin low
     log = r["log"]
-    assert ["freq", 16, 120] in log and ["duty_ns", 16, 300000] in log
-    assert ["deinit", 16] in log
+    assert not [e for e in log if e[0] == "PWM" and e[1] == 16]
+    timers = [e for e in log if e[0] == "Timer"]
+    assert timers and timers[0][1] == 0  # ONE_SHOT
+    assert ["Timer.deinit"] in log
+    assert log[-1] == ["Pin", 16, 1, 0] or ["Pin", 16, 1, 0] in log[log.index(["Timer.deinit"]):]
 
 
 def test_micropython_keeps_the_energy_limits():
@@ -179,7 +183,9 @@ dump(on_before=on_before, off_after=off_after, watchdog_ms=controller.WATCHDOG_M
     # on through every tick before the silence passed the window, off at the first after it
     assert all(b <= r["watchdog_ms"] for b in r["on_before"])
     assert r["off_after"] is not None and r["off_after"] > r["watchdog_ms"]
-    assert ["deinit", 18] in r["log"]
+    # channel 1's timer cancelled and its gate pin made low again
+    after = r["log"][r["log"].index(["Timer.deinit"]):]
+    assert ["Pin", 18, 1, 0] in after
     ack = replies(r)[-1]
     assert ack.seq == 9 and ack.payload[1] & P.FLAG_WATCHDOG_TRIPPED
 

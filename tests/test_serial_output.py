@@ -64,7 +64,11 @@ def test_apply_round_trip(emu):
         assert status.channels[0] == P.ChannelStatus(True, 120.0, 300e-6, 1.0)
         assert status.channels[1].frequency_hz == 250.0
         assert status.channels[1].amplitude == pytest.approx(0.5, abs=1e-4)
-        assert host_machine.pin_state(fw.CHANNEL_PINS[1])["duty_ns"] == 150_000
+        # the gate pin pulses, busy-waited to at least the width asked
+        deadline = time.monotonic() + 20.0  # a bound only
+        while time.monotonic() < deadline and "last_pulse_s" not in host_machine.pin_state(fw.CHANNEL_PINS[1]):
+            time.sleep(0.01)
+        assert host_machine.pin_state(fw.CHANNEL_PINS[1])["last_pulse_s"] >= 150e-6
     # leaving the block stopped the controller
     assert [e["reason"] for e in emu.events if not e["on"]] == ["stop", "stop"]
 

@@ -50,6 +50,7 @@ class VirtualMachine:
 
     def __init__(self) -> None:
         self.now_us = 0
+        self.ticks_offset_us = 0  # the ticks the board's clock read at now_us = 0
         self._timers: list[tuple[int, int, Any]] = []
         self._order = itertools.count()
         self.edges: dict[Any, list[tuple[int, int]]] = {}
@@ -165,16 +166,25 @@ class VirtualMachine:
     def reset_cause(self):
         return 1
 
-    # -- the clock the firmware reads
+    # -- the clock the firmware reads: MicroPython's ticks wrap at 2^30
+    TICKS_PERIOD = 1 << 30
+
     def ticks_us(self) -> int:
-        return self.now_us
+        return (self.now_us + self.ticks_offset_us) & (self.TICKS_PERIOD - 1)
 
     def ticks_ms(self) -> int:
-        return self.now_us // 1000
+        return ((self.now_us + self.ticks_offset_us) // 1000) & (self.TICKS_PERIOD - 1)
 
-    @staticmethod
-    def ticks_diff(a: int, b: int) -> int:
-        return a - b
+    @classmethod
+    def ticks_diff(cls, a: int, b: int) -> int:
+        half = cls.TICKS_PERIOD >> 1
+        return ((a - b + half) & (cls.TICKS_PERIOD - 1)) - half
+
+    @classmethod
+    def ticks_add(cls, a: int, b: int) -> int:
+        if not -(cls.TICKS_PERIOD >> 1) <= b < (cls.TICKS_PERIOD >> 1):
+            raise OverflowError("ticks interval overflow")
+        return (a + b) & (cls.TICKS_PERIOD - 1)
 
     def sleep_us(self, us: int) -> None:
         self.now_us += max(0, int(us))
@@ -252,12 +262,13 @@ class VirtualMachine:
 
 
 def peak_on_wire(durations_s: Any, levels: Any, circuit: str | Circuit = "aa-resistor",
-                 spec: WireSpec | None = None, start_c: float | None = None) -> float:
+                 spec: WireSpec | None = None, start_c: float | None = None, air_c: float | None = None) -> float:
     """The wire model's highest temperature [deg C] under a switch schedule, in
-    the envelope's hottest design air (from that air, or ``start_c``)."""
+    air at ``air_c`` (default the envelope's hottest design air), from that air
+    or ``start_c``."""
     spec = WireSpec.resolve(spec)
     env = build_envelope(spec, circuit)
-    air = env.design_ambient_c
+    air = env.design_ambient_c if air_c is None else air_c
     model = WireModel(spec.replace(ambient_c=air), Circuit.resolve(circuit, spec),
                       temperature_c=air if start_c is None else start_c)
     edges: list = []
@@ -275,7 +286,7 @@ def install(fw: ModuleType, set_attr: SetAttr) -> VirtualMachine:
     vm = VirtualMachine()
     set_attr(fw, "machine", vm)
     for name, fn in (("_ticks_us", vm.ticks_us), ("_ticks_ms", vm.ticks_ms), ("_ticks_diff", vm.ticks_diff),
-                     ("_sleep_us", vm.sleep_us)):
+                     ("_ticks_add", vm.ticks_add), ("_sleep_us", vm.sleep_us)):
         set_attr(fw, name, fn)
         set_attr(fw.F, name, fn)
     for module in (getattr(fw, "C", None), getattr(fw, "H", None)):
@@ -321,7 +332,8 @@ class VirtualBoard:
     """
 
     def __init__(self, store: str | Path | None = None, circuit: str | Circuit = "aa-resistor", *,
-                 set_attr: SetAttr | None = None, after_watchdog_reset: bool = False) -> None:
+                 set_attr: SetAttr | None = None, after_watchdog_reset: bool = False,
+                 ticks_start_us: int = 0, design_air_c: float | None = None) -> None:
         from .board import board_config_text
 
         self.fw = fw = firmware()
@@ -329,10 +341,11 @@ class VirtualBoard:
         self._tmp = tempfile.TemporaryDirectory(prefix="tactilize-board-") if store is None else None
         root = Path(self._tmp.name if self._tmp is not None else str(store))
         self.vm = install(fw, set_attr or self._patches.set)
+        self.vm.ticks_offset_us = int(ticks_start_us)
         if after_watchdog_reset:
             setattr(self.vm, "WDT_RESET", 3)
             setattr(self.vm, "reset_cause", lambda: 3)
-        (root / fw.W.CONFIG_FILE).write_text(board_config_text(None, circuit))
+        (root / fw.W.CONFIG_FILE).write_text(board_config_text(None, circuit, design_air_c))
         self.sent: list[bytes] = []
         self.ctl = fw.Controller(self.sent.append, store=str(root) + "/", assume_cold=not after_watchdog_reset)
         self.circuit = circuit
@@ -374,12 +387,13 @@ class VirtualBoard:
         self.sent.clear()
         return frames
 
-    def peak_c(self, channel: int = 0) -> float:
-        """The wire model's peak [deg C] under what the channel's pins did so far."""
+    def peak_c(self, channel: int = 0, *, air_c: float | None = None, start_c: float | None = None) -> float:
+        """The wire model's peak [deg C] under what the channel's pins did so far,
+        in air at ``air_c`` (default the design air), from ``start_c`` (default that air)."""
         self.vm.finish()
         pins = (self.fw.CHANNEL_PINS[channel], self.fw.BIAS_PINS[channel])
         durs, levels = self.vm.channel_levels(*pins, self.vm.now_us)
-        return peak_on_wire(durs, levels, self.circuit)
+        return peak_on_wire(durs, levels, self.circuit, start_c=start_c, air_c=air_c)
 
     def pulse_starts_us(self, channel: int = 0) -> list[float]:
         """When each pulse on the channel's gate pin began [us, board clock], in order:

@@ -41,6 +41,7 @@ except ImportError:  # on the host, inside the package
 START, MAX_PAYLOAD, FRAME_TIMEOUT_MS = F.START, F.MAX_PAYLOAD, F.FRAME_TIMEOUT_MS
 crc16, encode_frame, Decoder = F.crc16, F.encode_frame, F.Decoder
 _ticks_ms, _ticks_diff, _ticks_us, _sleep_us = F._ticks_ms, F._ticks_diff, F._ticks_us, F._sleep_us
+_ticks_add = F._ticks_add
 
 # 3: the sense-fault flag (ACK and STATUS flags bit 1; a per-channel byte after
 # SENSE_REPLY's fields when the SENSE carries the host's version, 3).

@@ -57,12 +57,13 @@ def _irq_on(state):
 
 
 def plan(frequency_mhz, width_ns, regularity_q16):
-    """What a drive runs as: (applied frequency [mHz], period [us], jitter depth
-    [periods]).  The period is rounded up to the microsecond, so a train never
-    runs faster than asked."""
-    period_us = (1000000000 + frequency_mhz - 1) // frequency_mhz
-    j = W.jitter_depth(regularity_q16, period_us, width_ns // 1000)
-    return (1000000000 + period_us // 2) // period_us, period_us, j
+    """What a drive runs as: (applied frequency [mHz], period [ns], jitter depth
+    [periods]).  The period is rounded up to the nanosecond and the train's
+    anchor carries the fraction of a microsecond from pulse to pulse, so a
+    train runs at the frequency asked (to 1 mHz), never faster."""
+    period_ns = (1000000000000 + frequency_mhz - 1) // frequency_mhz
+    j = W.jitter_depth(regularity_q16, (period_ns + 999) // 1000, width_ns // 1000)
+    return (1000000000000 + period_ns // 2) // period_ns, period_ns, j
 
 
 class Channel:
@@ -99,6 +100,8 @@ class Channel:
         self.period_us = 0
         self.k = 0
         self.anchor_us = 0
+        self.period_ns = 0
+        self.carry_ns = 0
         self.due_us = 0
         self.lead = 0.0
         self.gen = 0
@@ -203,7 +206,8 @@ class Channel:
     def set(self, frequency_mhz, width_ns, amplitude_q16, regularity_q16=W.REGULARITY_EVEN):
         """Start or change the pulse train (the caller checked the limits at the
         frequency plan() says runs).  Returns that frequency [mHz]."""
-        applied, period_us, j = plan(frequency_mhz, width_ns, regularity_q16)
+        applied, period_ns, j = plan(frequency_mhz, width_ns, regularity_q16)
+        period_us = (period_ns + 999) // 1000
         now = F._ticks_us()
         was_on = self.on
         self.queue.clear()  # a train replaces the scheduled pulses
@@ -220,6 +224,7 @@ class Channel:
                         F._ticks_diff(self.last_end_us, now) + 1)
         self.mode = "timed"
         self.period_us, self.jitter_j, self.k = period_us, j, 0
+        self.period_ns, self.carry_ns = period_ns, 0
         # Pulse 0's jitter only delays it, and not at all after silence.
         self.lead = 1.0 if was_on and self.last_start_us is not None else 0.0
         self.anchor_us = F._ticks_add(now, delay)
@@ -295,7 +300,10 @@ class Channel:
             F._sleep_us(wait)
         self._fire()
         self.k += 1
-        self.anchor_us = F._ticks_add(self.anchor_us, self.period_us)
+        self.carry_ns += self.period_ns
+        step_us = self.carry_ns // 1000
+        self.carry_ns -= step_us * 1000
+        self.anchor_us = F._ticks_add(self.anchor_us, step_us)
         self._arm()
 
     def _fire(self):
