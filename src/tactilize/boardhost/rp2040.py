@@ -585,12 +585,15 @@ class Machine:
                 if ch.freq_set[self.slice] and self._key() in ch.pwm_duty:
                     ch.pwm_write(self.slice, en=True)
 
-            def _notify(self):
-                d = ch.pwm_duty.get(self._key())
-                duty_ns = 0
-                if d is not None:
-                    duty_ns = d[1] if d[0] == "ns" else int(d[1] / 65535 * 1e9 / max(1, self.freq()))
-                ch._notify("pwm", self.gpio, {"mode": "pwm", "frequency_hz": float(self.freq()), "duty_ns": duty_ns})
+            def _notify(self, gpios=None):
+                # what MicroPython was asked, for the pads on this slice's outputs
+                hz = self.freq()
+                for g in (gpios if gpios is not None else [self.gpio]):
+                    d = ch.pwm_duty.get(((g >> 1) & 7) * 2 + (g & 1))
+                    duty_ns = 0
+                    if d is not None:
+                        duty_ns = d[1] if d[0] == "ns" else int(d[1] / 65535 * 1e9 / max(1, hz))
+                    ch._notify("pwm", g, {"mode": "pwm", "frequency_hz": float(hz), "duty_ns": duty_ns})
 
             def freq(self, value=None):
                 s = ch.slices[self.slice]
@@ -606,7 +609,8 @@ class Machine:
                     if d is not None:
                         self._set_cc(key & 1, d)
                 self._start()
-                self._notify()
+                self._notify([g for g in range(30) if (g >> 1) & 7 == self.slice
+                              and ch.pads.get(g, ("null",))[0] == "pwm"] or [self.gpio])
                 return None
 
             def _set_cc(self, channel, d):
