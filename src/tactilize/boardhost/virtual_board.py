@@ -46,6 +46,10 @@ def firmware() -> ModuleType:
     return load_firmware()
 
 
+class WatchdogReset(Exception):
+    """Raised inside the firmware's busy wait when the watchdog resets the chip."""
+
+
 class _Edges:
     """gpio -> the pad's level changes [(t [us], level)], read from the chip's history."""
 
@@ -85,7 +89,22 @@ class VirtualMachine(rp2040.Machine):
 
     # -- the clock the firmware reads
     def sleep_us(self, us: int) -> None:
-        self.now_us += max(0, int(us))
+        """A busy wait; the watchdog expiring inside it resets the chip there and
+        then (the firmware's code stops at that instant)."""
+        end = self.now_us + max(0, int(us))
+        due = self.chip.wdt_due_us
+        if due is not None and self.on_watchdog is not None and due <= end:
+            self.now_us = max(self.now_us, int(due))
+            raise WatchdogReset()
+        self.now_us = end
+
+    def _run(self, fn: Callable[..., Any], *args: Any) -> None:
+        # Firmware code, cut short by a watchdog reset in a busy wait.
+        try:
+            fn(*args)
+        except WatchdogReset:
+            if self.on_watchdog is not None:
+                self.on_watchdog()
 
     @property
     def edges(self) -> _Edges:
@@ -111,6 +130,9 @@ class VirtualMachine(rp2040.Machine):
         next_tick = (self.now_us // poll_us + 1) * poll_us
         chip = self.chip
         while True:
+            if chip.wdt_expired() and self.on_watchdog is not None:
+                self.on_watchdog()
+                continue
             due = self._timers[0][0] if self._timers else None
             wdt = chip.wdt_due_us
             if wdt is not None and wdt <= min(next_tick, t_us) and (due is None or wdt < due):
@@ -129,11 +151,11 @@ class VirtualMachine(rp2040.Machine):
                     timer.alive = False
                     chip.cancel(timer)
                 if timer.callback is not None:
-                    timer.callback(timer)
+                    self._run(timer.callback, timer)
                 continue
             if next_tick <= t_us:
                 self.now_us = max(self.now_us, next_tick)
-                tick()
+                self._run(tick)
                 next_tick += poll_us
                 continue
             self.now_us = max(self.now_us, t_us)
@@ -342,7 +364,7 @@ class VirtualBoard:
     def send(self, command: Any, payload: bytes = b"") -> None:
         """A frame as the host writes it, received at once."""
         self.seq = (self.seq + 1) & 0xFFFF
-        self.ctl.feed(P.encode_frame(self.seq, command, payload))
+        self.vm._run(self.ctl.feed, P.encode_frame(self.seq, command, payload))
 
     def set(self, channel: int, f_hz: float, w_s: float, amp: float = 1.0, regularity: float | None = None) -> None:
         self.send(P.Command.SET, P.encode_set_channel(channel, f_hz, w_s, amp, regularity))
