@@ -37,7 +37,7 @@ __all__ = [
 _lock = threading.RLock()
 #: the one chip, on perf_counter [us]
 chip = rp2040.Chip(lambda: time.perf_counter() * 1e6)
-chip.lock = _lock
+chip.lock = _lock  # type: ignore[assignment]
 _machine = rp2040.Machine(chip)
 _pins: dict[Any, dict[str, Any]] = {}
 _rise_s: dict[Any, float] = {}
@@ -159,7 +159,7 @@ Pin = _machine.Pin
 PWM = _machine.PWM
 
 
-class ADC(_machine.ADC):  # type: ignore[misc, name-defined]
+class ADC(_machine.ADC):  # type: ignore[name-defined]
     """An ADC input: ``read_u16`` converts what a test puts in :attr:`sources`
     (gpio 26..29 -> the true reading, a number or a function of no arguments)."""
 
@@ -211,7 +211,7 @@ class _ThreadScheduler:
 chip.scheduler = _ThreadScheduler()
 
 
-class Timer(_machine.Timer):  # type: ignore[misc, name-defined]
+class Timer(_machine.Timer):  # type: ignore[name-defined]
     """A soft timer (``machine.Timer``) whose callback runs on a host thread."""
 
     @property
@@ -223,7 +223,7 @@ class Timer(_machine.Timer):  # type: ignore[misc, name-defined]
 _watchdogs: list["WDT"] = []
 
 
-class WDT(_machine.WDT):  # type: ignore[misc, name-defined]
+class WDT(_machine.WDT):  # type: ignore[name-defined]
     """The hardware watchdog (``machine.WDT``).  When it is not fed for ``timeout``
     ms it resets the chip (a watchdog reset: every PWM slice and pad back to its
     reset state, the gates pulled low), recorded in :data:`resets`."""
