@@ -144,7 +144,7 @@ def test_an_events_base_far_behind_is_late_not_a_crash(monkeypatch, tmp_path):
 def test_a_slow_train_long_after_the_last_pulse_plays(monkeypatch, tmp_path, idle_s):
     """A 5 Hz SET 537 s after the channel's last pulse raised OverflowError (ticks_add
     of a period from a tick that had wrapped); later it played nothing for 2 s."""
-    board = Board(monkeypatch, tmp_path, ticks_start_us=(1 << 30) - 3_000_000)
+    board = Board(monkeypatch, tmp_path, start_us=(1 << 30) - 3_000_000)
     board.set(0, 20.0, 1e-3)
     _run(board, 0.3)
     board.send(P.Command.STOP)
@@ -258,8 +258,9 @@ def test_a_sensing_error_common_to_current_and_rail_never_loosens_the_limit(monk
 def test_power_up_on_a_hot_wire_admits_energy_only_as_it_cools(monkeypatch, tmp_path, circuit):
     """A brown-out, a re-plugged cable, a soft or watchdog reset: the wire may be at
     87 C and reset_cause() may read power-on.  The estimate starts at the budget."""
-    board = Board(monkeypatch, tmp_path, circuit, after_watchdog_reset=True)
-    monkeypatch.setattr(board.vm, "reset_cause", lambda: 1)  # power-on: no hint at all
+    board = Board(monkeypatch, tmp_path, circuit)
+    board.reset("power")  # reset_cause() reads power-on: no hint at all
+    assert board.vm.reset_cause() == 1
     w = min(5e-3, 0.999 * board.ctl.limits.max_width_s(20.0, 0.0, board.ctl.limits.p_max))
     board.set(0, 20.0, w)
     assert board.replies()[-1].command == P.Command.ACK
@@ -274,8 +275,8 @@ def test_power_up_on_a_hot_wire_admits_energy_only_as_it_cools(monkeypatch, tmp_
 
 
 def _chip_reads(board, chip_c: float) -> None:
-    volts = fw.TEMP_V27 - (chip_c - 27.0) * fw.TEMP_SLOPE_V_K
-    board.vm.adc[fw.TEMP_ADC] = volts / W.ADC_FULL_SCALE_V * 65535
+    """The die's temperature [C], read by ADC input 4 through the datasheet's line."""
+    board.chip.chip_temp_c = chip_c
 
 
 def _hottest(board) -> None:

@@ -1,14 +1,34 @@
-# A stand-in for MicroPython's machine module, for the firmware run under the
-# WebAssembly MicroPython: it records every call a real RP2040 would see.
-# MicroPython code (it runs inside MicroPython, not on the host).
+# The stand-in machine module for the firmware under the WebAssembly MicroPython:
+# the chip model (rp2040.py, tactilize/boardhost/rp2040.py copied next to it) on
+# MicroPython's own clock, with every call a real RP2040 would see recorded in
+# `log`.  MicroPython code (it runs inside MicroPython, not on the host).
+
+import time
+
+import rp2040
 
 log = []
 inputs = {}
 adc_values = {}
 feeds = [0]
+_clock = [0, time.ticks_us()]
 
 
-WDT_RESET = 3
+def _now_us():
+    # MicroPython's wrapping ticks, unwrapped (read often enough: well under 2**29 us apart)
+    t = time.ticks_us()
+    _clock[0] += time.ticks_diff(t, _clock[1])
+    _clock[1] = t
+    return _clock[0]
+
+
+chip = rp2040.Chip(_now_us)
+chip.gpio_inputs = inputs
+chip.adc_inputs = adc_values
+_m = rp2040.Machine(chip)
+mem32 = _m.mem32
+WDT_RESET = rp2040.WDT_RESET
+PWRON_RESET = rp2040.PWRON_RESET
 
 
 def disable_irq():
@@ -20,76 +40,75 @@ def enable_irq(state=1):
 
 
 def reset_cause():
-    return 1
+    return _m.reset_cause()
 
 
-class Pin:
-    IN = 0
-    OUT = 1
-    PULL_UP = 1
-    PULL_DOWN = 2
+def freq(hz=None):
+    return _m.freq(hz)
 
+
+class Pin(_m.Pin):
     def __init__(self, id, mode=-1, pull=-1, value=None):
-        self.id = id
-        self.mode = mode
         log.append(["Pin", id, mode, value])
+        super().__init__(id, mode, pull, value)
 
     def value(self, v=None):
         if v is None:
-            return inputs.get(self.id, 1)
+            return super().value()
         log.append(["value", self.id, v])
+        super().value(v)
 
 
-class PWM:
-    def __init__(self, pin, freq=None, duty_u16=None):
-        self.pin = pin.id
-        self.f = 1000
-        log.append(["PWM", self.pin])
-        if freq is not None:
-            self.freq(freq)
-        if duty_u16 is not None:
-            self.duty_u16(duty_u16)
+class PWM(_m.PWM):
+    def __init__(self, pin, freq=None, duty_u16=None, duty_ns=None):
+        log.append(["PWM", pin.id])
+        super().__init__(pin, freq=freq, duty_u16=duty_u16, duty_ns=duty_ns)
 
     def freq(self, f=None):
         if f is None:
-            return self.f
-        self.f = f
-        log.append(["freq", self.pin, f])
+            return super().freq()
+        log.append(["freq", self.gpio, f])
+        super().freq(f)
 
-    def duty_ns(self, ns):
-        log.append(["duty_ns", self.pin, ns])
+    def duty_ns(self, ns=None):
+        if ns is None:
+            return super().duty_ns()
+        log.append(["duty_ns", self.gpio, ns])
+        super().duty_ns(ns)
 
-    def duty_u16(self, v):
-        log.append(["duty_u16", self.pin, v])
+    def duty_u16(self, v=None):
+        if v is None:
+            return super().duty_u16()
+        log.append(["duty_u16", self.gpio, v])
+        super().duty_u16(v)
 
     def deinit(self):
-        log.append(["deinit", self.pin])
+        log.append(["deinit", self.gpio])
+        super().deinit()
 
 
-class ADC:
+class ADC(_m.ADC):
     def __init__(self, pin):
-        self.id = pin
         log.append(["ADC", pin])
-
-    def read_u16(self):
-        return adc_values.get(self.id, 0)
+        super().__init__(pin)
 
 
-class Timer:
-    ONE_SHOT = 0
-    PERIODIC = 1
-
+class Timer(_m.Timer):
+    # No scheduler: an armed timer never fires by itself; the tests call its callback.
     def __init__(self, id=-1, mode=1, period=None, freq=None, callback=None):
-        self.callback = callback
         log.append(["Timer", mode, period, freq])
+        super().__init__(id, mode=mode, callback=callback, period=period, freq=freq)
 
     def deinit(self):
         log.append(["Timer.deinit"])
+        super().deinit()
 
 
-class WDT:
+class WDT(_m.WDT):
     def __init__(self, id=0, timeout=5000):
         log.append(["WDT", timeout])
+        super().__init__(id, timeout)
 
     def feed(self):
         feeds[0] += 1
+        super().feed()

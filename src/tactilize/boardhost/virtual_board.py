@@ -34,6 +34,7 @@ from typing import Any, Callable
 
 from ..actuators import frames as P
 from ..actuators.sma import Circuit, WireModel, WireSpec, build_envelope
+from . import rp2040
 
 __all__ = ["VirtualMachine", "VirtualBoard", "firmware", "install", "peak_on_wire"]
 
@@ -45,230 +46,156 @@ def firmware() -> ModuleType:
     return load_firmware()
 
 
-class VirtualMachine:
-    """Just what the firmware uses of ``machine``, on a simulated clock [us]."""
+class WatchdogReset(Exception):
+    """Raised inside the firmware's busy wait when the watchdog resets the chip."""
 
-    def __init__(self) -> None:
+
+class _Edges:
+    """gpio -> the pad's level changes [(t [us], level)], read from the chip's history."""
+
+    def __init__(self, chip: rp2040.Chip) -> None:
+        self._chip = chip
+
+    def get(self, gpio: Any, default: Any = None) -> list[tuple[float, int]]:
+        if gpio not in self._chip.history:
+            return [] if default is None else default
+        return self[gpio]
+
+    def __getitem__(self, gpio: Any) -> list[tuple[float, int]]:
+        end_h = self._chip.t_h() + 1
+        return [(t / rp2040.H_PER_US, int(lev)) for t, lev in self._chip.edges_h(gpio, end_h)]
+
+
+class VirtualMachine(rp2040.Machine):
+    """MicroPython's ``machine`` on the chip model (:mod:`~tactilize.boardhost.rp2040`),
+    on a simulated clock [us]: timers fire at their due instants, ``sleep_us`` moves
+    the clock, and the watchdog resets the board when it is not fed in time.
+
+    Parameters
+    ----------
+    start_us : int
+        The chip's microsecond timer when the board's clock reads 0 (its ticks
+        start there: just below 2**30 to run across the wrap).
+    """
+
+    def __init__(self, start_us: int = 0) -> None:
         self.now_us = 0
-        self.ticks_offset_us = 0  # the ticks the board's clock read at now_us = 0
+        super().__init__(rp2040.Chip(lambda: self.now_us, timer_us=start_us))
         self._timers: list[tuple[int, int, Any]] = []
         self._order = itertools.count()
-        self.edges: dict[Any, list[tuple[int, int]]] = {}
-        self.pulses: dict[Any, list[tuple[float, float]]] = {}  # PWM pulses: (start [us], width [us])
-        self.bias: dict[Any, list[tuple[float, float]]] = {}  # (from [us], level) of a 20 kHz bias slice
-        self.adc: dict[Any, Any] = {}
-        self._pwms: list[Any] = []
-        vm = self
+        self.chip.scheduler = self
+        #: called when the watchdog expires (the board resets the chip and boots again)
+        self.on_watchdog: Callable[[], None] | None = None
 
-        class Pin:
-            IN, OUT, OPEN_DRAIN, PULL_UP, PULL_DOWN = 0, 1, 2, 1, 2
-
-            def __init__(self, id, mode=-1, pull=-1, value=None):
-                self.id = id
-                self._mode = mode
-                if mode == Pin.OUT:
-                    vm._edge(id, 0 if value is None else int(bool(value)))
-
-            def value(self, v=None):
-                if v is None:
-                    return 1 if self._mode == Pin.IN else vm._level(self.id)
-                vm._edge(self.id, int(bool(v)))
-
-        class PWM:
-            def __init__(self, pin, freq=None, duty_u16=None):
-                self.pin = pin.id
-                self._hz = 1000
-                self._next = float(vm.now_us)
-                self._duty = 0  # latched [ns]
-                self._pending = 0
-                self._u16 = None
-                vm._pwms.append(self)
-                if freq is not None:
-                    self.freq(freq)
-                if duty_u16 is not None:
-                    self.duty_u16(duty_u16)
-
-            def _advance(self, until_us):
-                period = 1e6 / self._hz
-                while self._next <= until_us:
-                    self._duty = self._pending
-                    if self._duty > 0:
-                        if self._hz >= 10000:  # the standby bias: a level, not pulses
-                            pass
-                        else:
-                            vm.pulses.setdefault(self.pin, []).append((self._next, self._duty / 1e3))
-                    self._next += period
-
-            def freq(self, hz=None):
-                if hz is None:
-                    return self._hz
-                if not isinstance(hz, int):
-                    raise TypeError("can't convert float to int")
-                self._advance(vm.now_us)
-                self._hz = hz
-
-            def duty_ns(self, ns=None):
-                if ns is None:
-                    return self._pending
-                self._advance(vm.now_us)
-                self._pending = max(0, min(int(ns), 1_000_000_000 // self._hz))
-                if self._hz >= 10000:
-                    vm.bias.setdefault(self.pin, []).append((vm.now_us, self._pending * self._hz / 1e9))
-
-            def duty_u16(self, v=None):
-                if v is None:
-                    return int(self._pending * self._hz / 1e9 * 65535)
-                self.duty_ns(int(v / 65535 * 1e9 / self._hz))
-
-            def deinit(self):
-                self._advance(vm.now_us)
-                if self in vm._pwms:
-                    vm._pwms.remove(self)
-                if self._hz >= 10000:
-                    vm.bias.setdefault(self.pin, []).append((vm.now_us, 0.0))
-
-        class ADC:
-            def __init__(self, pin):
-                self.id = pin.id if hasattr(pin, "id") else pin
-
-            def read_u16(self):
-                src = vm.adc.get(self.id, 0)
-                return max(0, min(65535, int(src() if callable(src) else src)))
-
-        class Timer:
-            ONE_SHOT, PERIODIC = 0, 1
-
-            def __init__(self, id=-1, mode=1, period=None, freq=None, callback=None):
-                self.period_us = int(round(1e6 / freq)) if freq is not None else int(period) * 1000
-                self.period_us = max(1, self.period_us)
-                self.mode, self.callback, self.alive = mode, callback, True
-                vm._schedule(vm.now_us + self.period_us, self)
-
-            def deinit(self):
-                self.alive = False
-
-        class WDT:
-            def __init__(self, id=0, timeout=5000):
-                pass
-
-            def feed(self):
-                pass
-
-        self.Pin, self.PWM, self.ADC, self.Timer, self.WDT = Pin, PWM, ADC, Timer, WDT
-
-    # -- machine's module functions
-    def disable_irq(self):
-        return 0
-
-    def enable_irq(self, state=0):
-        return None
-
-    def reset_cause(self):
-        return 1
-
-    # -- the clock the firmware reads: MicroPython's ticks wrap at 2^30
-    TICKS_PERIOD = 1 << 30
-
-    def ticks_us(self) -> int:
-        return (self.now_us + self.ticks_offset_us) & (self.TICKS_PERIOD - 1)
-
-    def ticks_ms(self) -> int:
-        return ((self.now_us + self.ticks_offset_us) // 1000) & (self.TICKS_PERIOD - 1)
-
-    @classmethod
-    def ticks_diff(cls, a: int, b: int) -> int:
-        half = cls.TICKS_PERIOD >> 1
-        return ((a - b + half) & (cls.TICKS_PERIOD - 1)) - half
-
-    @classmethod
-    def ticks_add(cls, a: int, b: int) -> int:
-        if not -(cls.TICKS_PERIOD >> 1) <= b < (cls.TICKS_PERIOD >> 1):
-            raise OverflowError("ticks interval overflow")
-        return (a + b) & (cls.TICKS_PERIOD - 1)
-
+    # -- the clock the firmware reads
     def sleep_us(self, us: int) -> None:
-        self.now_us += max(0, int(us))
+        """A busy wait; the watchdog expiring inside it resets the chip there and
+        then (the firmware's code stops at that instant)."""
+        end = self.now_us + max(0, int(us))
+        due = self.chip.wdt_due_us
+        if due is not None and self.on_watchdog is not None and due <= end:
+            self.now_us = max(self.now_us, int(due))
+            raise WatchdogReset()
+        self.now_us = end
 
-    # -- bookkeeping
-    def _edge(self, pin, level: int) -> None:
-        self.edges.setdefault(pin, []).append((self.now_us, level))
+    def _run(self, fn: Callable[..., Any], *args: Any) -> None:
+        # Firmware code, cut short by a watchdog reset in a busy wait.
+        try:
+            fn(*args)
+        except WatchdogReset:
+            if self.on_watchdog is not None:
+                self.on_watchdog()
 
-    def _level(self, pin) -> int:
-        e = self.edges.get(pin)
-        return e[-1][1] if e else 0
+    @property
+    def edges(self) -> _Edges:
+        """gpio -> level changes [(t [us], level)] of the pad (all of them: GPIO and PWM)."""
+        return _Edges(self.chip)
 
-    def _schedule(self, due: int, timer) -> None:
-        heapq.heappush(self._timers, (due, next(self._order), timer))
+    @property
+    def adc(self) -> dict[Any, Any]:
+        """gpio (26..29) -> the true ADC reading (read_u16 at the right reference)."""
+        return self.chip.adc_inputs
+
+    # -- the scheduler the chip's timers use
+    def arm(self, timer: Any, due_us: int) -> None:
+        timer._due_us = int(due_us)
+        heapq.heappush(self._timers, (int(due_us), next(self._order), timer))
+
+    def cancel(self, timer: Any) -> None:
+        timer._due_us = None  # its heap entry is dropped when it comes up
 
     def run_until(self, t_us: int, tick: Callable[[], None], poll_us: int) -> None:
-        """Fire every timer due before ``t_us`` and call ``tick`` every ``poll_us``."""
+        """Fire every timer due before ``t_us``, the watchdog if it expires, and call
+        ``tick`` every ``poll_us`` (the main loop's pass)."""
         next_tick = (self.now_us // poll_us + 1) * poll_us
+        chip = self.chip
         while True:
+            if chip.wdt_expired() and self.on_watchdog is not None:
+                self.on_watchdog()
+                continue
             due = self._timers[0][0] if self._timers else None
+            wdt = chip.wdt_due_us
+            if wdt is not None and wdt <= min(next_tick, t_us) and (due is None or wdt < due):
+                self.now_us = max(self.now_us, int(wdt))
+                if chip.wdt_expired() and self.on_watchdog is not None:
+                    self.on_watchdog()
+                continue
             if due is not None and due <= min(next_tick, t_us):
                 _, _, timer = heapq.heappop(self._timers)
-                if not timer.alive:
+                if not timer.alive or getattr(timer, "_due_us", None) != due:
                     continue
                 self.now_us = max(self.now_us, due)
                 if timer.mode == timer.PERIODIC:
-                    self._schedule(due + timer.period_us, timer)
+                    self.arm(timer, due + timer.period_us)
                 else:
                     timer.alive = False
-                timer.callback(timer)
+                    chip.cancel(timer)
+                if timer.callback is not None:
+                    self._run(timer.callback, timer)
                 continue
             if next_tick <= t_us:
                 self.now_us = max(self.now_us, next_tick)
-                tick()
+                self._run(tick)
                 next_tick += poll_us
                 continue
             self.now_us = max(self.now_us, t_us)
             return
 
     def finish(self) -> None:
-        for pwm in list(self._pwms):
-            pwm._advance(self.now_us)
+        """Nothing to bring up to date: the chip's history is exact at every write."""
 
-    def channel_levels(self, pin, bias_pin, end_us: int) -> tuple[list[float], list[float]]:
-        """(durations [s], switch levels) of one channel's gate up to ``end_us``."""
-        on: list[tuple[float, float]] = list(self.pulses.get(pin, []))
-        rise = None
-        for t, level in self.edges.get(pin, []):
-            if level and rise is None:
-                rise = t
-            elif not level and rise is not None:
-                on.append((float(rise), float(t - rise)))
-                rise = None
-        on.sort()
-        bias = sorted(self.bias.get(bias_pin, []), key=lambda e: e[0])  # stable: the last write at an instant wins
-        # Break points: pulse edges and bias changes.
-        points = {0.0, float(end_us)}
-        for s, w in on:
-            points.update((s, s + w))
-        points.update(float(t) for t, _ in bias)
-        grid = sorted(p for p in points if 0.0 <= p <= end_us)
-        durs, levels = [], []
-        bi, b = 0, 0.0
-        pi = 0
-        for a, z in zip(grid, grid[1:]):
-            while bi < len(bias) and bias[bi][0] <= a:
-                b = bias[bi][1]
-                bi += 1
-            while pi < len(on) and on[pi][0] + on[pi][1] <= a:
-                pi += 1
-            inside = pi < len(on) and on[pi][0] <= a < on[pi][0] + on[pi][1]
-            durs.append((z - a) * 1e-6)
-            levels.append(1.0 if inside else b)
+    def channel_levels(self, pin: Any, bias_pin: Any, end_us: float) -> tuple[list[float], list[float]]:
+        """(durations [s], switch levels) of one channel's gate up to ``end_us``: the
+        gate is the pulse pin OR-ed with the bias pin; the 20 kHz bias counts as its
+        mean level, slower trains and GPIO pulses as exact pulses."""
+        chip = self.chip
+        a = chip.levels_us(pin, end_us)
+        b = chip.levels_us(bias_pin, end_us) if bias_pin is not None else []
+        points = sorted({0.0, float(end_us)} | {t for t, _ in a} | {t for t, _ in b})
+        durs: list[float] = []
+        levels: list[float] = []
+        ia = ib = 0
+        la = lb = 0.0
+        for t0, t1 in zip(points, points[1:]):
+            while ia < len(a) and a[ia][0] <= t0:
+                la = a[ia][1]
+                ia += 1
+            while ib < len(b) and b[ib][0] <= t0:
+                lb = b[ib][1]
+                ib += 1
+            durs.append((t1 - t0) * 1e-6)
+            levels.append(max(la, lb))
         return durs, levels
 
 
 def peak_on_wire(durations_s: Any, levels: Any, circuit: str | Circuit = "aa-resistor",
                  spec: WireSpec | None = None, start_c: float | None = None, air_c: float | None = None) -> float:
-    """The wire model's highest temperature [deg C] under a switch schedule, in
-    air at ``air_c`` (default the envelope's hottest design air), from that air
-    or ``start_c``."""
+    """The wire model's highest temperature [deg C] under a switch schedule, in air
+    at ``air_c`` [deg C] (default: the envelope's hottest design air), starting from
+    that air or from ``start_c`` [deg C]."""
     spec = WireSpec.resolve(spec)
     env = build_envelope(spec, circuit)
-    air = env.design_ambient_c if air_c is None else air_c
+    air = env.design_ambient_c if air_c is None else float(air_c)
     model = WireModel(spec.replace(ambient_c=air), Circuit.resolve(circuit, spec),
                       temperature_c=air if start_c is None else start_c)
     edges: list = []
@@ -279,16 +206,18 @@ def peak_on_wire(durations_s: Any, levels: Any, circuit: str | Circuit = "aa-res
 SetAttr = Callable[[Any, str, Any], None]
 
 
-def install(fw: ModuleType, set_attr: SetAttr) -> VirtualMachine:
+def install(fw: ModuleType, set_attr: SetAttr, start_us: int = 0) -> VirtualMachine:
     """Run the loaded firmware module ``fw`` on a fresh virtual board; every patch
     goes through ``set_attr(obj, name, value)`` (a test's ``monkeypatch.setattr``,
-    or :class:`VirtualBoard`'s, which undoes them on close)."""
-    vm = VirtualMachine()
+    or :class:`VirtualBoard`'s, which undoes them on close).  The firmware reads the
+    chip's wrapping ticks (``start_us``: the chip's timer at clock 0)."""
+    vm = VirtualMachine(start_us)
     set_attr(fw, "machine", vm)
     for name, fn in (("_ticks_us", vm.ticks_us), ("_ticks_ms", vm.ticks_ms), ("_ticks_diff", vm.ticks_diff),
                      ("_ticks_add", vm.ticks_add), ("_sleep_us", vm.sleep_us)):
-        set_attr(fw, name, fn)
-        set_attr(fw.F, name, fn)
+        for module in (fw, fw.F):
+            if hasattr(module, name):
+                set_attr(module, name, fn)
     for module in (getattr(fw, "C", None), getattr(fw, "H", None)):
         if module is not None and hasattr(module, "machine"):
             set_attr(module, "machine", vm)
@@ -314,6 +243,12 @@ class _Patches:
 class VirtualBoard:
     """The firmware on a virtual board, its wire and circuit stored as a board stores them.
 
+    The board boots as ``main.py`` does (a ``Controller``, then the hardware
+    watchdog that the main loop feeds at every pass) and :meth:`reset` boots it
+    again after a power-on, watchdog or soft reset, with the chip's state carried
+    over as that reset carries it (:mod:`~tactilize.boardhost.rp2040`); the pins'
+    history, hence :meth:`peak_c`, runs on across resets.
+
     Parameters
     ----------
     store : str or Path, optional
@@ -325,34 +260,99 @@ class VirtualBoard:
         How to patch the firmware module (``monkeypatch.setattr`` in tests);
         by default the patches are undone on :meth:`close`.
     after_watchdog_reset : bool
-        The board has just started (after a watchdog reset, or any other): its
-        heat estimates start at the budget, as every board's do.  By default
-        the board has been idle long enough for them to have cooled, as the
-        wire the judge starts from (``Controller(assume_cold=True)``).
+        The board has just started (as after a watchdog reset): its heat
+        estimates start at the budget, as every board's do after any start.
+        By default the first boot is of a board idle long enough for them to
+        have cooled, as the wire the judge starts from
+        (``Controller(assume_cold=True)``); every :meth:`reset` boots hot.
+    start_us : int
+        The chip's microsecond timer at the board's clock 0 [us] (e.g. just below
+        2**30: the ticks wrap soon after the start).
+    air_c : float, optional
+        The room's air [deg C] the wire is judged in; the envelope's hottest design
+        air by default.
+    chip_temp_c : float
+        The chip's temperature [deg C] (what ADC input 4 reads).
+    design_air_c : float, optional
+        The hottest air [deg C] the board's stored config is made for (default
+        the envelope's design ambient).
+    watchdog : bool
+        Start the hardware watchdog at boot, as ``main.py`` does.
     """
 
     def __init__(self, store: str | Path | None = None, circuit: str | Circuit = "aa-resistor", *,
-                 set_attr: SetAttr | None = None, after_watchdog_reset: bool = False,
-                 ticks_start_us: int = 0, design_air_c: float | None = None) -> None:
+                 set_attr: SetAttr | None = None, after_watchdog_reset: bool = False, start_us: int = 0,
+                 air_c: float | None = None, chip_temp_c: float = 27.0, watchdog: bool = True,
+                 design_air_c: float | None = None) -> None:
         from .board import board_config_text
 
         self.fw = fw = firmware()
         self._patches = _Patches()
         self._tmp = tempfile.TemporaryDirectory(prefix="tactilize-board-") if store is None else None
-        root = Path(self._tmp.name if self._tmp is not None else str(store))
-        self.vm = install(fw, set_attr or self._patches.set)
-        self.vm.ticks_offset_us = int(ticks_start_us)
+        self.root = Path(self._tmp.name if self._tmp is not None else str(store))
+        self.vm = install(fw, set_attr or self._patches.set, start_us)
+        self.chip = self.vm.chip
+        self.chip.chip_temp_c = chip_temp_c
         if after_watchdog_reset:
-            setattr(self.vm, "WDT_RESET", 3)
-            setattr(self.vm, "reset_cause", lambda: 3)
-        (root / fw.W.CONFIG_FILE).write_text(board_config_text(None, circuit, design_air_c))
+            self.chip.reason = 1  # the watchdog's REASON register, as after its reset
+        (self.root / fw.W.CONFIG_FILE).write_text(board_config_text(None, circuit, design_air_c))
         self.sent: list[bytes] = []
-        self.ctl = fw.Controller(self.sent.append, store=str(root) + "/", assume_cold=not after_watchdog_reset)
         self.circuit = circuit
+        self.air_c = air_c
         self.seq = 0
+        self._watchdog = watchdog
+        self.vm.on_watchdog = lambda: self.reset("watchdog")
+        self._boot(assume_cold=not after_watchdog_reset)
+
+    def _boot(self, assume_cold: bool = False) -> None:
+        # main.py: the controller, then machine.WDT, which run() feeds (and a retune's wait too).
+        self.fw.C.WDT[0] = None
+        self.ctl = self.fw.Controller(self.sent.append, store=str(self.root) + "/", assume_cold=assume_cold)
+        self.wdt = self.vm.WDT(timeout=self.fw.WDT_TIMEOUT_MS) if self._watchdog else None
+        self.fw.C.WDT[0] = self.wdt
+
+    def _pass(self) -> None:
+        # One pass of the firmware's main loop (controller.run): feed, then tick.
+        if self.wdt is not None:
+            self.wdt.feed()
+        self.ctl.tick()
+
+    def reset(self, kind: str) -> None:
+        """Reset the board now and boot it again.
+
+        Parameters
+        ----------
+        kind : {"power", "watchdog", "soft"}
+            ``"power"``: everything cleared, the pins float (the gates' pull-downs
+            hold them low); ``"watchdog"``: the chip resets but its watchdog scratch
+            registers survive and ``reset_cause()`` says ``WDT_RESET``; ``"soft"``:
+            MicroPython restarts (PWM slices stopped where they stood, soft timers
+            gone; pins, GPIO levels, the running watchdog and the ticks carry on).
+        """
+        self.chip.reset(kind)
+        self._boot()
+
+    @property
+    def resets(self) -> list[tuple[float, str]]:
+        """Every reset so far: (board clock [us], kind)."""
+        return list(self.chip.reset_log)
+
+    def adc_reference_error(self, k: float) -> None:
+        """Every ADC reading ``k`` times the truth (a wrong ADC reference), from now on."""
+        self.chip.adc_gain = float(k)
+
+    @property
+    def chip_temp_c(self) -> float:
+        """The chip's temperature [deg C] (ADC input 4 reads it)."""
+        return float(self.chip.chip_temp_c)
+
+    @chip_temp_c.setter
+    def chip_temp_c(self, value: float) -> None:
+        self.chip.chip_temp_c = float(value)
 
     def close(self) -> None:
         """Put the firmware module back as it was; remove the temporary store."""
+        self.fw.C.WDT[0] = None
         self._patches.undo()
         if self._tmp is not None:
             self._tmp.cleanup()
@@ -372,14 +372,18 @@ class VirtualBoard:
     def send(self, command: Any, payload: bytes = b"") -> None:
         """A frame as the host writes it, received at once."""
         self.seq = (self.seq + 1) & 0xFFFF
-        self.ctl.feed(P.encode_frame(self.seq, command, payload))
+        self.vm._run(self.ctl.feed, P.encode_frame(self.seq, command, payload))
 
     def set(self, channel: int, f_hz: float, w_s: float, amp: float = 1.0, regularity: float | None = None) -> None:
         self.send(P.Command.SET, P.encode_set_channel(channel, f_hz, w_s, amp, regularity))
 
     def until(self, t_s: float) -> None:
-        """Run the board until its clock reads ``t_s`` [s]."""
-        self.vm.run_until(int(round(t_s * 1e6)), self.ctl.tick, self.fw.POLL_MS * 1000)
+        """Run the board until its clock reads ``t_s`` [s].
+
+        Every main-loop pass is run (one per ``POLL_MS``): an idle hour of board
+        time costs the firmware's tick 720 000 times, a few seconds of host time.
+        """
+        self.vm.run_until(int(round(t_s * 1e6)), self._pass, self.fw.POLL_MS * 1000)
 
     def replies(self) -> list:
         """The frames the board wrote since the last call."""
@@ -387,21 +391,28 @@ class VirtualBoard:
         self.sent.clear()
         return frames
 
-    def peak_c(self, channel: int = 0, *, air_c: float | None = None, start_c: float | None = None) -> float:
-        """The wire model's peak [deg C] under what the channel's pins did so far,
-        in air at ``air_c`` (default the design air), from ``start_c`` (default that air)."""
-        self.vm.finish()
+    def peak_c(self, channel: int = 0, air_c: float | None = None, start_c: float | None = None) -> float:
+        """The wire model's peak [deg C] under what the channel's pins did so far.
+
+        Parameters
+        ----------
+        channel : int
+            The channel whose gate (pulse pin OR bias pin) is judged.
+        air_c : float, optional
+            The air [deg C]; the board's ``air_c``, else the envelope's hottest design air.
+        start_c : float, optional
+            The wire's temperature at the board's clock 0 [deg C]; the air's by default.
+        """
         pins = (self.fw.CHANNEL_PINS[channel], self.fw.BIAS_PINS[channel])
         durs, levels = self.vm.channel_levels(*pins, self.vm.now_us)
-        return peak_on_wire(durs, levels, self.circuit, start_c=start_c, air_c=air_c)
+        air = self.air_c if air_c is None else air_c
+        return peak_on_wire(durs, levels, self.circuit, start_c=start_c, air_c=air)
 
     def pulse_starts_us(self, channel: int = 0) -> list[float]:
-        """When each pulse on the channel's gate pin began [us, board clock], in order:
-        the soft-timer and scheduled pulses (rising edges) and the PWM slice's."""
-        self.vm.finish()
+        """When each pulse on the channel's gate pin began [us, board clock], in order
+        (GPIO pulses and a PWM slice's alike: the pad's rising edges)."""
         pin = self.fw.CHANNEL_PINS[channel]
-        soft = [float(t) for t, level in self.vm.edges.get(pin, []) if level]
-        return sorted(soft + [s for s, w in self.vm.pulses.get(pin, []) if w > 0])
+        return [t for t, level in self.vm.edges.get(pin, []) if level]
 
     def pulse_count(self, channel: int = 0) -> int:
         return len(self.pulse_starts_us(channel))
