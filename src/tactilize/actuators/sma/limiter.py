@@ -69,6 +69,7 @@ __all__ = [
     "stuck_high_peak_c",
     "runaway_sweep",
     "worst_runaway",
+    "judge_limit",
     "runaway_duties",
     "e96_at_or_below",
     "e96_at_or_above",
@@ -642,3 +643,31 @@ def worst_runaway(
 ) -> tuple[float, float, float]:
     """The hottest pattern of :func:`runaway_sweep`: ``(period [s], duty, peak [deg C])``."""
     return max(runaway_sweep(limit, spec, circuit, air_c, periods_s, duties, **kwargs), key=lambda r: r[2])
+
+
+def judge_limit(
+    limit: HardwareLimit | None,
+    spec: WireSpec | str | None,
+    circuit: Circuit | str | None,
+    air_c: float,
+) -> dict[str, float]:
+    """Both worst cases of a limit, at its parts' most permissive corner, in air at ``air_c``.
+
+    Returns
+    -------
+    dict
+        ``stuck_high_c``: the peak [deg C] with the logic stuck high from a wire
+        at rest; ``runaway_c``, ``runaway_period_s``, ``runaway_duty``: the hottest
+        pattern of :func:`worst_runaway` (toggling, then stuck high).
+        ``limit=None`` judges the plain circuit.
+    """
+    sp = WireSpec.resolve(spec)
+    cir = Circuit.resolve(circuit, sp)
+    worst = None if limit is None else limit.worst_corner()
+    period, duty, runaway = worst_runaway(worst, sp, cir, air_c)
+    return {
+        "stuck_high_c": stuck_high_peak_c(worst, sp, cir, air_c),
+        "runaway_c": runaway,
+        "runaway_period_s": period,
+        "runaway_duty": duty,
+    }
