@@ -35,8 +35,7 @@ Units: SI (seconds, ohms, farads, volts); temperatures in degrees Celsius.
 
 References
 ----------
-.. [1] docs/references.md, section 8 (gate threshold), (ac-coupled gate),
-   (thermal replica) and (board heat estimate).
+.. [1] docs/references.md, section 8 (gate threshold, ac-coupled gate, thermal replica, board heat estimate).
 """
 
 from __future__ import annotations
