@@ -7,6 +7,7 @@
 ``simulate``    :func:`simulate`, :func:`simulate_drive`, :func:`steady_cycle`
 ``envelope``    :class:`SafetyEnvelope`: what the wire may get on that circuit, in energy
 ``controller``  :class:`WireController`: felt band, standby, warming, closed loop
+``limiter``     the hardware limits that hold with the gate's logic stuck high, judged on the model
 ==============  ==================================================================
 
 Data moves one way: wire and circuit -> model -> simulation; envelope -> controller.
