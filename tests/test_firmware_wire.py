@@ -95,9 +95,13 @@ def test_after_any_start_the_board_treats_the_wire_as_hot(monkeypatch, tmp_path)
 
 class FrameSequences(RuleBasedStateMachine):
     """Frames at chosen instants and cadences (resends, silences, changes between
-    even and irregular, slow and fast trains, holds, pairs, stops) on a board
-    whose sense path reads what the circuit gives the wire (or nothing); after
-    it all, the wire model run on what the pins did stays under the maximum."""
+    even and irregular, slow and fast trains, holds, pairs, stops, scheduled
+    pulses with bases far behind and ahead, toggles down to 1 ms, idles past the
+    ticks' wrap, resets of every kind at any moment, a wrong ADC reference) on
+    the chip model, whose clock may start just before the ticks wrap, with a
+    sense path that reads what the circuit gives the wire (or nothing); after it
+    all, the wire model run on what the pins did stays under the maximum, and no
+    exception reached the firmware's loop."""
 
     def __init__(self):
         super().__init__()
@@ -108,11 +112,12 @@ class FrameSequences(RuleBasedStateMachine):
         self.last: dict[int, bytes] = {}
 
     @initialize(circuit=st.sampled_from(circuit_names()), phase=st.one_of(st.none(), st.floats(0.0, 1.0)),
-                sag=st.floats(0.5, 1.0))
-    def start(self, circuit, phase, sag):
+                sag=st.floats(0.5, 1.0), before_wrap_s=st.one_of(st.none(), st.floats(0.0, 3.0)))
+    def start(self, circuit, phase, sag, before_wrap_s):
         nominal = Circuit.resolve(circuit, SPEC)
         self.circ = nominal.replace(supply_v=nominal.supply_v * sag)
-        self.board = Board(self.mp, self.tmp, circuit)
+        start_us = 0 if before_wrap_s is None else (1 << 30) - int(before_wrap_s * 1e6)
+        self.board = Board(self.mp, self.tmp, circuit, start_us=start_us)
         r_m, r_a = SPEC.resistance_martensite_ohm, SPEC.resistance_austenite_ohm
         amps = 0.0 if phase is None else self.circ.current_at(r_m + phase * (r_a - r_m))
         vm = self.board.vm
@@ -170,6 +175,48 @@ class FrameSequences(RuleBasedStateMachine):
     def stop(self):
         self.board.send(P.Command.STOP)
 
+    @rule(channel=st.integers(0, 1), f=st.sampled_from([20.0, 100.0, 300.0]), share=st.floats(0.5, 1.0),
+          stopper=st.sampled_from(["set-off", "stop", "events"]), every_ms=st.integers(1, 5),
+          seconds=st.floats(0.05, 1.0))
+    def toggle(self, channel, f, share, stopper, every_ms, seconds):
+        limits = self.board.ctl.limits
+        w = min(5e-3, 0.5 / f, max(10e-6, share * limits.max_width_s(f, 0.0, limits.p_max)))
+        end = self.t + seconds
+        while self.t < end:
+            self.board.send(P.Command.SET, P.encode_set_channel(channel, f, w, 1.0))
+            self._go(every_ms / 2e3)
+            if stopper == "set-off":
+                self.board.send(P.Command.SET, P.encode_set_channel(channel, 0.0, 0.0, 0.0))
+            elif stopper == "stop":
+                self.board.send(P.Command.STOP)
+            else:
+                now = self.board.ctl.clock.now()
+                self.board.send(P.Command.EVENTS, P.encode_events(channel, now + 30_000, [(1, 0, 10)]))
+            self._go(every_ms / 2e3)
+
+    @rule(channel=st.integers(0, 1),
+          base_s=st.one_of(st.floats(-2.0, 1.2), st.sampled_from([-(2.0 ** 29) / 1e6, -(2.0 ** 31) / 1e6,
+                                                                  (2.0 ** 31 - 1) / 1e6, 600.0])),
+          n=st.integers(1, 9), spacing_us=st.integers(0, 7000), width_us=st.integers(10, 5000),
+          first_id=st.integers(0, 65000))
+    def events(self, channel, base_s, n, spacing_us, width_us, first_id):
+        base = self.board.ctl.clock.now() + int(base_s * 1e6)
+        pulses = [((first_id + k) & 0xFFFF, min(65535, k * spacing_us), width_us) for k in range(n)]
+        self.board.send(P.Command.EVENTS, P.encode_events(channel, base, pulses))
+
+    @rule(seconds=st.sampled_from([540.0, 1100.0]))
+    def idle_past_the_wrap(self, seconds):
+        self._go(seconds)
+
+    @rule(kind=st.sampled_from(["power", "watchdog", "soft"]), after_s=st.floats(0.0, 0.02))
+    def reset(self, kind, after_s):
+        self._go(after_s)
+        self.board.reset(kind)
+
+    @rule(k=st.sampled_from([0.4, 0.5, 0.85, 1.2]))
+    def wrong_adc_reference(self, k):
+        self.board.adc_reference_error(k)
+
     def teardown(self):
         try:
             if self.board is not None:
@@ -181,12 +228,13 @@ class FrameSequences(RuleBasedStateMachine):
                     peak = peak_on_wire(durs, levels, self.circ)
                     target(peak, label=f"peak of wire {channel} [C]")  # search toward the hottest runs
                     assert peak <= MAX_C, (channel, peak)
+                assert self.board.ctl.errors == 0
         finally:
             self.mp.undo()
             shutil.rmtree(self.tmp, ignore_errors=True)
 
 
-FrameSequences.TestCase.settings = settings(max_examples=60, stateful_step_count=12, deadline=None)
+FrameSequences.TestCase.settings = settings(max_examples=80, stateful_step_count=12, deadline=None)
 test_no_frames_at_any_timing_overheat_the_wire = FrameSequences.TestCase
 
 
