@@ -81,9 +81,11 @@ def simulate_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
         **report.to_dict(),
     }
     first = "never" if report.first_follow_ms == math.inf else f"{report.first_follow_ms:.1f} ms"
+    # A drive that is off (a pen at rest on a surface, a picture without a period) has no strength.
+    strength = "none (off)" if drive.strength is None else f"{drive.strength:.2f}"
     text = (
         f"{source} at {opt['speed_mm_s']:g} mm/s, profile {profile.name}, {spec.name} wire on {circuit.name}\n"
-        f"  pulse frequency     {report.pulse_frequency_hz:.1f} Hz (the profile's), strength {drive.strength:.2f}\n"
+        f"  pulse frequency     {report.pulse_frequency_hz:.1f} Hz (the profile's), strength {strength}\n"
         f"  follows             {'yes' if report.follows else 'no'} ({report.pulses_followed}/{report.pulses} pulses)\n"
         f"  displacement p-p    {report.displacement_pp_um:.2f} um\n"
         f"  first felt pulse    {first} after the pen touched ({'from standby' if report.standby else 'from cold'})\n"
