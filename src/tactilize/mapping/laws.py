@@ -93,7 +93,7 @@ class RegularityLaw(_Law, Protocol):
     def __call__(self, periodicity: float, /) -> float | None: ...
 
 
-_LAWS: dict[str, dict[str, type]] = {
+_LAWS: dict[str, dict[str, type[_LawBase]]] = {
     "frequency": {}, "speed": {}, "width": {}, "amplitude": {}, "direction": {}, "regularity": {},
 }
 
@@ -417,6 +417,9 @@ def law_from_dict(role: str, data: Any, source: str):
     unknown = set(data) - names
     if unknown:
         raise ProfileError(source, f"[{role}] {kind}: unknown key(s) {', '.join(sorted(unknown))}")
-    values = {k: check_finite(v, source, what=f"[{role}] {kind} {k}", error=ProfileError, **cls.domains.get(k, {}))
-              for k, v in data.items()}
+    values = {}
+    for k, v in data.items():
+        d = cls.domains.get(k, {})
+        values[k] = check_finite(v, source, what=f"[{role}] {kind} {k}", error=ProfileError,
+                                 minimum=d.get("minimum"), above=d.get("above"), maximum=d.get("maximum"))
     return cls(**values)
