@@ -115,9 +115,9 @@ def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, 
     if dpi is not None and width_mm is not None:
         raise TactilizeError("--dpi/--width-mm", "give one of them, not both")
     if plot_path is not None:
-        from .plots import _pyplot, plot_paths
+        from .plots import plot_option, plot_paths
 
-        _pyplot("--plot")  # a missing matplotlib is said before any work
+        plot_option(plot_path)  # a missing matplotlib or folder is said before any work
         plots = plot_paths(plot_path, images)
     rows = []
     for i, path in enumerate(images):

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import TactilizeError
+from ..errors import TactilizeError, check_output_path
 from .analysis import analyze, protocol_labels, tidy_answers
 from .store import provenance
 
@@ -245,9 +245,9 @@ def make_figures(store_or_df, out_dir: str | Path, protocol_name: str | None = N
         if not include_simulated and "simulated" in df:
             df = df[~df["simulated"].astype(bool)]
     analysis = analyze(df, include_simulated=True)  # df is already filtered
-    out = Path(out_dir)
+    out = check_output_path(out_dir, folder=True)
     try:
-        out.mkdir(parents=True, exist_ok=True)
+        out.mkdir(exist_ok=True)
     except OSError as exc:
         raise TactilizeError(str(out_dir), f"cannot create the figure directory ({exc.strerror or exc})") from None
     pnames = sorted(df["protocol"].unique())
