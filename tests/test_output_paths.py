@@ -30,7 +30,7 @@ def test_the_rule(tmp_path):
     (tmp_path / "f").write_text("x")
     with pytest.raises(TactilizeError, match="not a folder"):
         check_output_path(tmp_path / "f", folder=True)
-    with pytest.raises(TactilizeError, match="is not a folder"):
+    with pytest.raises(TactilizeError, match="is a file, not a folder"):
         check_output_path(tmp_path / "f" / "a.wav")
 
 

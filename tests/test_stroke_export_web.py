@@ -62,6 +62,22 @@ def test_export_route_plays_the_bumps_of_the_surface_rendering(client):
     assert plan.transients and [round(t.t_s, 3) for t in track.taps] == [round(e.t_s, 3) for e in plan.transients]
 
 
+def test_each_format_downloads_under_its_own_name(client):
+    """One stroke exported in every format, and the stroke itself: no file overwrites another."""
+    from tactilize.export import FORMATS
+
+    names = []
+    for fmt in FORMATS:
+        r = client.post("/api/export/stroke", json={"texture": "corduroy", "format": fmt, "samples": _rows()})
+        assert r.status_code == 200, (fmt, r.text)
+        names.append(r.headers["content-disposition"].split('filename="')[1].rstrip('"'))
+    assert "stroke-corduroy.csv" not in names  # the page's "Download stroke"
+    assert len(set(names)) == len(names), names
+    assert all(n.startswith("stroke-corduroy") for n in names)
+    assert names[list(FORMATS).index("log")] == "stroke-corduroy-log.csv"
+    assert names[list(FORMATS).index("android")] == "stroke-corduroy.android.json"
+
+
 @pytest.mark.parametrize(
     "body, status, fault",
     [

@@ -195,8 +195,8 @@ def check_output_path(path: Any, error: type[TactilizeError] = TactilizeError, *
     p = Path(path)
     parent = p.parent
     if not parent.is_dir():
-        fault = "is not a folder" if parent.exists() else "does not exist"
-        raise error(str(path), f"its folder {str(parent)!r} {fault} (create it first)")
+        fault = "is a file, not a folder" if parent.exists() else "does not exist (create it first)"
+        raise error(str(path), f"cannot write here: its folder {str(parent)!r} {fault}")
     if folder and p.exists() and not p.is_dir():
         raise error(str(path), "exists and is not a folder")
     if not folder and p.is_dir():
