@@ -99,3 +99,22 @@ def test_experiment_simulate_says_where_the_database_is(tmp_path):
     assert res.exit_code == 0, res.output
     line = res.output.strip().splitlines()[-1]
     assert line.startswith("database ") and str(tmp_path) in line and "experiments.sqlite3" in line
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["simulate", "--texture", "corduroy", "--speed", "abc"], ["--speed", "abc"]),
+        (["export"], ["IMAGE"]),
+        (["experiment", "analyze", "--figure-width", "triple"], ["--figure-width", "triple"]),
+        (["nosuchcommand"], ["nosuchcommand"]),
+    ],
+)
+def test_clicks_own_faults_are_one_line_too(args, words):
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-m", "tactilize.cli", *args], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("tactilize: ") and all(w in lines[0] for w in words), proc.stderr

@@ -39,6 +39,13 @@ class _Group(click.Group):
         except TactilizeError as exc:
             click.echo(f"tactilize: {exc.source}: {exc.fault}", err=True)
             ctx.exit(BAD_INPUT)
+        except click.UsageError as exc:
+            # click's own faults (a type, a missing option, an unknown command) print
+            # usage, a hint and the error on four lines; the one-line rule holds for them too.
+            if exc.__class__.__name__ == "NoArgsIsHelpError":  # a bare group: its help, as asked
+                raise
+            click.echo(f"tactilize: {' '.join(exc.format_message().split())} (see --help)", err=True)
+            ctx.exit(BAD_INPUT)
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
             raise
         except KeyboardInterrupt:
