@@ -194,3 +194,13 @@ def test_analyze_runs_no_resampling_and_names_its_method(monkeypatch):
     pw = res["protocols"]["toy"]["questions"]["q2"]["pairwise"]  # q2 has tied differences
     assert {r["method"] for r in pw if r["p"] is not None} == {"permutation"}
     assert "permutation" in res["provenance"]["wilcoxon"]
+
+
+def test_a_figure_title_in_parentheses_counts_the_participants_inside_them():
+    df = _tidy()
+    labels = {"__title__": "Assessment of the tactile pen (six images, four items)"}
+    fig, _ = protocol_figure(df, "toy", labels=labels)
+    title = " ".join(fig.axes[0].get_title().split())
+    assert title == "Assessment of the tactile pen (six images, four items; n = 6)"
+    fig, _ = protocol_figure(df, "toy", labels={"__title__": "Speed law"})
+    assert " ".join(fig.axes[0].get_title().split()) == "Speed law (n = 6)"
