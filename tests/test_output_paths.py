@@ -118,3 +118,34 @@ def test_clicks_own_faults_are_one_line_too(args, words):
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("tactilize: ") and all(w in lines[0] for w in words), proc.stderr
+
+
+def test_a_fifo_is_named_as_one_by_analyze(tmp_path):
+    import os
+
+    fifo = tmp_path / "pipe.png"
+    os.mkfifo(fifo)
+    res = _run("analyze", fifo)
+    _one_line_exit_2(res, "pipe.png", "FIFO")
+    assert "empty" not in res.output
+
+
+def test_a_batch_folder_names_its_fifo_and_device_link_in_error_rows(tmp_path, png):
+    import os
+
+    from tactilize.catalog.sources import discover
+
+    shop = tmp_path / "shop"
+    shop.mkdir()
+    (shop / "a.png").write_bytes(png.read_bytes())
+    os.mkfifo(shop / "b.png")
+    os.symlink("/dev/zero", shop / "c.png")
+    items = {it.id: it.problem for it in discover(shop)}
+    assert items["a.png"] is None
+    assert "FIFO" in items["b.png"] and "character device" in items["c.png"]
+    res = _run("batch", shop, "--out", tmp_path / "cat", "--workers", "1")
+    assert res.exit_code == 0 and "2 failed" in res.output, res.output
+    import pandas as pd
+
+    rows = pd.read_parquet(tmp_path / "cat").set_index("id")["error"]
+    assert "FIFO" in rows["b.png"] and "character device" in rows["c.png"] and pd.isna(rows["a.png"])

@@ -202,3 +202,24 @@ def check_output_path(path: Any, error: type[TactilizeError] = TactilizeError, *
     if not folder and p.is_dir():
         raise error(str(path), "is a folder; give a file name")
     return p
+
+
+def special_file_fault(path: Any) -> str | None:
+    """What ``path`` is when it is neither a regular file nor a folder (a FIFO, a
+    device, a socket), in a few words, following links; None otherwise.
+
+    Reading a FIFO blocks until a writer comes and a device such as ``/dev/zero``
+    never ends, so such entries are named, never read.
+    """
+    import os
+    import stat
+
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return None
+    for test, kind in ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return f"is {kind}, not an image file"
+    return None
