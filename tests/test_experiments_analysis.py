@@ -155,3 +155,52 @@ def test_incomplete_participants_leave_the_tests_not_the_descriptives():
     one = analyze(df[df["participant"] == "p1"])["protocols"]["toy"]["questions"]["q1"]
     assert one["friedman"] is None
     assert all(r["p"] is None and r["p_holm"] is None for r in one["pairwise"])
+
+
+# Paired ratings of the kinds an experiment gives: distinct differences (exact),
+# ties and zeros at n <= 13 (scipy's permutation test), ties at n = 20 (its normal
+# approximation).
+_RNG = np.random.default_rng(7)
+SIGNED_RANK_CASES = {
+    "no ties": ([2.1, 3.5, 4.0, 1.2, 6.3, 5.5, 2.9], [1.0, 3.7, 2.0, 1.9, 3.3, 2.6, 2.8]),
+    "ties and zeros, n = 10": ([4, 5, 3, 6, 4, 5, 7, 2, 4, 5], [3, 5, 2, 4, 4, 3, 5, 2, 3, 4]),
+    "ties, n = 13": (list(_RNG.integers(1, 8, 13)), list(_RNG.integers(1, 8, 13))),
+    "half-point means, n = 8": ([3.5, 4.0, 5.5, 2.5, 6.0, 4.5, 3.0, 5.0], [3.0, 4.5, 4.0, 2.5, 4.0, 3.5, 3.5, 4.0]),
+    "ties, n = 20": (list(_RNG.integers(1, 8, 20)), list(_RNG.integers(1, 8, 20))),
+}
+
+
+@pytest.mark.parametrize("case", sorted(SIGNED_RANK_CASES))
+def test_signed_rank_p_values_are_scipys_without_its_resampling(case, monkeypatch):
+    """The p-value of scipy's own choice of method, with scipy's permutation test never run."""
+    import scipy.stats
+
+    from tactilize.experiments.analysis import signed_rank_test
+
+    x, y = (np.asarray(v, float) for v in SIGNED_RANK_CASES[case])
+    ref = stats.wilcoxon(x, y)  # method="auto", before the permutation test is taken away
+    monkeypatch.setattr(scipy.stats, "permutation_test", lambda *a, **k: pytest.fail("permutation_test was called"))
+    got = signed_rank_test(x, y)
+    assert got["p"] == pytest.approx(ref.pvalue, rel=1e-12)
+    assert got["W"] == pytest.approx(ref.statistic)
+    assert got["method"] == {"no ties": "exact", "ties, n = 20": "normal approximation"}.get(case, "permutation")
+
+
+def test_analyze_runs_no_resampling_and_names_its_method(monkeypatch):
+    import scipy.stats
+
+    monkeypatch.setattr(scipy.stats, "permutation_test", lambda *a, **k: pytest.fail("permutation_test was called"))
+    res = analyze(_tidy())
+    pw = res["protocols"]["toy"]["questions"]["q2"]["pairwise"]  # q2 has tied differences
+    assert {r["method"] for r in pw if r["p"] is not None} == {"permutation"}
+    assert "permutation" in res["provenance"]["wilcoxon"]
+
+
+def test_a_figure_title_in_parentheses_counts_the_participants_inside_them():
+    df = _tidy()
+    labels = {"__title__": "Assessment of the tactile pen (six images, four items)"}
+    fig, _ = protocol_figure(df, "toy", labels=labels)
+    title = " ".join(fig.axes[0].get_title().split())
+    assert title == "Assessment of the tactile pen (six images, four items; n = 6)"
+    fig, _ = protocol_figure(df, "toy", labels={"__title__": "Speed law"})
+    assert " ".join(fig.axes[0].get_title().split()) == "Speed law (n = 6)"

@@ -166,3 +166,60 @@ def path_fault(path: Any) -> str | None:
         if exc.errno == errno.ELOOP:
             return "symbolic link loop (the link points back to itself)"
         return f"cannot open ({exc.strerror or exc})"
+
+
+def check_output_path(path: Any, error: type[TactilizeError] = TactilizeError, *, folder: bool = False) -> Any:
+    """``path`` as a :class:`pathlib.Path`, if something can be written there; else ``error``.
+
+    The one rule for every path the library and the commands write to (a file, or a
+    folder they fill): its parent folder must already exist, so a mistyped path is
+    refused in one line instead of making folders nobody asked for; a file's path
+    must not be a folder, and a folder's path not a file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Where to write.
+    error : type
+        The :class:`TactilizeError` subclass to raise.
+    folder : bool
+        ``path`` is a folder to fill (it may not exist yet) rather than a file.
+
+    Raises
+    ------
+    TactilizeError
+        Of type ``error``, naming ``path`` and the fault.
+    """
+    from pathlib import Path
+
+    p = Path(path)
+    parent = p.parent
+    if not parent.is_dir():
+        fault = "is a file, not a folder" if parent.exists() else "does not exist (create it first)"
+        raise error(str(path), f"cannot write here: its folder {str(parent)!r} {fault}")
+    if folder and p.exists() and not p.is_dir():
+        raise error(str(path), "exists and is not a folder")
+    if not folder and p.is_dir():
+        raise error(str(path), "is a folder; give a file name")
+    return p
+
+
+def special_file_fault(path: Any) -> str | None:
+    """What ``path`` is when it is neither a regular file nor a folder (a FIFO, a
+    device, a socket), in a few words, following links; None otherwise.
+
+    Reading a FIFO blocks until a writer comes and a device such as ``/dev/zero``
+    never ends, so such entries are named, never read.
+    """
+    import os
+    import stat
+
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return None
+    for test, kind in ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return f"is {kind}, not an image file"
+    return None

@@ -18,7 +18,7 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
-from .errors import ImageError, path_fault
+from .errors import ImageError, path_fault, special_file_fault
 
 __all__ = ["DEFAULT_DPI", "DEFAULT_MAX_PIXELS", "DRAFT_MIN_SIDE_PX", "METRES_PER_INCH", "TextureImage", "load_image"]
 
@@ -387,6 +387,9 @@ def _from_pillow(
             raise ImageError(name, fault)
         if path.is_dir():
             raise ImageError(name, "is a directory, not an image")
+        special = special_file_fault(path)
+        if special is not None:
+            raise ImageError(name, special)
         if path.stat().st_size == 0:
             raise ImageError(name, "empty file (0 bytes)")
         fp = path

@@ -143,7 +143,7 @@ def _export_response(drive: Drive, fmt: str, product_id: str, duration_s: float,
 
     spec = export_format(fmt)
     data = render(drive, spec.name, duration_s, sample_rate_hz=sample_rate_hz)
-    name = f"{_file_stem(product_id)}{spec.suffix}"
+    name = f"{_file_stem(product_id)}{spec.file_tail}"
     return Response(data, media_type=spec.media_type, headers={"Content-Disposition": f'attachment; filename="{name}"'})
 
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..errors import CatalogError, path_fault
+from ..errors import CatalogError, path_fault, special_file_fault
 
 __all__ = ["IMAGE_SUFFIXES", "CatalogItem", "discover"]
 
@@ -118,8 +118,12 @@ def _from_folder(root: Path) -> list[CatalogItem]:
     out = []
     for p in root.rglob("*"):
         rel = p.relative_to(root)
-        if p.suffix.lower() in IMAGE_SUFFIXES and _visible(rel) and p.is_file():
-            out.append(CatalogItem(rel.as_posix(), os.path.abspath(p)))
+        if p.suffix.lower() in IMAGE_SUFFIXES and _visible(rel):
+            if p.is_file():
+                out.append(CatalogItem(rel.as_posix(), os.path.abspath(p)))
+            elif (special := special_file_fault(p)) is not None:
+                # Named in its own error row, not left out without a word (nor read: it may never end).
+                out.append(CatalogItem(rel.as_posix(), os.path.abspath(p), problem=special))
     return out
 
 

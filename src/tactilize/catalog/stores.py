@@ -15,7 +15,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from ..errors import CatalogError, CatalogVersionError
+from ..errors import CatalogError, CatalogVersionError, check_output_path
 from ..redact import ambiguous_user, redact_text
 
 __all__ = ["META_FILE", "PART_PREFIX", "ParquetStore", "SqlStore", "check_fingerprint", "is_sql_url", "open_store", "safe_url"]
@@ -275,4 +275,13 @@ def open_store(out: str | os.PathLike, columns: list[tuple[str, str]], table: st
     """The store for an output: an SQL table for a database URL, else a Parquet folder."""
     if is_sql_url(out):
         return SqlStore(os.fspath(out), columns, table)
-    return ParquetStore(Path(out), columns)
+    path = check_output_path(out, CatalogError, folder=True)
+    if path.suffix.lower() in _FILE_SUFFIXES:
+        # A folder named like a file would be read as that file by every other tool.
+        raise CatalogError(str(out), f"a catalog is a Parquet folder or an SQLAlchemy URL, not a {path.suffix} file: "
+                                     "give a folder name (pandas.read_parquet reads it back, .to_csv writes CSV)")
+    return ParquetStore(path, columns)
+
+
+#: Names that say "one file", which a Parquet catalog (a folder of parts) is not.
+_FILE_SUFFIXES = (".csv", ".tsv", ".txt", ".json", ".jsonl", ".xlsx", ".xls")

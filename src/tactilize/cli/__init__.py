@@ -39,6 +39,13 @@ class _Group(click.Group):
         except TactilizeError as exc:
             click.echo(f"tactilize: {exc.source}: {exc.fault}", err=True)
             ctx.exit(BAD_INPUT)
+        except click.UsageError as exc:
+            # click's own faults (a type, a missing option, an unknown command) print
+            # usage, a hint and the error on four lines; the one-line rule holds for them too.
+            if exc.__class__.__name__ == "NoArgsIsHelpError":  # a bare group: its help, as asked
+                raise
+            click.echo(f"tactilize: {' '.join(exc.format_message().split())} (see --help)", err=True)
+            ctx.exit(BAD_INPUT)
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
             raise
         except KeyboardInterrupt:
@@ -115,9 +122,9 @@ def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, 
     if dpi is not None and width_mm is not None:
         raise TactilizeError("--dpi/--width-mm", "give one of them, not both")
     if plot_path is not None:
-        from .plots import _pyplot, plot_paths
+        from .plots import plot_option, plot_paths
 
-        _pyplot("--plot")  # a missing matplotlib is said before any work
+        plot_option(plot_path)  # a missing matplotlib or folder is said before any work
         plots = plot_paths(plot_path, images)
     rows = []
     for i, path in enumerate(images):

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..errors import TactilizeError, check_finite
+from ..errors import TactilizeError, check_finite, check_output_path
 
 
 def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
@@ -20,6 +20,7 @@ def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     from ..mapping import Profile
     from ..maps.texturemap import texture_map
 
+    check_output_path(opt["out_path"])  # before the rendering, which may take seconds
     fmt = opt["fmt"].lower()
     if fmt not in FORMATS:
         raise TactilizeError("--format", f"unknown format {opt['fmt']!r} (use one of: {', '.join(FORMATS)})")

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..errors import TactilizeError
+from ..errors import TactilizeError, check_output_path
 
 if TYPE_CHECKING:  # types only: the plots load their libraries when drawn
     from ..features import TextureFeatures
@@ -29,6 +29,13 @@ def _pyplot(option: str):
     matplotlib = require("matplotlib", option, "plot")
     matplotlib.use("Agg")
     return require("matplotlib.pyplot", option, "plot")
+
+
+def plot_option(path: str, option: str = "--plot") -> None:
+    """Refuse ``--plot PATH`` in one line before any work: matplotlib missing, or a
+    path that cannot be written (:func:`tactilize.errors.check_output_path`)."""
+    check_output_path(path)
+    _pyplot(option)
 
 
 def plot_paths(path: str, images: Sequence[str]) -> list[str]:

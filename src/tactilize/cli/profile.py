@@ -47,6 +47,10 @@ def report_cmd(profile_name: str, images: tuple[str, ...], dpi: float | None, wi
     from ..report import FREQUENCY_JND, SPEEDS_MM_S, profile_report
 
     prof = Profile.resolve(profile_name)
+    if plot_path:
+        from .plots import plot_option
+
+        plot_option(plot_path)  # before the minutes of work, not after
     if serial:
         from . import _circuit_option
         from ..actuators.sma import WireSpec
@@ -81,6 +85,8 @@ def report_cmd(profile_name: str, images: tuple[str, ...], dpi: float | None, wi
     if as_json:
         emit_json(doc)
         return
+    if plot_path:
+        click.echo(f"wrote {plot_path}")
     click.echo(_table(rep, SPEEDS_MM_S))
     if audio:
         click.echo(_audio_table(doc["audio"], SPEEDS_MM_S))

@@ -81,9 +81,11 @@ def simulate_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
         **report.to_dict(),
     }
     first = "never" if report.first_follow_ms == math.inf else f"{report.first_follow_ms:.1f} ms"
+    # A drive that is off (a pen at rest on a surface, a picture without a period) has no strength.
+    strength = "none (off)" if drive.strength is None else f"{drive.strength:.2f}"
     text = (
         f"{source} at {opt['speed_mm_s']:g} mm/s, profile {profile.name}, {spec.name} wire on {circuit.name}\n"
-        f"  pulse frequency     {report.pulse_frequency_hz:.1f} Hz (the profile's), strength {drive.strength:.2f}\n"
+        f"  pulse frequency     {report.pulse_frequency_hz:.1f} Hz (the profile's), strength {strength}\n"
         f"  follows             {'yes' if report.follows else 'no'} ({report.pulses_followed}/{report.pulses} pulses)\n"
         f"  displacement p-p    {report.displacement_pp_um:.2f} um\n"
         f"  first felt pulse    {first} after the pen touched ({'from standby' if report.standby else 'from cold'})\n"
@@ -112,6 +114,10 @@ def simulate_raw(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     if width_s * f >= 1:
         raise TactilizeError("--pulse-width-ms", f"{opt['pulse_width_ms']} ms does not fit in a {1e3 / f:g} ms period")
     spec, _ = _wire_and_circuit(opt)
+    if opt["plot_path"]:
+        from .plots import plot_option
+
+        plot_option(opt["plot_path"])
     drv = Drive(f, width_s)
     result = simulate_drive(drv, duration_s, spec, current_a=current_a)
     summary = result.summary()
@@ -156,6 +162,8 @@ def simulate_raw(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
         f"  peak temperature    {doc['peak_temperature_c']:.2f} C (limit {spec.max_temperature_c:g} C)\n"
         f"  allowed             {'yes' if doc['allowed'] else 'no'} (envelope on this current: width up to {hi * 1e3:.3f} ms)"
     )
+    if opt["plot_path"]:
+        text = f"wrote {opt['plot_path']}\n{text}"
     return doc, text
 
 
@@ -163,6 +171,10 @@ def envelope_table(spec: Any, circuit: Any, plot_path: str | None) -> tuple[dict
     """The felt band and the envelope per frequency, as a document and a table."""
     from ..actuators.sma import WireController
 
+    if plot_path:
+        from .plots import plot_option
+
+        plot_option(plot_path)
     ctrl = WireController(spec, circuit)
     env = ctrl.envelope
     power = circuit.power_at(spec.resistance_martensite_ohm)
@@ -195,4 +207,6 @@ def envelope_table(spec: Any, circuit: Any, plot_path: str | None) -> tuple[dict
     for r in rows:
         lo, hi = r["felt_band_width_s"]
         lines.append(f"  {r['frequency_hz']:>6g}   {lo * 1e3:8.3f} .. {hi * 1e3:<8.3f}            {r['max_width_s'] * 1e3:.3f}")
+    if plot_path:
+        lines.insert(0, f"wrote {plot_path}")
     return doc, "\n".join(lines)

@@ -9,8 +9,9 @@ For each protocol and question:
 - pairwise Wilcoxon signed-rank tests with Holm's correction, each with the
   rank-biserial correlation and the common-language effect size.
 
-The tests come from pingouin (which wraps scipy), not from hand-written
-formulas.  Ratings are first averaged per participant and condition (over
+The tests come from pingouin and scipy, except the signed-rank test's p-value for
+tied or zero differences, whose exact permutation distribution is enumerated here
+(:func:`signed_rank_test`: the same p-values as scipy's resampling, at once).  Ratings are first averaged per participant and condition (over
 images and repetitions), because the tests assume one value per cell;
 participants who did not rate every condition are left out of the tests (not of
 the descriptives) and the count of those used is reported.
@@ -39,8 +40,8 @@ from .errors import DesignError
 from .labdata import excluded_codes, trial_events
 from .store import provenance
 
-__all__ = ["tidy_answers", "analyze", "describe", "friedman", "pairwise_wilcoxon", "export_answers", "export_strokes",
-           "CSV_COLUMNS"]
+__all__ = ["tidy_answers", "analyze", "describe", "friedman", "pairwise_wilcoxon", "signed_rank_test", "export_answers",
+           "export_strokes", "CSV_COLUMNS", "WILCOXON_METHOD"]
 
 CSV_COLUMNS = [
     "protocol", "protocol_version", "protocol_sha256", "seed", "participant", "participant_number", "simulated",
@@ -200,8 +201,71 @@ def friedman(cell) -> dict[str, Any] | None:
     }
 
 
+#: Sign patterns enumerated at most for the permutation p-value: 2 ** 13, the
+#: sample size up to which scipy's own choice for tied or zero differences is a
+#: complete permutation test (beyond it, its normal approximation), kept so that the
+#: p-values are scipy's and pingouin's.
+_PERMUTATION_MAX_N = 13
+#: What :func:`signed_rank_test` does, for the provenance of every analysis.
+WILCOXON_METHOD = (
+    "two-sided Wilcoxon signed-rank test, zeros dropped (Wilcoxon's method): without ties or zeros scipy's exact "
+    "distribution (n <= 50); with ties or zeros and n <= 13 the exact permutation distribution of the signed-rank "
+    "sum over all 2^n sign patterns; otherwise the normal approximation with the tie correction and no continuity "
+    "correction (scipy.stats.wilcoxon's defaults)"
+)
+
+
+def signed_rank_test(x, y) -> dict[str, Any]:
+    """Two-sided Wilcoxon signed-rank test of paired differences, with its effect sizes.
+
+    The same p-value as ``scipy.stats.wilcoxon(d)`` (and so ``pingouin.wilcoxon``)
+    with their default ``method="auto"``, which for tied or zero differences of a
+    small sample runs a resampling permutation test (thousands of calls of the
+    statistic); here that case enumerates the 2^n sign patterns at once.  The
+    method is :data:`WILCOXON_METHOD`.
+
+    Parameters
+    ----------
+    x, y : array_like of float
+        Paired ratings (one per participant), their differences not all zero.
+
+    Returns
+    -------
+    dict
+        ``W`` (the smaller of the positive and negative rank sums), ``p``,
+        ``rbc`` (matched-pairs rank-biserial correlation, (R+ - R-) / (R+ + R-)),
+        ``cles`` (the common-language effect size: the share of all pairs (x_i, y_j)
+        with x_i > y_j, ties counting a half, as pingouin gives it) and
+        ``method`` ("exact", "permutation" or "normal approximation").
+    """
+    from scipy.stats import rankdata, wilcoxon
+
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    d = x - y
+    nz = d[d != 0]
+    r = rankdata(np.abs(nz))
+    r_plus, r_minus = float(r[nz > 0].sum()), float(r[nz < 0].sum())
+    tied = np.unique(np.abs(nz)).size < nz.size
+    n = d.size
+    if not tied and nz.size == n and n <= 50:
+        method, p = "exact", float(wilcoxon(d, method="exact").pvalue)
+    elif n <= _PERMUTATION_MAX_N:
+        # Every assignment of signs to the ranks is equally likely under the null;
+        # a zero difference's sign changes nothing, so its patterns are left out.
+        signs = (np.arange(1 << nz.size)[:, None] >> np.arange(nz.size)) & 1
+        null = signs @ r
+        tol = 1e-9 * max(1.0, r_plus)  # rank sums are multiples of 0.5: equal means equal
+        p_less, p_greater = float(np.mean(null <= r_plus + tol)), float(np.mean(null >= r_plus - tol))
+        method, p = "permutation", min(1.0, 2.0 * min(p_less, p_greater))
+    else:
+        method, p = "normal approximation", float(wilcoxon(d, method="asymptotic").pvalue)
+    return {"W": min(r_plus, r_minus), "p": _f(p), "rbc": _f((r_plus - r_minus) / (r_plus + r_minus)),
+            "cles": _f(np.where(x[:, None] == y, 0.5, x[:, None] > y).mean()), "method": method}
+
+
 def pairwise_wilcoxon(cell) -> list[dict[str, Any]]:
-    """Wilcoxon signed-rank tests for every pair of conditions, Holm-corrected (pingouin)."""
+    """Wilcoxon signed-rank tests for every pair of conditions (:func:`signed_rank_test`),
+    Holm-corrected (pingouin)."""
     import pingouin as pg
 
     wide = _wide(cell)
@@ -216,9 +280,7 @@ def pairwise_wilcoxon(cell) -> list[dict[str, Any]]:
             # Every participant rated both the same: nothing differs (scipy would refuse).
             row.update({"W": 0.0, "p": 1.0, "rbc": 0.0, "cles": 0.5, "note": "no non-zero differences"})
         else:
-            r = pg.wilcoxon(x, y).iloc[0]
-            row.update({"W": _f(_col(r, "W_val", "W-val")), "p": _f(_col(r, "p_val", "p-val")),
-                        "rbc": _f(r["RBC"]), "cles": _f(r["CLES"])})
+            row.update(signed_rank_test(x, y))
         out.append(row)
     tested = [r for r in out if r["p"] is not None]
     for r in out:
@@ -281,7 +343,8 @@ def analyze(store_or_df, protocol_name: str | None = None, include_simulated: bo
     import scipy
 
     prov.update({"pingouin": pingouin.__version__, "scipy": scipy.__version__,
-                 "aggregation": "mean rating per participant and condition (over images and repetitions)"})
+                 "aggregation": "mean rating per participant and condition (over images and repetitions)",
+                 "wilcoxon": WILCOXON_METHOD})
     result: dict[str, Any] = {"provenance": prov, "protocols": {}}
     labels = protocol_labels(store_or_df, set(df["protocol"]))
     for pname, pdf in df.groupby("protocol", sort=True):

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import click
 
-from ..errors import TactilizeError
+from ..errors import TactilizeError, check_output_path
 from ..encode import dumps
 
 DB_HELP = "SQLAlchemy URL or SQLite file (default: experiments.sqlite3 in the user data directory)."
@@ -59,8 +59,10 @@ def _count(n: int, noun: str) -> str:
 @click.option("--port", default=8765, show_default=True, type=int)
 @click.option("--token", default=None, help="Experimenter token (generated and printed when not given).")
 @click.option("--output", "output_spec", default="simulated", show_default=True, help="simulated | serial:PORT | audio[:DEVICE]")
+@click.option("--open/--no-open", "open_browser", default=None,
+              help="Open the experimenter's page in a browser [default: when a display exists].")
 def run_cmd(protocols: tuple[str, ...], db_url: str | None, host: str, port: int, token: str | None,
-            output_spec: str) -> None:
+            output_spec: str, open_browser: bool | None) -> None:
     """Serve the participant flow of PROTOCOLS (built-in names or TOML files).
 
     Several protocols make one visit: each participant takes them in the order
@@ -75,7 +77,7 @@ def run_cmd(protocols: tuple[str, ...], db_url: str | None, host: str, port: int
     if not 0 <= port < 65536:
         raise TactilizeError("--port", f"must be 0 .. 65535, got {port}")
     serve_flow([load_design(p) for p in protocols], db_url, host=host, port=port, admin_token=token, output=output_spec,
-               echo=click.echo, warn=lambda s: click.echo(s, err=True))
+               echo=click.echo, warn=lambda s: click.echo(s, err=True), open_browser=open_browser)
 
 
 @experiment.command("status")
@@ -114,6 +116,8 @@ def export_cmd(db_url: str | None, fmt: str, protocol_name: str | None, output: 
     from .analysis import export_answers, export_strokes
     from .store import Store, provenance
 
+    if output is not None:
+        check_output_path(output)
     store = Store(db_url, must_exist=True)
     store.require_protocol(protocol_name)
     if fmt == "parquet":
@@ -162,6 +166,7 @@ def export_cmd(db_url: str | None, fmt: str, protocol_name: str | None, output: 
         sys.stdout.write(text)
         return
     _write(output, text, provenance(protocol_filter=protocol_name) if fmt in ("csv", "wide") else None)
+    click.echo(f"wrote {output}")
 
 
 def _per_protocol(output: str, pname: str) -> str:
@@ -195,6 +200,8 @@ def analyze_cmd(db_url: str | None, protocol_name: str | None, figures_dir: str 
     from .analysis import analyze
     from .store import Store
 
+    if figures_dir:
+        check_output_path(figures_dir, folder=True)
     store = Store(db_url, must_exist=True)
     store.require_protocol(protocol_name)
     result = analyze(store, protocol_name, include_simulated=include_simulated)
@@ -244,12 +251,17 @@ def simulate_cmd(protocol: str, participants: int, seed: int, db_url: str | None
     """Run synthetic participants through the server (resumable; see docs/experiments.md)."""
     from .simulate import simulate
 
+    from .store import default_db_url
+
     summary = simulate(protocol, participants, seed, db_url)
+    # Without --db the rows go to the user data folder, which nobody finds unless told.
+    summary["db"] = _redact(default_db_url() if db_url is None else db_url)
     if as_json:
         _emit(summary)
         return
     click.echo(f"{summary['protocol']}: seed {seed}, {summary['started']} started, {summary['resumed']} resumed, "
                f"{summary['skipped']} already finished, {summary['trials_submitted']} trials submitted")
+    click.echo(f"database {summary['db']}" + (" (the default; --db chooses another)" if db_url is None else ""))
 
 
 @experiment.command("calibrate")
@@ -265,6 +277,7 @@ def calibrate_cmd(participant: str, output: str, db_url: str | None, base: str, 
     from .calibration import fit_personal_profile
     from .store import Store
 
+    check_output_path(output)
     prof, report = fit_personal_profile(Store(db_url, must_exist=True), participant, base=base, questions=list(questions) or None)
     prof.save(output)
     report["output"] = output
@@ -292,6 +305,7 @@ def refine_cmd(participant: str, output: str, db_url: str | None, role: str | No
     from .calibration import refinement_protocol
     from .store import Store
 
+    check_output_path(output)
     text = refinement_protocol(Store(db_url, must_exist=True), participant, role, span_octaves=span_octaves, steps=steps,
                                repetitions=repetitions)
     try:
@@ -309,6 +323,7 @@ def backup_cmd(target: str, db_url: str | None) -> None:
     from .labdata import backup
     from .store import Store
 
+    check_output_path(target)
     doc = backup(Store(db_url, must_exist=True), target)
     click.echo(f"wrote {doc['backup']}: {doc['answers']} answers")
 

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import TactilizeError
+from ..errors import TactilizeError, check_output_path
 from .analysis import analyze, protocol_labels, tidy_answers
 from .store import provenance
 
@@ -116,6 +116,15 @@ def text_boxes(fig) -> list[tuple[str, Any]]:
     return out
 
 
+def figure_title(title: str, n_participants: int) -> str:
+    """The figure's title: the protocol's, with the participants counted; a title that
+    ends in a parenthesis takes the count inside it ("(six images, four items; n = 10)"),
+    not a second parenthesis after it."""
+    if title.endswith(")"):
+        return f"{title[:-1]}; n = {n_participants})"
+    return f"{title} (n = {n_participants})"
+
+
 def protocol_figure(df, protocol_name: str, labels: dict[str, str] | None = None, analysis: dict | None = None,
                     width: str = "double"):
     """A matplotlib Figure for one protocol, and the data it plots.
@@ -156,7 +165,7 @@ def protocol_figure(df, protocol_name: str, labels: dict[str, str] | None = None
     else:
         ticks, xlabel = wrapped, what
     tick_lines = max(t.count("\n") + 1 for t in ticks)
-    title = _wrap(f"{labels.get('__title__', protocol_name)} (n = {n_part})", _chars(w_in * 0.9, 9.0))
+    title = _wrap(figure_title(labels.get("__title__", protocol_name), n_part), _chars(w_in * 0.9, 9.0))
     h_in = (2.4 + 0.14 * (tick_lines + xlabel.count("\n") + title.count("\n")) + 0.15 * legend_lines
             + (0.1 if legend else 0.0))
     with plt.rc_context({"font.size": _FONT_PT, "axes.titlesize": 9.0, "legend.fontsize": _FONT_PT,
@@ -245,9 +254,9 @@ def make_figures(store_or_df, out_dir: str | Path, protocol_name: str | None = N
         if not include_simulated and "simulated" in df:
             df = df[~df["simulated"].astype(bool)]
     analysis = analyze(df, include_simulated=True)  # df is already filtered
-    out = Path(out_dir)
+    out = check_output_path(out_dir, folder=True)
     try:
-        out.mkdir(parents=True, exist_ok=True)
+        out.mkdir(exist_ok=True)
     except OSError as exc:
         raise TactilizeError(str(out_dir), f"cannot create the figure directory ({exc.strerror or exc})") from None
     pnames = sorted(df["protocol"].unique())

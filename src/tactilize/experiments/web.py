@@ -272,7 +272,7 @@ def create_experiment_app(protocol, db_url: str | None = None, admin_token: str 
 
 def serve_flow(protocol, db_url: str | None, host: str = "127.0.0.1", port: int = 8765,
                admin_token: str | None = None, output: str = "simulated", profile: str | None = None,
-               echo=print, warn=None) -> None:
+               echo=print, warn=None, open_browser: bool | None = False) -> None:
     """Run the flow inside ``tactilize serve``'s app (the CLI's ``experiment run``).
 
     ``protocol`` may be a list: one visit runs them in sequence (:mod:`.visit`).
@@ -281,6 +281,7 @@ def serve_flow(protocol, db_url: str | None, host: str = "127.0.0.1", port: int 
     condition's drives go to the same actuator output (``--output``).  An
     experimenter token is mandatory, on loopback too: one is generated and
     printed when none is given, so the data are never open to another page.
+    ``open_browser`` opens the experimenter's page (None: when a display exists).
     """
     protocols = [p if isinstance(p, Design) else load_design(p)
                  for p in (protocol if isinstance(protocol, (list, tuple)) else [protocol])]
@@ -313,5 +314,5 @@ def serve_flow(protocol, db_url: str | None, host: str = "127.0.0.1", port: int 
         relay(f"serving at http://{host}:{port}/")
         uvicorn.run(app, host=host, port=port, log_level="warning")
         return
-    web_serve(host, port, output, profile, False, extra_routers=[experiment_router(flow)], echo=relay,
-              warn=warn or (lambda s: print(s, file=sys.stderr)))
+    web_serve(host, port, output, profile, open_browser, extra_routers=[experiment_router(flow)], echo=relay,
+              warn=warn or (lambda s: print(s, file=sys.stderr)), open_path=f"{PREFIX}/admin?token={admin_token}")

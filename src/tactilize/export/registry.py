@@ -119,6 +119,15 @@ class ExportFormat:
     render: Callable[[Any, float, int, str, dict[str, Any]], bytes]
     description: str
     carries_frequency: bool = False
+    #: How a file name made for this format ends (``stroke-corduroy`` + it): the
+    #: suffix, marked where two formats share one, so that downloads of one stroke
+    #: in every format never overwrite each other (nor the stroke's own CSV).
+    name_tail: str = ""
+
+    @property
+    def file_tail(self) -> str:
+        """The end of a file name made for this format: :attr:`name_tail` or the suffix."""
+        return self.name_tail or self.suffix
 
 
 #: Every export format, by name.
@@ -127,16 +136,16 @@ FORMATS: dict[str, ExportFormat] = {
     for f in (
         ExportFormat("wav", ".wav", "audio/wav", _wav, "16-bit PCM, 48 kHz, one channel per actuator: the pulse train, or on a "
                      "surface the tip's acceleration"),
-        ExportFormat("csv", ".csv", "text/csv", _csv, "the samples: time_s, channel_0, ..."),
+        ExportFormat("csv", ".csv", "text/csv", _csv, "the samples: time_s, channel_0, ...", name_tail="-signal.csv"),
         ExportFormat("json", ".json", "application/json", _json,
                      "the drive in SI units (a stroke: the drive log, one row per change)"),
         ExportFormat("log", ".csv", "text/csv",
                      lambda s, t, fs, k, x: drive_log_csv(_timeline(s, t), k),
-                     "the drive log as CSV, one row per drive change"),
+                     "the drive log as CSV, one row per drive change", name_tail="-log.csv"),
         ExportFormat("ahap", ".ahap", "application/json", _doc(ahap_document, "ahap"),
                      "Apple Core Haptics pattern", True),
         ExportFormat("android", ".json", "application/json", _doc(android_document, "android"),
-                     "Android API 36 envelopes and the createWaveform fallback", True),
+                     "Android API 36 envelopes and the createWaveform fallback", True, name_tail=".android.json"),
         ExportFormat("hjif", ".hjif", "application/json", _doc(hjif_document, "hjif", one=False),
                      "MPEG-I Haptics (ISO/IEC 23090-31), JSON form", True),
         ExportFormat("haptic", ".haptic", "application/json", _doc(haptic_document, "haptic"),

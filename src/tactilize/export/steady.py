@@ -16,7 +16,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..drive import Drive
-from ..errors import SignalError, check_finite
+from ..errors import SignalError, check_finite, check_output_path
 from ..synthesis import DEFAULT_SAMPLE_RATE_HZ, pulse_train
 
 __all__ = ["wav_bytes", "csv_bytes", "drive_document", "export_wav", "export_csv", "export_json", "pcm_wav"]
@@ -34,12 +34,7 @@ def _duration(duration_s: float) -> float:
 
 
 def _open_for_write(path: str | Path) -> Path:
-    p = Path(path)
-    if p.is_dir():
-        raise SignalError(str(path), "is a directory")
-    if not p.parent.exists():
-        raise SignalError(str(path), "its directory does not exist")
-    return p
+    return check_output_path(path, SignalError)
 
 
 def _signals(drives: list[Drive], duration_s: float, sample_rate_hz: float) -> np.ndarray:

@@ -93,7 +93,7 @@ class RegularityLaw(_Law, Protocol):
     def __call__(self, periodicity: float, /) -> float | None: ...
 
 
-_LAWS: dict[str, dict[str, type]] = {
+_LAWS: dict[str, dict[str, type[_LawBase]]] = {
     "frequency": {}, "speed": {}, "width": {}, "amplitude": {}, "direction": {}, "regularity": {},
 }
 
@@ -113,6 +113,11 @@ def _law(role: str, kind: str):
 class _LawBase:
     kind: ClassVar[str]
     role: ClassVar[str]
+    #: Each coefficient's domain, as :func:`tactilize.errors.check_finite`'s bounds
+    #: (``minimum``, ``above``, ``maximum``); a coefficient not named takes any finite
+    #: number.  Checked when a profile loads (:func:`law_from_dict`), so a law that
+    #: could only give negative or no drives is refused there, not at every drive.
+    domains: ClassVar[dict[str, dict[str, float]]] = {}
     # Every law is a dataclass (its registration makes it one): what dataclasses.asdict takes.
     __dataclass_fields__: ClassVar[dict[str, Any]]
 
@@ -125,6 +130,8 @@ class _LawBase:
 class LinearFrequency(_LawBase):
     """Paper eq. (3): g(f_s) = k1 * f_s.  ``k1`` in Hz per (cycle/m), i.e. m/s."""
 
+    domains: ClassVar[dict[str, dict[str, float]]] = {"k1": {"above": 0.0}}
+
     k1: float = 1.0
 
     def __call__(self, spatial_frequency_per_m: float) -> float:
@@ -135,6 +142,8 @@ class LinearFrequency(_LawBase):
 @dataclass(frozen=True)
 class LogFrequency(_LawBase):
     """Paper eq. (4): g(f_s) = k2 * ln(f_s + 1), f_s in cycles/m, ``k2`` in Hz."""
+
+    domains: ClassVar[dict[str, dict[str, float]]] = {"k2": {"above": 0.0}}
 
     k2: float = 40.0
 
@@ -151,6 +160,8 @@ class PowerFrequency(_LawBase):
     temporal frequency a stylus meets, v * f_s (the perceptual preset).
     """
 
+    domains: ClassVar[dict[str, dict[str, float]]] = {"scale_hz": {"above": 0.0}, "reference_per_m": {"above": 0.0}}
+
     scale_hz: float = 300.0
     reference_per_m: float = 5000.0
     exponent: float = 1.0
@@ -163,6 +174,8 @@ class PowerFrequency(_LawBase):
 @dataclass(frozen=True)
 class PowerSpeed(_LawBase):
     """alpha(v) = (v / reference_mm_s) ** exponent; the call takes m/s."""
+
+    domains: ClassVar[dict[str, dict[str, float]]] = {"reference_mm_s": {"above": 0.0}}
 
     reference_mm_s: float = 160.0
     exponent: float = 1.0
@@ -179,6 +192,8 @@ class SigmoidSpeed(_LawBase):
     The paper writes v in mm/s (its centre, 60, is a pen speed in mm/s), so the
     slope and centre keep the paper's units and say so; the call takes m/s.
     """
+
+    domains: ClassVar[dict[str, dict[str, float]]] = {"slope_per_mm_s": {"minimum": 0.0}, "centre_mm_s": {"minimum": 0.0}, "range": {"minimum": 0.0}, "floor": {"minimum": 0.0}}
 
     slope_per_mm_s: float = 0.05
     centre_mm_s: float = 60.0
@@ -197,6 +212,8 @@ class SigmoidSpeed(_LawBase):
 class ConstantSpeed(_LawBase):
     """alpha(v) = value: the frequency ignores the stroking speed."""
 
+    domains: ClassVar[dict[str, dict[str, float]]] = {"value": {"above": 0.0}}
+
     value: float = 1.0
 
     def __call__(self, speed_m_s: float) -> float:
@@ -208,6 +225,8 @@ class ConstantSpeed(_LawBase):
 class ProportionalSpeed(_LawBase):
     """alpha(v) = gain * v, v in m/s.  With g linear (k1 = 1) this is the physics of
     a stylus on a grating, f = v * f_s (docs/references.md, section 3 (stylus on a grating))."""
+
+    domains: ClassVar[dict[str, dict[str, float]]] = {"gain_per_m_s": {"above": 0.0}}
 
     gain_per_m_s: float = 1.0
 
@@ -223,6 +242,8 @@ class LinearWidth(_LawBase):
     The paper gives k3 and l without a unit; ``unit_s`` is the time unit they are
     counted in [s] (the reasoning for the paper preset's choice is in paper.toml).
     """
+
+    domains: ClassVar[dict[str, dict[str, float]]] = {"unit_s": {"above": 0.0}}
 
     k3: float = 40.0
     l: float = 0.0  # noqa: E741 - the paper's name
@@ -241,6 +262,8 @@ class LinearWidth(_LawBase):
 class InverseWidth(_LawBase):
     """Paper eq. (6): p_w = (c - k4 * i_s) * unit_s, the paper's c being 5."""
 
+    domains: ClassVar[dict[str, dict[str, float]]] = {"unit_s": {"above": 0.0}}
+
     k4: float = 4.0
     c: float = 5.0
     unit_s: float = 1e-5
@@ -257,6 +280,8 @@ class InverseWidth(_LawBase):
 @dataclass(frozen=True)
 class ConstantWidth(_LawBase):
     """p_w = width_s [s] whatever the image."""
+
+    domains: ClassVar[dict[str, dict[str, float]]] = {"width_s": {"above": 0.0}}
 
     width_s: float = 3e-4
 
@@ -288,6 +313,8 @@ def _width_position(law: Any, spectral_intensity: float) -> float:
 class ConstantAmplitude(_LawBase):
     """Amplitude (fraction of rated peak current) fixed at ``value``; the paper's H."""
 
+    domains: ClassVar[dict[str, dict[str, float]]] = {"value": {"above": 0.0, "maximum": 1.0}}
+
     value: float = 1.0
 
     def __call__(self, pressure: float | None) -> float:
@@ -299,6 +326,8 @@ class ConstantAmplitude(_LawBase):
 class PressureAmplitude(_LawBase):
     """Amplitude rising linearly with pen pressure in [0, 1] from ``minimum`` to
     ``maximum``; ``default`` when the input reports no pressure (a mouse)."""
+
+    domains: ClassVar[dict[str, dict[str, float]]] = {"minimum": {"minimum": 0.0, "maximum": 1.0}, "maximum": {"minimum": 0.0, "maximum": 1.0}, "default": {"minimum": 0.0, "maximum": 1.0}}
 
     minimum: float = 0.4
     maximum: float = 1.0
@@ -328,6 +357,8 @@ class ProjectedSpeed(_LawBase):
     on a grating feels v * f_s * |cos|).  Isotropic textures (anisotropy below
     ``min_anisotropy``) keep the full speed, since they have no direction."""
 
+    domains: ClassVar[dict[str, dict[str, float]]] = {"min_anisotropy": {"minimum": 0.0, "maximum": 1.0}}
+
     min_anisotropy: float = 0.2
 
     def effective_speed(self, speed_m_s: float, direction_rad: float | None, wave_angle_rad: float) -> float:
@@ -354,6 +385,8 @@ class PeriodicityRegularity(_LawBase):
     to [0, 1]: a clean grating (periodicity near 1) gives an even train, a noisy
     surface (periodicity near 0) the most jitter.
     """
+
+    domains: ClassVar[dict[str, dict[str, float]]] = {"irregular_below": {"minimum": 0.0, "maximum": 1.0}, "regular_above": {"minimum": 0.0, "maximum": 1.0}}
 
     irregular_below: float = 0.05
     regular_above: float = 0.5
@@ -384,5 +417,9 @@ def law_from_dict(role: str, data: Any, source: str):
     unknown = set(data) - names
     if unknown:
         raise ProfileError(source, f"[{role}] {kind}: unknown key(s) {', '.join(sorted(unknown))}")
-    values = {k: check_finite(v, source, what=f"[{role}] {k}", error=ProfileError) for k, v in data.items()}
+    values = {}
+    for k, v in data.items():
+        d = cls.domains.get(k, {})
+        values[k] = check_finite(v, source, what=f"[{role}] {kind} {k}", error=ProfileError,
+                                 minimum=d.get("minimum"), above=d.get("above"), maximum=d.get("maximum"))
     return cls(**values)

@@ -35,7 +35,7 @@ from .laws import (
 )
 from .limits import ActuatorLimits
 
-__all__ = ["Profile", "preset_names", "DriveFeatures", "FeaturesForDrive", "RENDERINGS"]
+__all__ = ["Profile", "preset_names", "DriveFeatures", "FeaturesForDrive", "RENDERINGS", "TIP_RADIUS_RANGE_M"]
 
 #: How a profile renders a picture: ``steady`` (one drive from the picture's features
 #: and the stroke's speed, the paper's way) or ``surface`` (a pulse per bump the tip
@@ -290,9 +290,17 @@ def _rendering_from_dict(data: dict[str, Any], source: str) -> dict[str, Any]:
         raise ProfileError(source, "[surface] takes only tip_radius_mm")
     if "tip_radius_mm" in surface:
         tip = check_finite(surface["tip_radius_mm"], source, what="[surface] tip_radius_mm", error=ProfileError,
-                           above=0.0, maximum=10.0, unit="mm")
+                           minimum=TIP_RADIUS_RANGE_M[0] * 1e3, maximum=TIP_RADIUS_RANGE_M[1] * 1e3, unit="mm")
         out["tip_radius_m"] = tip * 1e-3
     return out
+
+
+#: The stylus tip radii [m] a profile's surface rendering takes.  The pen's path is
+#: sampled every quarter of the radius (:attr:`tactilize.surface.SurfaceModel.step_m`),
+#: so the work of a stroke grows as 1 / radius: 10 um (finer than any pen's tip, 400
+#: samples per mm of stroke) keeps a live stroke's profile within memory and time;
+#: 10 mm is a fingertip's size.
+TIP_RADIUS_RANGE_M = (10e-6, 10e-3)
 
 
 def preset_names() -> list[str]:
@@ -316,6 +324,10 @@ _DOMAIN: dict[str, list[Any]] = {
     "amplitude": [None, 0.0, 0.5, 1.0],
     "regularity": [0.0, 0.5, 1.0],
 }
+_DOMAIN_UNIT = {"frequency": "cycles/m", "speed": "m/s", "width": "i_s", "amplitude": "pressure",
+                "regularity": "periodicity"}
+# The roles whose product is the drive: each must be positive somewhere.
+_MUST_BE_POSITIVE = ("frequency", "speed", "width", "amplitude")
 
 
 def _check_laws(profile: Profile, source: str) -> None:
@@ -327,6 +339,7 @@ def _check_laws(profile: Profile, source: str) -> None:
                                    f"{MAX_PROFILE_FREQUENCY_HZ:g} Hz any output can render")
     for role, xs in _DOMAIN.items():
         law = getattr(profile, role)
+        ys = []
         for x in xs:
             try:
                 y = law(x)
@@ -335,6 +348,12 @@ def _check_laws(profile: Profile, source: str) -> None:
                 raise ProfileError(source, f"[{role}] {law.kind} law fails at {x}: {exc.__class__.__name__}") from None
             if bad:
                 raise ProfileError(source, f"[{role}] {law.kind} law gives {y} at {x}")
+            ys.append(y)
+        # A drive is the product of these laws: one that is nowhere positive turns
+        # every drive off, and each command would then report a texture as silent.
+        if role in _MUST_BE_POSITIVE and not any(y is not None and y > 0 for y in ys):
+            raise ProfileError(source, f"[{role}] {law.kind} law is zero or negative all over its domain "
+                                       f"({xs[0]} .. {xs[-1]} {_DOMAIN_UNIT[role]}): it would never drive")
     corners = DriveFeatures
     for f_s in (_DOMAIN["frequency"][0], 1000.0, _DOMAIN["frequency"][-1]):
         for i_s in (0.0, 1.0):

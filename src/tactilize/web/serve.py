@@ -77,6 +77,7 @@ def serve(
     max_sockets: int | None = None,
     lan: bool = False,
     https: bool = False,
+    open_path: str = "",
 ) -> None:
     """Serve the tactile pen page until interrupted.
 
@@ -93,6 +94,8 @@ def serve(
         laws stay one click away on the page).
     open_browser : bool, optional
         Open the page in a browser; by default only when a display exists.
+    open_path : str
+        The page to open, below the server's address (the pen page when empty).
     extra_routers : iterable of APIRouter
         Mounted into the app.
     extra_hosts : iterable of str
@@ -195,7 +198,7 @@ def serve(
         if open_browser is None:
             open_browser = display_available()
         if open_browser:
-            threading.Timer(0.5, lambda: webbrowser.open(url)).start()
+            threading.Timer(0.5, lambda: webbrowser.open(url + open_path.lstrip("/"))).start()
         server.run(sockets=[sock])
     finally:
         sock.close()

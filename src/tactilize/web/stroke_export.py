@@ -67,7 +67,7 @@ def _export(state: ServerState, body: dict[str, Any]) -> tuple[bytes, Any, str]:
 
         source = stroke_wav_source(tl, stroke, surface, str(kind))
     data = render(source, spec.name, drive=kind, **meta)
-    return data, spec, f"stroke-{entry.id}{spec.suffix}"
+    return data, spec, f"stroke-{entry.id}{spec.file_tail}"
 
 
 def stroke_export_router() -> APIRouter:

@@ -221,6 +221,7 @@ function selectTexture(id) {
     // Put it in the next slot (cycling), so built-ins and uploads can be mixed.
     if (!T.six.includes(id)) { T.six[T.sixNext % T.six.length] = id; T.sixNext++; }
   } else {
+    if (id !== T.texture) strokeExport.forget();  // the last stroke was on another picture
     T.texture = id;
   }
   applySurface();
@@ -228,6 +229,7 @@ function selectTexture(id) {
 
 function setView(view) {
   T.view = view;
+  strokeExport.forget();
   $("#gallery-hint").textContent = view === "six" ? "Click a texture to put it in the next of the six places." : "Pick the picture to stroke.";
   applySurface();
 }
@@ -406,9 +408,11 @@ async function setup() {
         const i = Math.floor((ev.clientY - r.top) / T.cell.h) * T.cell.cols + Math.floor((ev.clientX - r.left) / T.cell.w);
         if (i >= 0 && i < T.cell.ids.length) spectrumFor(T.cell.ids[i]);
       }
-      // The stroke export records strokes on one picture.
+      // The stroke export records strokes on one picture, on any of its copies.
       const t = T.view !== "six" ? textures.get(T.texture) : null;
-      if (t) strokeExport.beginStroke(T.texture, T.mmPerPx, t.width_mm, t.height_mm);
+      const v = T.visible || { w: 0, h: 0 };
+      if (t) strokeExport.beginStroke(T.texture, T.mmPerPx, t.width_mm, t.height_mm, v.w * T.mmPerPx, v.h * T.mmPerPx);
+      else strokeExport.forget();
     },
     onBatch: (rows) => {
       if (!T.texture && T.view !== "six") return;

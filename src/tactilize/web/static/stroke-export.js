@@ -1,25 +1,41 @@
-// The last stroke as a file, and the drive it makes as a file (issue 13).
+// The last stroke as a file, and the drive it makes as a file.
 //
 // Self-contained: app.js tells it when a stroke starts and hands it every batch
-// of samples; this module keeps the samples that fall on the picture, in the
-// stroke file's units (t_s from the stroke's first sample, x_mm and y_mm from
-// the picture's top-left corner, y down, pressure), and owns the block
-// #stroke-export of the page.  "Download stroke" saves them as CSV;
-// "Export this stroke" posts them to /api/export/stroke, which runs them
+// of samples; this module keeps the samples that fall on the shown surface, in
+// the stroke file's units (t_s from the stroke's first sample, x_mm and y_mm
+// from the top-left corner of the picture's own copy, y down, pressure), and
+// owns the block #stroke-export of the page.  "Download stroke" saves them as
+// CSV; "Export this stroke" posts them to /api/export/stroke, which runs them
 // through the pen server's path and answers the file in the chosen format.
 
-const state = { texture: null, mmPerPx: 0.2645833, widthMm: 0, heightMm: 0, rows: [], t0: null, recording: [] };
+const state = {
+  texture: null, mmPerPx: 0.2645833, widthMm: 0, heightMm: 0, areaWMm: 0, areaHMm: 0,
+  rows: [], t0: null, recording: [],
+};
 
-/** A stroke starts on `texture` shown `widthMm` x `heightMm` at `mmPerPx`. */
-export function beginStroke(texture, mmPerPx, widthMm, heightMm) {
-  Object.assign(state, { texture, mmPerPx, widthMm, heightMm, t0: null, recording: [] });
+/** A stroke starts on `texture` shown `widthMm` x `heightMm` at `mmPerPx`,
+ *  repeated over an area of `areaWMm` x `areaHMm` (the surface shown when the
+ *  picture fills the screen; one copy when left out).  The last stroke is
+ *  forgotten here, not at its second sample: a stroke that never touches the
+ *  picture leaves nothing to download rather than the stroke before it. */
+export function beginStroke(texture, mmPerPx, widthMm, heightMm, areaWMm = widthMm, areaHMm = heightMm) {
+  Object.assign(state, {
+    texture, mmPerPx, widthMm, heightMm, areaWMm: Math.max(areaWMm, widthMm), areaHMm: Math.max(areaHMm, heightMm),
+    rows: [], t0: null, recording: [],
+  });
 }
+
+/** Forget the last stroke (another picture, another view). */
+export function forget(texture = null) { Object.assign(state, { texture, rows: [], t0: null, recording: [] }); }
 
 /** Page rows [t_ms, x_px, y_px, pressure|null, ...] of the stroke in progress. */
 export function addSamples(rows) {
   for (const [tMs, xPx, yPx, p] of rows) {
-    const x = xPx * state.mmPerPx, y = yPx * state.mmPerPx;
-    if (!(x >= 0 && y >= 0 && x < state.widthMm && y < state.heightMm)) continue;  // the pen off the picture
+    const xs = xPx * state.mmPerPx, ys = yPx * state.mmPerPx;
+    if (!(xs >= 0 && ys >= 0 && xs < state.areaWMm && ys < state.areaHMm)) continue;  // the pen off the surface
+    // Every copy is the same picture: a sample on a copy is where it falls on
+    // the picture itself, which is what the export's map and the CSV's reader know.
+    const x = xs % state.widthMm, y = ys % state.heightMm;
     if (state.t0 === null) state.t0 = tMs;
     const t = (tMs - state.t0) / 1000;
     const last = state.recording[state.recording.length - 1];
