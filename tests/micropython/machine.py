@@ -95,9 +95,9 @@ class ADC(_m.ADC):
 
 class Timer(_m.Timer):
     # No scheduler: an armed timer never fires by itself; the tests call its callback.
-    def __init__(self, id=-1, mode=1, period=None, freq=None, callback=None):
+    def __init__(self, id=-1, mode=1, period=None, freq=None, callback=None, tick_hz=1000):
         log.append(["Timer", mode, period, freq])
-        super().__init__(id, mode=mode, callback=callback, period=period, freq=freq)
+        super().__init__(id, mode=mode, callback=callback, period=period, freq=freq, tick_hz=tick_hz)
 
     def deinit(self):
         log.append(["Timer.deinit"])

@@ -524,7 +524,8 @@ class Controller:
                 except Exception as exc:
                     self.fail(exc)
 
-            self.pair_timer = machine.Timer(mode=machine.Timer.ONE_SHOT, freq=1000000.0 / soa_us, callback=start)
+            self.pair_timer = machine.Timer(mode=machine.Timer.ONE_SHOT, period=soa_us, tick_hz=C.TIMER_HZ,
+                                            callback=start)
         return self._ack(seq, CMD_PAIR)
 
     def _cancel_pair(self):

@@ -38,6 +38,10 @@ BIAS_PERIOD_US = 1000000 // BIAS_HZ
 # period (at most 1 s), and MicroPython's ticks wrap at 2^30 us, so a remembered
 # tick older than 2^29 us would read as a time in the future.
 STALE_US = 10000000
+# Timers are armed in microseconds: a period in ticks of this rate is exact,
+# where freq= goes through the port's single-precision float and truncates
+# (docs/references.md, section 10 (timer period)).
+TIMER_HZ = 1000000
 # A pulse the heat gate would cut below this [us] is left out.
 GATE_MIN_US = 10
 # The hardware watchdog once run() started it (fed also during a retune's wait).
@@ -289,7 +293,7 @@ class Channel:
         self.due_us = due
         delay = max(1, F._ticks_diff(due, now) - E.EARLY_US)
         gen = self.gen
-        self.timer = machine.Timer(mode=machine.Timer.ONE_SHOT, freq=1000000.0 / delay,
+        self.timer = machine.Timer(mode=machine.Timer.ONE_SHOT, period=delay, tick_hz=TIMER_HZ,
                                    callback=lambda t: self._guard(lambda: self._due(gen)))
 
     def _due(self, gen):
@@ -373,7 +377,7 @@ class Channel:
             return
         delay = F._ticks_diff(self.queue.pending[0][0], F._ticks_us()) - E.EARLY_US
         gen = self.gen
-        self.timer = machine.Timer(mode=machine.Timer.ONE_SHOT, freq=1000000.0 / max(1, delay),
+        self.timer = machine.Timer(mode=machine.Timer.ONE_SHOT, period=max(1, delay), tick_hz=TIMER_HZ,
                                    callback=lambda t: self._guard(lambda: self._event_due(gen)))
 
     def _event_due(self, gen):
