@@ -378,6 +378,25 @@ def test_a_faulty_sense_path_is_shown_by_the_host(emu):
         assert out.loop.report is not None and out.loop.report.faults == (True, False)
 
 
+def test_a_firmware_error_on_the_board_is_shown_by_the_host(emu, monkeypatch):
+    """An exception inside the firmware turns the board's outputs off and flags
+    every reply after it: the host says so in ``fault`` and a ``firmware-error`` event."""
+    ch = emu.controller.channels[0]
+
+    def broken(*args, **kwargs):
+        raise MemoryError("out of heap")
+
+    with SerialOutput(emu.device) as out:
+        assert not out.firmware_error and out.fault is None
+        monkeypatch.setattr(ch, "set", broken)
+        with pytest.raises(OutputError):
+            out.apply([Drive(60.0, 300e-6), Drive.off()])  # no ACK for the frame that failed
+        assert wait_for(lambda: out.firmware_error)
+        assert "firmware" in out.fault
+        assert any(kind == "firmware-error" for _, kind, _ in out.events)
+        assert emu.controller.errors >= 1 and not ch.on
+
+
 def test_a_version_2_sense_reply_still_decodes():
     import struct
 

@@ -148,6 +148,9 @@ class SerialOutput(SerialLink, OutputBase):
         #: per channel, whether the board flags its sense path faulty; None while
         #: unknown (a version 2 board cannot say)
         self.sense_faults: tuple[bool, ...] | None = None
+        #: the board caught an error in its firmware and turned its outputs off
+        #: (ACK flag bit 2, until a STOP); the drives are sent again
+        self.firmware_error = False
 
         #: the board's clock as the host knows it (version 4 boards), from PING/PONG
         self.clock = ClockSync()
@@ -192,7 +195,9 @@ class SerialOutput(SerialLink, OutputBase):
 
     @property
     def fault(self) -> str | None:
-        """One line when the board flags a sense path faulty, else None."""
+        """One line when the board flags a sense path faulty or a firmware error, else None."""
+        if self.firmware_error:
+            return "the controller caught an error in its firmware and turned its outputs off"
         return fault_text(self.sense_faults)
 
     def _sense_faults(self, faults: tuple[bool, ...]) -> None:
@@ -433,6 +438,14 @@ class SerialOutput(SerialLink, OutputBase):
             # (the host stalled); put the drives back.
             if any(not d.is_off for d in self._desired):
                 self._reapply.set()
+        if frame.command == P.Command.ACK and len(frame.payload) >= 2:
+            error = bool(frame.payload[1] & P.FLAG_FIRMWARE_ERROR)
+            if error != self.firmware_error:
+                self.firmware_error = error
+                self._event("firmware-error" if error else "firmware-ok",
+                            self.fault if error else "the controller's firmware runs without errors again")
+                if error and any(not d.is_off for d in self._desired):
+                    self._reapply.set()
         version = self.controller_status.version if self.controller_status is not None else 0
         if frame.command == P.Command.ACK and len(frame.payload) >= 2 and version >= 3:
             flagged = bool(frame.payload[1] & P.FLAG_SENSE_FAULT)

@@ -69,7 +69,7 @@ from ._events import (
     MAX_EVENTS, EventCounts, Pong, decode_events, decode_pong, encode_events, encode_ping, encode_pong,
 )
 from ._framing import (
-    FLAG_SENSE_FAULT, FLAG_WATCHDOG_TRIPPED, HEADER_SIZE, MAX_PAYLOAD, OVERHEAD, PROTOCOL_VERSION, SENSE_V3, START,
+    FLAG_FIRMWARE_ERROR, FLAG_SENSE_FAULT, FLAG_WATCHDOG_TRIPPED, HEADER_SIZE, MAX_PAYLOAD, OVERHEAD, PROTOCOL_VERSION, SENSE_V3, START,
     Command, Frame, FrameDecoder, NakReason, Refused, command_name, crc16_ccitt, decode_nak, encode_frame,
 )
 from ._payloads import (
@@ -83,7 +83,7 @@ __all__ = [
     "FrameDecoder", "crc16_ccitt", "encode_frame", "encode_set_channel", "decode_set_channel", "SetChannel",
     "ControllerStatus", "ChannelStatus", "decode_status", "encode_status", "decode_nak", "STATUS_FORMAT",
     "SENSE_FORMAT", "SENSE_FORMAT_V2", "encode_hold", "encode_pair", "ChannelSense", "SenseReport", "decode_sense",
-    "AMPLITUDE_FULL_SCALE", "REGULARITY_EVEN", "FLAG_WATCHDOG_TRIPPED", "FLAG_SENSE_FAULT", "PROTOCOL_VERSION",
+    "AMPLITUDE_FULL_SCALE", "REGULARITY_EVEN", "FLAG_WATCHDOG_TRIPPED", "FLAG_SENSE_FAULT", "FLAG_FIRMWARE_ERROR", "PROTOCOL_VERSION",
     "SENSE_V3", "MAX_EVENTS", "EventCounts", "Pong", "encode_events", "decode_events", "encode_ping", "decode_pong",
     "encode_pong",
 ]

@@ -241,4 +241,7 @@ FLAG_WATCHDOG_TRIPPED = 0x01
 #: flags bit (version 3): a channel's sense path is faulty; the board limits its
 #: wire with the circuit's worst case until a measurement passes its checks
 FLAG_SENSE_FAULT = 0x02
+#: flags bit: the firmware caught an exception since the last STOP; it turned
+#: every output off, took its wires' heat estimates to the budget and went on
+FLAG_FIRMWARE_ERROR = 0x04
 
