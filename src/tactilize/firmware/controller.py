@@ -90,7 +90,7 @@ HOLD_MS = 10
 POLL_MS = 5
 Channel = C.Channel
 # ADC input of the RP2040's own temperature sensor, and its line: V = 0.706 V at
-# 27 C, -1.721 mV/K (docs/references.md, section 8 (RP2040 temperature sensor)).
+# 27 C, -1.721 mV/K (docs/references.md, section 10 (ADC)).
 TEMP_ADC = 4
 TEMP_V27 = 0.706
 TEMP_SLOPE_V_K = 0.001721

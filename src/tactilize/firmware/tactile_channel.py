@@ -9,7 +9,7 @@
 # a gate pin, because a slice carries its counter, compare and TOP over from
 # before (deinit() and PWM() keep the counter; TOP and compare latch only at a
 # wrap): a slice left near its wrap emits a pulse no gate saw (docs/references.md,
-# section 8 (RP2040 PWM slice)).  Only the 20 kHz standby bias uses a slice, and
+# section 10 (PWM slice)).  Only the 20 kHz standby bias uses a slice, and
 # what it can carry over (one bias period) is counted.  A changed drive never restarts a train: its
 # first pulse starts at max(last start + new period, now, last end + 1 us), the
 # host's PulseScheduler rule (tactilize.synthesis), so a host that resends its
