@@ -8,6 +8,7 @@ from __future__ import annotations
 import pytest
 
 from tactilize.boardhost import rp2040 as R
+from tactilize.boardhost.rp2040_machine import Machine
 from tactilize.boardhost.virtual_board import VirtualBoard
 
 
@@ -19,10 +20,10 @@ class Clock:
         return self.us
 
 
-def _chip(timer_us: int = 0) -> tuple[R.Chip, R.Machine, Clock]:
+def _chip(timer_us: int = 0) -> tuple[R.Chip, Machine, Clock]:
     clock = Clock()
     chip = R.Chip(clock, timer_us=timer_us)
-    return chip, R.Machine(chip), clock
+    return chip, Machine(chip), clock
 
 
 def _approx(pulses):

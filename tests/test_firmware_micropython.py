@@ -58,7 +58,8 @@ def micropython(code: str) -> str:
     files = {"/" + n: _source(n) for n in FIRMWARE}
     files["/machine.py"] = (HERE / "machine.py").read_text("utf-8")
     # the chip model the stand-in machine is built on (the same file the host's boards use)
-    files["/rp2040.py"] = resources.files("tactilize.boardhost").joinpath("rp2040.py").read_text("utf-8")
+    for model in ("rp2040.py", "rp2040_machine.py"):
+        files["/" + model] = resources.files("tactilize.boardhost").joinpath(model).read_text("utf-8")
     job = json.dumps({"files": files, "code": code})
     proc = subprocess.run(
         [node, str(HERE / "run.mjs"), str(_wasm_dir())], input=job, capture_output=True, text=True, timeout=120

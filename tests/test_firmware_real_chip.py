@@ -316,7 +316,7 @@ def test_the_chips_sensor_lowers_the_budget_in_a_warm_room(monkeypatch, tmp_path
     board = Board(monkeypatch, tmp_path, circuit)
     _chip_reads(board, 41.0)  # the die runs at or above the air around it
     _hottest(board)
-    assert board.ctl.air_c == pytest.approx(41.0, abs=0.2)
+    assert board.ctl.air.air_c == pytest.approx(41.0, abs=0.2)
     assert board.peak_c(0, air_c=40.0) <= MAX_C
 
 

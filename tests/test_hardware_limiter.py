@@ -8,16 +8,8 @@ import math
 import pytest
 
 from tactilize.actuators.sma import Circuit, WireSpec
-from tactilize.actuators.sma.limiter import (
-    AcCoupledGate,
-    HardwareLimit,
-    judge_limit,
-    peak_c,
-    preset_limit,
-    runaway_sweep,
-    stuck_high_peak_c,
-    worst_runaway,
-)
+from tactilize.actuators.sma.limiter import AcCoupledGate, HardwareLimit, preset_limit
+from tactilize.actuators.sma.limiter_worst import judge_limit, peak_c, runaway_sweep, stuck_high_peak_c, worst_runaway
 
 WIRE = WireSpec()
 MAX_C = WIRE.max_temperature_c

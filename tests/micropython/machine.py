@@ -6,6 +6,7 @@
 import time
 
 import rp2040
+import rp2040_machine
 
 log = []
 inputs = {}
@@ -25,7 +26,7 @@ def _now_us():
 chip = rp2040.Chip(_now_us)
 chip.gpio_inputs = inputs
 chip.adc_inputs = adc_values
-_m = rp2040.Machine(chip)
+_m = rp2040_machine.Machine(chip)
 mem32 = _m.mem32
 WDT_RESET = rp2040.WDT_RESET
 PWRON_RESET = rp2040.PWRON_RESET

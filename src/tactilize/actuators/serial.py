@@ -443,7 +443,7 @@ class SerialOutput(SerialLink, OutputBase):
             if error != self.firmware_error:
                 self.firmware_error = error
                 self._event("firmware-error" if error else "firmware-ok",
-                            self.fault if error else "the controller's firmware runs without errors again")
+                            self.fault or "" if error else "the controller's firmware runs without errors again")
                 if error and any(not d.is_off for d in self._desired):
                     self._reapply.set()
         version = self.controller_status.version if self.controller_status is not None else 0

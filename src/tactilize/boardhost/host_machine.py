@@ -27,7 +27,7 @@ import time
 from collections import deque
 from typing import Any, Callable
 
-from . import rp2040
+from . import rp2040, rp2040_machine
 
 __all__ = [
     "Pin", "PWM", "ADC", "Timer", "WDT", "freq", "reset", "pin_state", "events", "add_listener", "remove_listener",
@@ -38,7 +38,7 @@ _lock = threading.RLock()
 #: the one chip, on perf_counter [us]
 chip = rp2040.Chip(lambda: time.perf_counter() * 1e6)
 chip.lock = _lock  # type: ignore[assignment]
-_machine = rp2040.Machine(chip)
+_machine = rp2040_machine.Machine(chip)
 _pins: dict[Any, dict[str, Any]] = {}
 _rise_s: dict[Any, float] = {}
 _listeners: list[Callable[[float, str, Any, dict[str, Any]], None]] = []

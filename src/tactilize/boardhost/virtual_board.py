@@ -34,7 +34,7 @@ from typing import Any, Callable
 
 from ..actuators import frames as P
 from ..actuators.sma import Circuit, WireModel, WireSpec, build_envelope
-from . import rp2040
+from . import rp2040, rp2040_machine
 
 __all__ = ["VirtualMachine", "VirtualBoard", "firmware", "install", "peak_on_wire"]
 
@@ -66,7 +66,7 @@ class _Edges:
         return [(t / rp2040.H_PER_US, int(lev)) for t, lev in self._chip.edges_h(gpio, end_h)]
 
 
-class VirtualMachine(rp2040.Machine):
+class VirtualMachine(rp2040_machine.Machine):
     """MicroPython's ``machine`` on the chip model (:mod:`~tactilize.boardhost.rp2040`),
     on a simulated clock [us]: timers fire at their due instants, ``sleep_us`` moves
     the clock, and the watchdog resets the board when it is not fed in time.

@@ -89,13 +89,6 @@ HOLD_MS = 10
 # How long the main loop waits for input before checking the watchdog [ms].
 POLL_MS = 5
 Channel = C.Channel
-# ADC input of the RP2040's own temperature sensor, and its line: V = 0.706 V at
-# 27 C, -1.721 mV/K (docs/references.md, section 10 (ADC)).
-TEMP_ADC = 4
-TEMP_V27 = 0.706
-TEMP_SLOPE_V_K = 0.001721
-# Readings outside this range [C] are not a temperature: they tighten nothing.
-TEMP_PLAUSIBLE_C = (-40.0, 125.0)
 # How often the chip's temperature is read [ms].
 TEMP_MS = 1000
 
@@ -177,12 +170,10 @@ class Controller:
         for i, ch in enumerate(self.channels):
             ch.sense = W.Sense(machine.ADC(SENSE_ADC_PINS[i % 2]), rail, cal[i][0], cal[i][1], self.config)
         try:
-            self.temp_adc = machine.ADC(TEMP_ADC)
+            temp_adc = machine.ADC(H.TEMP_ADC)
         except (ValueError, TypeError, OSError):
-            self.temp_adc = None
-        self.air_c = self.config["design_air_c"]
-        self.chip_c = None
-        self.temp_ms = _ticks_ms()
+            temp_adc = None
+        self.air = H.Air(self.config, temp_adc)
         self._read_temperature()
         try:
             self.led = machine.Pin(LED_PIN, machine.Pin.OUT, value=0)
@@ -220,44 +211,25 @@ class Controller:
         FLAG_FIRMWARE_ERROR (a STOP clears it)."""
         self.errors = (self.errors + 1) & 0xFFFFFFFF
         self.error_flag = True
-        try:
-            self._cancel_pair()
-        except Exception:
-            self.pair_timer = None
         for ch in self.channels:
             ch.fail()
+        timer, self.pair_timer = self.pair_timer, None
+        self.decoder = Decoder(self._on_frame, self._on_bad)
         try:
-            self.decoder = Decoder(self._on_frame, self._on_bad)
-        except Exception:
-            pass
-        try:
+            if timer is not None:
+                timer.deinit()
             self._changed(self.channels[0], "error")
         except Exception:
-            pass
+            pass  # the outputs are off already
 
     def _channel_error(self, exc):
         # A timer's callback failed on one channel: the whole board goes safe.
         self.fail(exc)
 
     def _read_temperature(self):
-        """The room may be warmer than the design air: the chip's own sensor
-        (it runs at or above the air around the board) may only lower the budget."""
+        """The budget for the air the chip's sensor shows (tactile_heat.Air)."""
         self.temp_ms = _ticks_ms()
-        air = self.config["design_air_c"]
-        if self.temp_adc is not None:
-            v = 0.0
-            for _ in range(4):
-                v += self.temp_adc.read_u16() * W.ADC_FULL_SCALE_V / 65535.0
-            chip = 27.0 - (v / 4 - TEMP_V27) / TEMP_SLOPE_V_K
-            if TEMP_PLAUSIBLE_C[0] <= chip <= TEMP_PLAUSIBLE_C[1]:
-                self.chip_c = chip
-                if chip > air:
-                    air = chip
-        self.air_c = air
-        budget = self.config["budget_k"] - (air - self.config["design_air_c"])
-        if budget < 0:
-            budget = 0.0
-        self.limits.budget = budget
+        self.limits.budget = budget = self.air.budget_k()
         for ch in self.channels:
             ch.heat.set_budget(budget)
 
@@ -378,15 +350,8 @@ class Controller:
         return self._nak(seq, NAK_UNKNOWN_COMMAND)
 
     def _ping(self, seq, payload):
-        """The board's clock now (the host keeps it in step), the host's token
-        echoed, and each channel's counters of scheduled pulses."""
-        if len(payload) != 4:
-            return self._nak(seq, NAK_BAD_PAYLOAD)
-        t = self.clock.now()
-        fields = [struct.unpack(E.PING_FORMAT, payload)[0], t]
-        for i in range(2):
-            fields += self.channels[i].queue.counts if i < len(self.channels) else [0, 0, 0, 0, 0]
-        return self._reply(seq, CMD_PONG, struct.pack(E.PONG_FORMAT, *fields))
+        pong = E.pong(payload, self.clock.now(), [ch.queue for ch in self.channels])
+        return self._nak(seq, NAK_BAD_PAYLOAD) if pong is None else self._reply(seq, CMD_PONG, pong)
 
     def _events(self, seq, payload):
         """A channel's scheduled pulses (tactile_events.py): replaces those not yet fired."""

@@ -68,6 +68,18 @@ class BoardClock:
         return self.us
 
 
+def pong(payload, clock_us, queues):
+    """PONG's payload for a PING's (None: a bad one): the host's token echoed, the
+    board's clock now [us] (the host keeps it in step), and each channel's
+    counters of scheduled pulses (two channels; a missing one counts zeros)."""
+    if len(payload) != 4:
+        return None
+    fields = [struct.unpack(PING_FORMAT, payload)[0], clock_us]
+    for i in range(2):
+        fields += queues[i].counts if i < len(queues) else [0, 0, 0, 0, 0]
+    return struct.pack(PONG_FORMAT, *fields)
+
+
 def parse(payload, channels, min_us, max_us):
     """(channel, base [us], [(id, offset [us], width [us])]) of an EVENTS payload,
     or an int: 1 bad payload, 2 width outside min_us .. max_us, 3 channel."""

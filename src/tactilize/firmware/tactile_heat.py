@@ -21,6 +21,49 @@
 
 import math
 
+try:
+    import tactile_wire as W
+except ImportError:  # on the host, inside the package
+    from tactilize.firmware import tactile_wire as W
+
+# The RP2040's own temperature sensor (ADC input 4) and its line: V = 0.706 V at
+# 27 C, -1.721 mV/K (docs/references.md, section 10 (ADC)).
+TEMP_ADC = 4
+TEMP_V27 = 0.706
+TEMP_SLOPE_V_K = 0.001721
+# Readings outside this range [C] are not a temperature: they tighten nothing.
+TEMP_PLAUSIBLE_C = (-40.0, 125.0)
+
+
+class Air:
+    """The air around the board's wires: the design air the stored config was
+    made for (``design_air_c``), or warmer when the chip's own sensor (``adc``,
+    None: none) reads warmer.  The die runs at or above the air around it, so a
+    reading may only lower the budget, never raise it."""
+
+    def __init__(self, cfg, adc):
+        self.design_c = cfg["design_air_c"]
+        self.budget_design_k = cfg["budget_k"]
+        self.adc = adc
+        self.chip_c = None
+        self.air_c = self.design_c
+
+    def budget_k(self):
+        """Read the sensor (4 readings); the budget [K] for the air it shows."""
+        air = self.design_c
+        if self.adc is not None:
+            v = 0.0
+            for _ in range(4):
+                v += self.adc.read_u16() * W.ADC_FULL_SCALE_V / 65535.0
+            chip = 27.0 - (v / 4 - TEMP_V27) / TEMP_SLOPE_V_K
+            if TEMP_PLAUSIBLE_C[0] <= chip <= TEMP_PLAUSIBLE_C[1]:
+                self.chip_c = chip
+                if chip > air:
+                    air = chip
+        self.air_c = air
+        budget = self.budget_design_k - (air - self.design_c)
+        return budget if budget > 0 else 0.0
+
 
 class HeatEstimate:
     """One wire's temperature rise above the hottest design air [K], from the

@@ -1,14 +1,15 @@
 """The SMA micro-wire: its description, its driver circuit, its physics, its safety and its control.
 
-==============  ==================================================================
-``wire``        :class:`WireSpec`: material, size, transformation temperatures
-``circuit``     :class:`Circuit`: the source, switch and current limit that drive it
-``model``       :class:`WireModel`: the lumped electro-thermal integrator
-``simulate``    :func:`simulate`, :func:`simulate_drive`, :func:`steady_cycle`
-``envelope``    :class:`SafetyEnvelope`: what the wire may get on that circuit, in energy
-``controller``  :class:`WireController`: felt band, standby, warming, closed loop
-``limiter``     the hardware limits that hold with the gate's logic stuck high, judged on the model
-==============  ==================================================================
+=================  ==================================================================
+``wire``           :class:`WireSpec`: material, size, transformation temperatures
+``circuit``        :class:`Circuit`: the source, switch and current limit that drive it
+``model``          :class:`WireModel`: the lumped electro-thermal integrator
+``simulate``       :func:`simulate`, :func:`simulate_drive`, :func:`steady_cycle`
+``envelope``       :class:`SafetyEnvelope`: what the wire may get on that circuit, in energy
+``controller``     :class:`WireController`: felt band, standby, warming, closed loop
+``limiter``        the hardware limits that hold with the gate's logic stuck high or toggled
+``limiter_worst``  what a limit lets through at its worst, judged on the model
+=================  ==================================================================
 
 Data moves one way: wire and circuit -> model -> simulation; envelope -> controller.
 """

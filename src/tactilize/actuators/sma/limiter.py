@@ -26,10 +26,10 @@ bias, docs/hardware.md, U1) and the MOSFET, and need no software:
 
 Each turns the logic's schedule (segments of constant level, as
 :meth:`WireModel.run` takes them) into the schedule the MOSFET conducts, and
-:func:`peak_c` judges a schedule on the host's wire model, latent heat included.
-:func:`preset_limit` is the limit chosen for each circuit preset, with
-:func:`stuck_high_peak_c` and :func:`runaway_sweep` / :func:`worst_runaway` the
-two worst cases; docs/hardware.md ("Defence in depth") is their table.
+:func:`preset_limit` is the limit chosen for each circuit preset.  What a
+limit lets through at its worst (stuck high, a runaway toggle), judged on the
+host's wire model, is :mod:`tactilize.actuators.sma.limiter_worst`;
+docs/hardware.md ("Defence in depth") is their table.
 
 Units: SI (seconds, ohms, farads, volts); temperatures in degrees Celsius.
 
@@ -48,7 +48,6 @@ from typing import Iterable, Sequence
 from ...errors import WireError
 from .circuit import Circuit
 from .envelope import DESIGN_AMBIENT_C
-from .model import WireModel
 from .wire import WireSpec
 
 __all__ = [
@@ -64,12 +63,6 @@ __all__ = [
     "COMPARATOR_HYSTERESIS_V",
     "replica_for",
     "preset_limit",
-    "peak_c",
-    "stuck_high_peak_c",
-    "runaway_sweep",
-    "worst_runaway",
-    "judge_limit",
-    "runaway_duties",
     "e96_at_or_below",
     "e96_at_or_above",
 ]
@@ -121,7 +114,7 @@ def e96_at_or_above(value: float) -> float:
     return min(v for v in _e96_values(value) if v >= value * (1 - 1e-12))
 
 
-def _append(out: Schedule, duration_s: float, level: float) -> None:
+def append_segment(out: Schedule, duration_s: float, level: float) -> None:
     """Add a segment, merging it into the last one when the level is the same."""
     if duration_s <= 0:
         return
@@ -242,11 +235,11 @@ class AcCoupledGate:
             decay = math.exp(-dur / rc)
             if lev:
                 on = min(dur, self.on_time_s(vc))
-                _append(out, on, 1.0)
-                _append(out, dur - on, 0.0)
+                append_segment(out, on, 1.0)
+                append_segment(out, dur - on, 0.0)
                 vc = vd - (vd - vc) * decay
             else:
-                _append(out, dur, 0.0)
+                append_segment(out, dur, 0.0)
                 vc *= decay
         return out
 
@@ -352,7 +345,7 @@ class ThermalReplica:
                 else:
                     cross = math.inf
                 step = min(rem, cross)
-                _append(out, step, 1.0 if passing else 0.0)
+                append_segment(out, step, 1.0 if passing else 0.0)
                 y = lev + (y - lev) * math.exp(-step / tau)
                 if step == cross:
                     passing = not passing
@@ -368,7 +361,7 @@ def _both(a: Schedule, b: Schedule) -> Schedule:
     rb = b[0][0] if b[0] else 0.0
     while i < len(a[0]) and j < len(b[0]):
         step = min(ra, rb)
-        _append(out, step, a[1][i] * b[1][j])
+        append_segment(out, step, a[1][i] * b[1][j])
         ra -= step
         rb -= step
         # A remainder under 1 ns is float rounding of the two sums of segments.
@@ -507,166 +500,3 @@ def preset_limit(name: str, wire: WireSpec | str | None = None, *, design_air_c:
     if circuit.kind == "current":
         return HardwareLimit(key, replica=replica, note="replica blocks the sink's set point")
     return HardwareLimit(key, replica=replica, ac_gate=AcCoupledGate(), note="replica, then AC-coupled gate")
-
-
-def _air_spec(spec: WireSpec, air_c: float) -> WireSpec:
-    return spec if spec.ambient_c == air_c else spec.replace(ambient_c=float(air_c))
-
-
-def peak_c(
-    spec: WireSpec,
-    circuit: Circuit,
-    schedule: Schedule,
-    air_c: float,
-    *,
-    start_c: float | None = None,
-) -> float:
-    """The hottest the wire model gets [deg C] under a switch schedule in air at ``air_c``.
-
-    Runs :class:`WireModel` (latent heat and minor loops included) from
-    ``start_c`` (the air by default).  Inside one segment of constant level the
-    temperature is monotone (:mod:`.model`), so the peak is at a segment's end.
-    """
-    model = WireModel(_air_spec(spec, air_c), circuit, temperature_c=start_c)
-    edges: list = []
-    model.run(schedule[0], schedule[1], edges=edges)
-    return max([model.initial_temperature_c] + [t for t, _ in edges])
-
-
-def stuck_high_peak_c(
-    limit: HardwareLimit | None,
-    spec: WireSpec,
-    circuit: Circuit,
-    air_c: float,
-    *,
-    duration_s: float = 4.0,
-) -> float:
-    """Peak [deg C] with the logic stuck high for ``duration_s`` from a wire at rest
-    in the air (``limit=None``: no limit, the plain circuit)."""
-    logic = ([duration_s], [1.0])
-    sched = logic if limit is None else limit.schedule(*logic)
-    return peak_c(spec, circuit, sched, air_c)
-
-
-def _toggle(period_s: float, duty: float, duration_s: float) -> Schedule:
-    n = max(1, int(math.ceil(duration_s / period_s)))
-    return [period_s * duty, period_s * (1.0 - duty)] * n, [1.0, 0.0] * n
-
-
-def runaway_duties(limit: HardwareLimit | None) -> list[float]:
-    """Duties [0, 1] a runaway sweep tries for a limit: a coarse grid, and just
-    under and over the places where the limit changes what it lets through (the
-    replica's trip points, the AC-coupled gate's largest toggled duty)."""
-    duties = {0.02, 0.05, 0.1, 0.2, 0.35, 0.5, 0.65, 0.8, 0.9}
-    if limit is not None and limit.replica is not None:
-        for edge in (limit.replica.lower_fraction, limit.replica.upper_fraction):
-            duties.update(edge * f for f in (0.97, 0.99, 0.998, 1.002, 1.01))
-    if limit is not None and limit.ac_gate is not None:
-        edge = limit.ac_gate.max_toggle_duty()
-        duties.update(edge * f for f in (0.9, 0.97, 0.99, 1.01))
-    return sorted(d for d in duties if 0.0 < d < 1.0)
-
-
-#: The toggle periods :func:`worst_runaway` tries by default [s]: from the bias's
-#: 20 kHz chopping to slower than the AC-coupled gate's R C and near the wire's
-#: time constant.
-RUNAWAY_PERIODS_S = (50e-6, 1e-3, 5e-3, 20e-3, 0.1, 0.4)
-
-
-def runaway_sweep(
-    limit: HardwareLimit | None,
-    spec: WireSpec,
-    circuit: Circuit,
-    air_c: float,
-    periods_s: Sequence[float] = RUNAWAY_PERIODS_S,
-    duties: Sequence[float] | None = None,
-    *,
-    duration_s: float = 4.0,
-    then_stuck_s: float = 0.5,
-) -> list[tuple[float, float, float]]:
-    """Peaks of a runaway toggling the logic, over toggle periods and duties.
-
-    Each pattern toggles the logic (high for ``duty * period``, then low) for
-    ``duration_s``, over seven of the wire's time constants, so it reaches its
-    periodic state, then holds it high for ``then_stuck_s``: a crash after a
-    runaway.  A period under a millisecond is run as the wire model's chopped
-    level (``WireModel.run``: the wire sees the mean heat), once the limit has
-    turned it into a conduction schedule.
-
-    Returns
-    -------
-    list of (float, float, float)
-        ``(period [s], duty, peak [deg C])`` per pattern.
-    """
-    out = []
-    for period in periods_s:
-        for duty in runaway_duties(limit) if duties is None else duties:
-            d, lv = _toggle(period, duty, duration_s)
-            d.append(then_stuck_s)
-            lv.append(1.0)
-            sched = (d, lv) if limit is None else limit.schedule(d, lv)
-            if period < 1e-3:
-                sched = _chopped(sched, 1e-3)
-            out.append((float(period), float(duty), peak_c(spec, circuit, sched, air_c)))
-    return out
-
-
-def _chopped(schedule: Schedule, window_s: float) -> Schedule:
-    """A schedule averaged over windows of ``window_s`` [s] (levels become the
-    conducting fraction), for toggling far faster than the wire can follow."""
-    out: Schedule = ([], [])
-    acc_s = on_s = 0.0
-    for dur, lev in zip(*schedule):
-        rem = dur
-        while rem > 0:
-            step = min(rem, window_s - acc_s)
-            acc_s += step
-            on_s += step * lev
-            rem -= step
-            if acc_s >= window_s * (1 - 1e-12):
-                _append(out, acc_s, on_s / acc_s)
-                acc_s = on_s = 0.0
-    if acc_s > 0:
-        _append(out, acc_s, on_s / acc_s)
-    return out
-
-
-def worst_runaway(
-    limit: HardwareLimit | None,
-    spec: WireSpec,
-    circuit: Circuit,
-    air_c: float,
-    periods_s: Sequence[float] = RUNAWAY_PERIODS_S,
-    duties: Sequence[float] | None = None,
-    **kwargs: float,
-) -> tuple[float, float, float]:
-    """The hottest pattern of :func:`runaway_sweep`: ``(period [s], duty, peak [deg C])``."""
-    return max(runaway_sweep(limit, spec, circuit, air_c, periods_s, duties, **kwargs), key=lambda r: r[2])
-
-
-def judge_limit(
-    limit: HardwareLimit | None,
-    spec: WireSpec | str | None,
-    circuit: Circuit | str | None,
-    air_c: float,
-) -> dict[str, float]:
-    """Both worst cases of a limit, at its parts' most permissive corner, in air at ``air_c``.
-
-    Returns
-    -------
-    dict
-        ``stuck_high_c``: the peak [deg C] with the logic stuck high from a wire
-        at rest; ``runaway_c``, ``runaway_period_s``, ``runaway_duty``: the hottest
-        pattern of :func:`worst_runaway` (toggling, then stuck high).
-        ``limit=None`` judges the plain circuit.
-    """
-    sp = WireSpec.resolve(spec)
-    cir = Circuit.resolve(circuit, sp)
-    worst = None if limit is None else limit.worst_corner()
-    period, duty, runaway = worst_runaway(worst, sp, cir, air_c)
-    return {
-        "stuck_high_c": stuck_high_peak_c(worst, sp, cir, air_c),
-        "runaway_c": runaway,
-        "runaway_period_s": period,
-        "runaway_duty": duty,
-    }
