@@ -204,6 +204,22 @@ class FrameSequences(RuleBasedStateMachine):
         pulses = [((first_id + k) & 0xFFFF, min(65535, k * spacing_us), width_us) for k in range(n)]
         self.board.send(P.Command.EVENTS, P.encode_events(channel, base, pulses))
 
+    @rule(kind=st.sampled_from(["status", "sense", "sense-v3", "ping", "heartbeat", "unknown"]),
+          token=st.integers(0, 2**32 - 1))
+    def ask(self, kind, token):
+        if kind == "status":
+            self.board.send(P.Command.STATUS)
+        elif kind == "sense":
+            self.board.send(P.Command.SENSE)
+        elif kind == "sense-v3":
+            self.board.send(P.Command.SENSE, P.SENSE_V3)
+        elif kind == "ping":
+            self.board.send(P.Command.PING, P.encode_ping(token))
+        elif kind == "heartbeat":
+            self.board.send(P.Command.HEARTBEAT)
+        else:
+            self.board.send(0x55, bytes([token & 0xFF]))
+
     @rule(seconds=st.sampled_from([540.0, 1100.0]))
     def idle_past_the_wrap(self, seconds):
         self._go(seconds)
