@@ -38,9 +38,11 @@ _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 
 
 def _mix(z: np.ndarray) -> np.ndarray:
-    """A 64-bit integer hash (the splitmix64 finaliser): neighbouring nodes get unrelated bits."""
-    z = (z ^ (z >> np.uint64(30))) * _M1
-    z = (z ^ (z >> np.uint64(27))) * _M2
+    """A 64-bit integer hash (the splitmix64 finaliser): neighbouring nodes get unrelated bits.
+    Its products wrap modulo 2^64 by design."""
+    with np.errstate(over="ignore"):
+        z = (z ^ (z >> np.uint64(30))) * _M1
+        z = (z ^ (z >> np.uint64(27))) * _M2
     return z ^ (z >> np.uint64(31))
 
 
@@ -101,12 +103,13 @@ class MicroRoughness:
         fu, fv = u - iu, v - iv
         seed = np.uint64((self.seed * int(_GOLDEN)) & 0xFFFFFFFFFFFFFFFF)
         k = -0.5 * (spacing / sigma) ** 2
-        for du in range(-_REACH, _REACH + 1):
-            gu = np.exp(k * (fu - du) ** 2)
-            nu = (iu + du).astype(np.uint64) * np.uint64(0x9E3779B1)
-            for dv in range(-_REACH, _REACH + 1):
-                h = _mix(nu ^ ((iv + dv).astype(np.uint64) * np.uint64(0x85EBCA77)) ^ seed)
-                out += _normal(h) * gu * np.exp(k * (fv - dv) ** 2)
+        with np.errstate(over="ignore"):  # the node hashes wrap modulo 2^64 by design
+            for du in range(-_REACH, _REACH + 1):
+                gu = np.exp(k * (fu - du) ** 2)
+                nu = (iu + du).astype(np.uint64) * np.uint64(0x9E3779B1)
+                for dv in range(-_REACH, _REACH + 1):
+                    h = _mix(nu ^ ((iv + dv).astype(np.uint64) * np.uint64(0x85EBCA77)) ^ seed)
+                    out += _normal(h) * gu * np.exp(k * (fv - dv) ** 2)
         return out * weight
 
 
