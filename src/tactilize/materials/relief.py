@@ -29,7 +29,7 @@ from .library import Material, material
 from .roughness import MicroRoughness
 from .threshold import LEAST_FELT_PROMINENCE_M
 
-__all__ = ["Relief", "relief_for", "contact_radius_m", "visible_relief_std", "LIGHT_FORCE_N",
+__all__ = ["Relief", "relief_for", "contact_radius_m", "follow_share", "visible_relief_std", "LIGHT_FORCE_N",
            "LIGHTING_SCALE_M", "ESTIMATED_RELIEF_RMS_M", "FULL_SCALE_ACCELERATION_M_S2", "FULL_PROMINENCE_M",
            "PROMINENCE_SHARE_OF_STD"]
 
@@ -69,6 +69,20 @@ def contact_radius_m(material: Material, tip_radius_m: float, force_n: float = L
     return a
 
 
+def follow_share(material: Material, tip_radius_m: float, force_n: float = LIGHT_FORCE_N) -> float:
+    """Share of a compliant layer's relief a tip follows under ``force_n`` [N] (1 on a bulk solid).
+
+    The tip would sink delta = a^2 / R into the material (Hertz, unbounded); a layer of
+    thickness t compressed by the tip loses relief in proportion, 1 / (1 + delta / t):
+    this project's model, docs/references.md, section 11 (hardness).  A knit's ribs, a
+    fleece's pile are swallowed; a sheet of paper keeps about half.
+    """
+    if material.thickness_m <= 0:
+        return 1.0
+    a = (3.0 * force_n * tip_radius_m / (4.0 * material.modulus_pa)) ** (1.0 / 3.0)
+    return 1.0 / (1.0 + a * a / tip_radius_m / material.thickness_m)
+
+
 def visible_relief_std(raw: np.ndarray, surface_pitch_m: tuple[float, float]) -> float:
     """Standard deviation of a picture's luminance once variations slower than
     :data:`LIGHTING_SCALE_M` are taken out [luminance units], at least one grey level."""
@@ -98,6 +112,11 @@ class Relief:
     source: str
     material: Material | None = None
 
+    def height_scale_m(self, tip_radius_m: float) -> float:
+        """Metres of followed relief per unit of luminance: the scale times the share a tip
+        of ``tip_radius_m`` [m] follows on the material (:func:`follow_share`)."""
+        return self.scale_m * (1.0 if self.material is None else follow_share(self.material, tip_radius_m))
+
     def footprint_sigma_m(self, tip_radius_m: float) -> float:
         """Standard deviation [m] of the Gaussian low-pass of tip and contact: half the
         tip's radius (docs/references.md, section 3 (stylus tip)) and half the
@@ -112,7 +131,8 @@ class Relief:
         m = self.material
         if m is None or m.micro_rms_m <= 0:
             return None
-        return MicroRoughness.of(m.name, m.micro_rms_m, m.micro_correlation_m, self.footprint_sigma_m(tip_radius_m))
+        return MicroRoughness.of(m.name, m.micro_rms_m * follow_share(m, tip_radius_m), m.micro_correlation_m,
+                                 self.footprint_sigma_m(tip_radius_m))
 
     def prominence_floor_m(self, height_std_m: float) -> float:
         """Least prominence of a bump [m]: the least felt at any speed

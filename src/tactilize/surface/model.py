@@ -224,11 +224,11 @@ def _tip_filter(raw: np.ndarray, sigma_px: tuple[float, float]) -> np.ndarray:
 
 def _build(raw: np.ndarray, display: tuple[float, float], surface: tuple[float, float], tip_m: float,
            relief: Any = None) -> SurfaceModel:
-    # With a material the contact's footprint widens the tip's low-pass (docs/references.md,
-    # section 11 (hardness)); the heights are metres.
+    # With a material the contact's footprint widens the tip's low-pass and a compliant layer
+    # gives under the tip (docs/references.md, section 11 (hardness)); the heights are metres.
     sigma_m = 0.5 * tip_m if relief is None else relief.footprint_sigma_m(tip_m)
     sigma_px = (sigma_m / surface[1], sigma_m / surface[0])  # (rows, cols)
-    src = raw if relief is None else raw * np.float32(relief.scale_m)
+    src = raw if relief is None else raw * np.float32(relief.height_scale_m(tip_m))
     height = _tip_filter(src, sigma_px) if max(sigma_px) > 0.05 else src
     sample = height.ravel()[:: max(1, height.size // _STD_SAMPLE_PX)]
     if relief is None:
