@@ -28,6 +28,7 @@ SECTIONS = {
     8: "Driving a real wire (electrical)",
     9: "Latency and stroking speed",
     10: "The chip model",
+    11: "Materials",
 }
 
 #: "docs/references.md, section 2 (operating point)", "..., sections 1 and 7", "..., sections 4, 5".

@@ -223,3 +223,7 @@ def special_file_fault(path: Any) -> str | None:
         if test(mode):
             return f"is {kind}, not an image file"
     return None
+
+
+class MaterialError(TactilizeError):
+    """A material name that is not in the library, or a material library or relief scale that is invalid."""

@@ -19,6 +19,7 @@ import click
 
 from ..errors import TactilizeError, check_finite
 from ..encode import dumps
+from .materials import describe_relief, material_option, materials_cmd, surface_only
 
 if TYPE_CHECKING:  # the wire model loads on the commands that use it
     from ..actuators.sma import Circuit, WireSpec
@@ -111,11 +112,13 @@ def main() -> None:
 @click.option("--dpi", type=float, callback=_positive("dpi"), help="Pixels per inch of the displayed image.")
 @click.option("--width-mm", type=float, callback=_positive("width-mm"), help="Displayed width of the image [mm].")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document: a list, one object per IMAGE.")
+@material_option
 @click.option("--plot", "plot_path", default=None,
               help="Draw the paper's Fig. 5 (image, log spectrum with the peak, tile map) to this image file; "
                    "with several IMAGEs one file each, FILE's name plus the image's (fig.png: fig-cloth.png ...).")
-def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, as_json: bool, plot_path: str | None) -> None:
-    """Measure the texture features of IMAGE(s)."""
+def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, as_json: bool,
+            material_name: str | None, plot_path: str | None) -> None:
+    """Measure the texture features of IMAGE(s); with --material, also its relief in metres."""
     from ..features import extract_features
     from ..image import load_image
 
@@ -131,6 +134,10 @@ def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, 
         img = load_image(path, dpi=dpi, width_mm=width_mm)
         feat = extract_features(img)
         rows.append({"image": path, **img.describe(), **feat.to_dict()})
+        if material_name is not None:
+            from ..surface import surface_model
+
+            rows[-1].update(describe_relief(surface_model(img, material=material_name)))
         if plot_path is not None:
             from ..maps.texturemap import texture_map
             from .plots import plot_spectrum
@@ -154,6 +161,9 @@ def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, 
             f"  orientation         {row['orientation_deg']:.1f} deg   anisotropy {row['anisotropy']:.3f}\n"
             f"  contrast            {row['contrast']:.3f}   roughness {row['roughness_per_mm']:.3f} /mm"
         )
+        if row.get("material") is not None:
+            click.echo(f"  material            {row['material']}: relief {row['relief_scale_m'] * 1e6:.4g} um per "
+                       f"luminance range ({row['relief_source']})")
 
 
 @main.command()
@@ -165,6 +175,7 @@ def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, 
 @click.option("--width-mm", type=float, callback=_positive("width-mm"), help="Displayed width of the image [mm].")
 @click.option("--output", "output_spec", default=None, help="Send the drive to: simulated | serial:PATH | audio[:DEVICE].")
 @click.option("--hold", "hold_s", type=float, default=None, help="With --output: seconds to keep the drive on [s] (default 1).")
+@material_option
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
 def drive(
     image: str,
@@ -175,6 +186,7 @@ def drive(
     width_mm: float | None,
     output_spec: str | None,
     hold_s: float | None,
+    material_name: str | None,
     as_json: bool,
 ) -> None:
     """The pulse drive for IMAGE stroked at a speed; with --output, also run it on
@@ -187,16 +199,23 @@ def drive(
     if hold_s is not None and (not math.isfinite(hold_s) or hold_s < 0 or output_spec is None):
         raise TactilizeError("--hold", "needs --output and a number of seconds >= 0")
     profile = Profile.resolve(profile_name)
+    surface_only(material_name, profile.rendering)
     img = load_image(image, dpi=dpi, width_mm=width_mm)
     feat = extract_features(img)
     direction = math.radians(direction_deg) if direction_deg is not None else None
     from ..surface.straight import rendered_drive
 
-    drv = rendered_drive(profile, img, feat, speed_mm_s / 1e3, direction)
+    surface = None
+    if material_name is not None:
+        from ..surface import surface_model
+
+        surface = surface_model(img, tip_radius_m=profile.tip_radius_m, material=material_name)
+    drv = rendered_drive(profile, img, feat, speed_mm_s / 1e3, direction, surface=surface)
     doc = {
         "image": image,
         "profile": profile.name,
         "rendering": profile.rendering,
+        **({} if material_name is None else describe_relief(surface)),
         "speed_mm_s": speed_mm_s,
         "spatial_frequency_per_m": feat.spatial_frequency_per_m,
         "spectral_intensity": feat.spectral_intensity,
@@ -212,7 +231,8 @@ def drive(
         return
     clamp = ", ".join(drv.clamped) if drv.clamped else "none"
     click.echo(
-        f"{image} at {speed_mm_s:g} mm/s, profile {profile.name} ({profile.rendering} rendering)\n"
+        f"{image} at {speed_mm_s:g} mm/s, profile {profile.name} ({profile.rendering} rendering"
+        f"{'' if material_name is None else ', material ' + material_name})\n"
         f"  pulse frequency  {drv.pulse_frequency_hz:.1f} Hz\n"
         f"  pulse width      {drv.pulse_width_s * 1e3:.3f} ms\n"
         f"  duty ratio       {drv.duty_ratio * 100:.2f} %\n"
@@ -373,6 +393,7 @@ _CIRCUIT_HELP = "Driver circuit: aa-resistor (default), usb-resistor, aa-sink, a
 @click.option("--dpi", type=float, callback=_positive("dpi"), help="Pixels per inch of the displayed image.")
 @click.option("--width-mm", type=float, callback=_positive("width-mm"), help="Displayed width of the image [mm].")
 @click.option("--plot", "plot_path", default=None, help="Raw mode: draw temperature, martensite and displacement.")
+@material_option
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
 def simulate_cmd(**opt: Any) -> None:
     """What the finger gets: a steady stroke on a texture through the simulated wire.
@@ -425,6 +446,7 @@ def envelope_cmd(wire: str, circuit: str, length_mm: float | None, plot_path: st
 @click.option("--dpi", type=float, callback=_positive("dpi"), help="Pixels per inch of the displayed image.")
 @click.option("--width-mm", type=float, callback=_positive("width-mm"), help="Displayed width of the image [mm].")
 @click.option("-o", "--output", "out_path", required=True, help="File to write.")
+@material_option
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document describing what was written.")
 def export_cmd(**opt: Any) -> None:
     """Write the drive of a stroke on IMAGE as a file (WAV, CSV, JSON, drive log, AHAP, Android, HJIF, .haptic).
@@ -450,3 +472,5 @@ main.add_command(_experiment)
 from .profile import profile as _profile  # noqa: E402  (click only)
 
 main.add_command(_profile)
+
+main.add_command(materials_cmd)

@@ -11,6 +11,7 @@ from __future__ import annotations
 from typing import Any
 
 from ..errors import TactilizeError, check_finite, check_output_path
+from .materials import describe_relief, surface_only
 
 
 def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
@@ -31,14 +32,17 @@ def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     duration = check_finite(opt["duration_s"], "--duration", above=0.0, maximum=600.0, unit="s")
     direction = check_finite(opt["direction_deg"], "--direction", unit="deg")
     profile = Profile.resolve(opt["profile_name"])
+    surface_only(opt.get("material_name"), profile.rendering)
     img = load_image(opt["image"], dpi=opt["dpi"], width_mm=opt["width_mm"])
     tmap = texture_map(img)
     surface = None
     if profile.rendering == "surface":
         from ..surface import surface_model
 
-        surface = surface_model(img, tip_radius_m=profile.tip_radius_m)
+        surface = surface_model(img, tip_radius_m=profile.tip_radius_m, material=opt.get("material_name"))
     extra: dict[str, Any] = {"image": opt["image"], "profile": profile.name, "rendering": profile.rendering}
+    if opt.get("material_name") is not None:
+        extra.update(describe_relief(surface))
     if opt["stroke_path"] is not None:
         stroke = read_stroke(opt["stroke_path"], tmap.width_m, tmap.height_m)
         extra["stroke"] = opt["stroke_path"]

@@ -151,7 +151,7 @@ def stroke_bump_events(stroke: Any, surface: Any, *, origin_s: float = 0.0,
     from scipy.signal import peak_widths
 
     from ..surface.bumps import crossings_along, resample_path
-    from ..surface.events import place_events, strengths
+    from ..surface.events import full_prominence, place_events, strengths
 
     if len(stroke.t_s) < 2:
         return ()
@@ -160,7 +160,8 @@ def stroke_bump_events(stroke: Any, surface: Any, *, origin_s: float = 0.0,
     if c.t_s.size == 0:
         return ()
     press = _pressures(stroke, c.t_s)
-    strength = [strengths([p], [f], pr)[0] for p, f, pr in zip(c.prominence.tolist(), c.floor.tolist(), press)]
+    full = full_prominence(surface)
+    strength = [strengths([p], [f], pr, full)[0] for p, f, pr in zip(c.prominence.tolist(), c.floor.tolist(), press)]
     # Each bump's time above half its prominence, read on the same profile the crossings came from.
     h = surface.regions(path[1], path[2])[0]
     idx = np.searchsorted(path[3], c.s_m)

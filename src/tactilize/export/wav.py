@@ -4,7 +4,8 @@ For a profile whose rendering is ``surface`` (docs/surfaces.md) a WAV carries th
 signal a voice coil should play (:mod:`tactilize.synthesis.acceleration`): the
 tip's acceleration along the stroke, band-limited to the actuator's band, at
 full scale where it reaches
-:data:`~tactilize.synthesis.acceleration.FULL_SCALE_ACCELERATION`, signed 16-bit
+:data:`~tactilize.synthesis.acceleration.FULL_SCALE_ACCELERATION` (on a surface in metres
+:data:`~tactilize.materials.FULL_SCALE_ACCELERATION_M_S2`), signed 16-bit
 PCM, the same signal on both channels (as the stroke's other exports give both
 actuators the same drive).  A steady profile's WAV is still its pulse train
 (:mod:`.steady`).  :func:`stroke_wav_source` is that choice, for the CLI and the page alike.
@@ -59,13 +60,13 @@ class StrokeAcceleration:
         return np.repeat(x[:, None], channels, axis=1), clipped
 
     def _render(self, sample_rate_hz: float) -> tuple[np.ndarray, int]:
-        from ..synthesis.acceleration import Mirrored, tip_acceleration, to_full_scale
+        from ..synthesis.acceleration import Mirrored, full_scale_of, tip_acceleration, to_full_scale
 
         surface = Mirrored(self.surface) if self.mirror else self.surface
         pressure = self.stroke.pressure if any(p is not None for p in self.stroke.pressure) else None
         sig = tip_acceleration(surface, self.stroke.t_s, self.stroke.x_m, self.stroke.y_m, pressure,
                                sample_rate_hz=sample_rate_hz, start_s=self.start_s, end_s=self.end_s)
-        return to_full_scale(sig, self.gain)
+        return to_full_scale(sig, self.gain, full_scale_of(self.surface))
 
 
 def stroke_wav_source(timeline: Any, stroke: Any, surface: Any, drive: str = "profile", *,

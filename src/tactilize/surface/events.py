@@ -28,6 +28,7 @@ __all__ = [
     "strength_of",
     "strengths",
     "FULL_PROMINENCE",
+    "full_prominence",
     "RATE_ONLY_HZ",
     "MAX_RATE_HZ",
     "MIN_INTERVAL_S",
@@ -38,7 +39,8 @@ __all__ = [
     "local_rate_hz",
 ]
 
-#: Prominence [luminance units] that gets full strength: half the luminance range.
+#: Prominence [luminance units] that gets full strength: half the luminance range (a
+#: surface in metres has its own, :func:`full_prominence`).
 FULL_PROMINENCE = 0.5
 #: Above this local rate [pulses/s] only the rate is rendered (every pulse there
 #: gets its neighbourhood's median strength).
@@ -83,21 +85,29 @@ def pressure_scale(pressure: float | None) -> float:
     return 1.0 if pressure is None else min(1.0, max(0.0, float(pressure)) / REFERENCE_PRESSURE)
 
 
-def strength_of(prominence: Any, floor: Any, pressure: float | None = None) -> np.ndarray:
+def full_prominence(surface: Any) -> float:
+    """Prominence of full strength on ``surface``: its own when its heights are metres
+    (``SurfaceModel.full_prominence``), else :data:`FULL_PROMINENCE`."""
+    own = getattr(surface, "full_prominence", None)
+    return FULL_PROMINENCE if own is None else float(own)
+
+
+def strength_of(prominence: Any, floor: Any, pressure: float | None = None, full: float = FULL_PROMINENCE) -> np.ndarray:
     """Strength in [0, 1] of bumps of ``prominence`` on a picture with prominence ``floor``
-    (log scale from the floor to :data:`FULL_PROMINENCE`), scaled by ``pressure``."""
+    (log scale from the floor to ``full``, :func:`full_prominence`), scaled by ``pressure``."""
     p = np.broadcast_to(np.asarray(prominence, dtype=np.float64), np.shape(prominence))
     lo = np.broadcast_to(np.asarray(floor, dtype=np.float64), p.shape)
-    return np.array(strengths(p.ravel().tolist(), lo.ravel().tolist(), pressure)).reshape(p.shape)
+    return np.array(strengths(p.ravel().tolist(), lo.ravel().tolist(), pressure, full)).reshape(p.shape)
 
 
-def strengths(prominence: Sequence[float], floor: Sequence[float], pressure: float | None = None) -> list[float]:
+def strengths(prominence: Sequence[float], floor: Sequence[float], pressure: float | None = None,
+              full: float = FULL_PROMINENCE) -> list[float]:
     """:func:`strength_of` on plain lists: a pen batch has a handful of bumps, where each
     NumPy call costs more than the arithmetic."""
     scale = pressure_scale(pressure)
     out = []
     for p, lo in zip(prominence, floor):
-        span = math.log(max(FULL_PROMINENCE / lo, 1.0 + 1e-9))
+        span = math.log(max(full / lo, 1.0 + 1e-9))
         out.append(min(1.0, max(0.0, math.log(max(p, 1e-12) / lo) / span)) * scale)
     return out
 
@@ -201,7 +211,7 @@ def stroke_events(
     c = crossings_along(surface, *path)
     if c.t_s.size == 0:
         return []
-    return place_events(c.t_s, strength_of(c.prominence, c.floor, pressure))
+    return place_events(c.t_s, strength_of(c.prominence, c.floor, pressure, full_prominence(surface)))
 
 
 def event_statistics(events: Sequence[PulseEvent], duration_s: float | None = None) -> dict[str, float]:

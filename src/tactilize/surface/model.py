@@ -13,7 +13,12 @@ picture is shown, what the pen's positions are measured in) and the *surface*
 pitch (metres per pixel of the real surface, which the tip radius is measured
 in).  They are equal unless the picture's real size is given.
 
-Units: SI (metres); heights in luminance units.
+A picture can carry its relief in metres (docs/surfaces.md, "Materials"): with a
+material or a relief scale (:func:`tactilize.materials.relief_for`) the heights,
+prominences and floors are in metres, the contact of a compliant material widens
+the tip's low-pass, and the material's micro-roughness is added where the tip is.
+
+Units: SI (metres); heights in luminance units, or metres with a relief.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ import numpy as np
 from scipy.ndimage import map_coordinates
 
 from ..errors import ImageError, check_finite
+from ..materials.relief import relief_for
 
 __all__ = ["SurfaceModel", "surface_model", "TIP_RADIUS_M", "PROMINENCE_FLOOR", "PROMINENCE_SHARE_OF_STD"]
 
@@ -59,7 +65,12 @@ class SurfaceModel:
         Least prominence of a bump [luminance units] (:data:`PROMINENCE_FLOOR`
         or :data:`PROMINENCE_SHARE_OF_STD` of the height's deviation).
     raw : ndarray of float32
-        The unfiltered height, kept for :meth:`at_scale`.
+        The unfiltered height, kept for :meth:`at_scale` [luminance units].
+    relief : Relief or None
+        The relief in metres and its material (:class:`tactilize.materials.Relief`); None for
+        the picture alone (heights in luminance units).
+    micro : MicroRoughness or None
+        The material's micro-roughness as the tip follows it, added to every lookup.
     """
 
     height: np.ndarray
@@ -68,6 +79,8 @@ class SurfaceModel:
     tip_radius_m: float
     prominence_floor: float
     raw: np.ndarray
+    relief: Any = None
+    micro: Any = None
     # Made in __post_init__ (see there), not parameters.
     _padded: np.ndarray = field(init=False, repr=False, compare=False)
     _inv_pitch: tuple[float, float] = field(init=False, repr=False, compare=False)
@@ -91,6 +104,30 @@ class SurfaceModel:
     def surface_per_display(self) -> float:
         """Metres of real surface per metre of display (1 unless a real scale was given)."""
         return self.surface_pitch_m[0] / self.display_pitch_m[0]
+
+    @property
+    def full_prominence(self) -> float | None:
+        """Prominence of full strength [m] on a surface in metres; None for the picture alone
+        (:data:`tactilize.surface.events.FULL_PROMINENCE`)."""
+        from ..materials.relief import FULL_PROMINENCE_M
+
+        return None if self.relief is None else FULL_PROMINENCE_M
+
+    @property
+    def full_scale_acceleration(self) -> float | None:
+        """Acceleration [m/s^2] at an output's full scale on a surface in metres; None for the
+        picture alone (:data:`tactilize.synthesis.acceleration.FULL_SCALE_ACCELERATION`)."""
+        from ..materials.relief import FULL_SCALE_ACCELERATION_M_S2
+
+        return None if self.relief is None else FULL_SCALE_ACCELERATION_M_S2
+
+    def micro_at(self, x_m: Any, y_m: Any) -> np.ndarray | float:
+        """The micro-roughness [m] at display positions [m] (0 without a material): drawn on
+        the real surface, so the same spot gives the same height every time."""
+        if self.micro is None:
+            return 0.0
+        sx, sy = (self.surface_pitch_m[i] / self.display_pitch_m[i] for i in (0, 1))
+        return self.micro.height_m(np.asarray(x_m, dtype=np.float64) * sx, np.asarray(y_m, dtype=np.float64) * sy)
 
     @property
     def step_m(self) -> float:
@@ -127,6 +164,8 @@ class SurfaceModel:
         # each NumPy call's overhead, not the arithmetic, is the cost.
         h = map_coordinates(self._padded, (y + 0.5, x + 0.5), output=np.float64, order=1, mode="nearest",
                             prefilter=False)
+        if self.micro is not None:
+            h = h + self.micro_at(x_m, y_m)
         if x.size and x.min() >= 0.0 and x.max() < cols and y.min() >= 0.0 and y.max() < rows:
             return h, None
         return h, (x >= 0.0) & (x < cols) & (y >= 0.0) & (y < rows)
@@ -147,14 +186,14 @@ class SurfaceModel:
     def at_scale(self, surface_pitch_m: float | tuple[float, float]) -> "SurfaceModel":
         """The same picture as a surface of another real size [m per pixel]."""
         pair = _pair(surface_pitch_m, "surface_pitch_m")
-        return _build(self.raw, self.display_pitch_m, pair, self.tip_radius_m)
+        return _build(self.raw, self.display_pitch_m, pair, self.tip_radius_m, self.relief)
 
     def at_display_pitch(self, display_pitch_m: float | tuple[float, float]) -> "SurfaceModel":
         """The same surface shown at another size; its real scale follows the display
         unless it was set apart (then it stays)."""
         pair = _pair(display_pitch_m, "display_pitch_m")
         same = self.surface_pitch_m == self.display_pitch_m
-        return _build(self.raw, pair, pair if same else self.surface_pitch_m, self.tip_radius_m)
+        return _build(self.raw, pair, pair if same else self.surface_pitch_m, self.tip_radius_m, self.relief)
 
 
 def _pair(value: Any, what: str) -> tuple[float, float]:
@@ -183,12 +222,20 @@ def _tip_filter(raw: np.ndarray, sigma_px: tuple[float, float]) -> np.ndarray:
     return np.ascontiguousarray(out, dtype=np.float32)
 
 
-def _build(raw: np.ndarray, display: tuple[float, float], surface: tuple[float, float], tip_m: float) -> SurfaceModel:
-    sigma_px = (0.5 * tip_m / surface[1], 0.5 * tip_m / surface[0])  # (rows, cols)
-    height = _tip_filter(raw, sigma_px) if max(sigma_px) > 0.05 else raw
+def _build(raw: np.ndarray, display: tuple[float, float], surface: tuple[float, float], tip_m: float,
+           relief: Any = None) -> SurfaceModel:
+    # With a material the contact's footprint widens the tip's low-pass and a compliant layer
+    # gives under the tip (docs/references.md, section 11 (hardness)); the heights are metres.
+    sigma_m = 0.5 * tip_m if relief is None else relief.footprint_sigma_m(tip_m)
+    sigma_px = (sigma_m / surface[1], sigma_m / surface[0])  # (rows, cols)
+    src = raw if relief is None else raw * np.float32(relief.height_scale_m(tip_m))
+    height = _tip_filter(src, sigma_px) if max(sigma_px) > 0.05 else src
     sample = height.ravel()[:: max(1, height.size // _STD_SAMPLE_PX)]
-    floor = max(PROMINENCE_FLOOR, PROMINENCE_SHARE_OF_STD * float(np.std(sample)))
-    return SurfaceModel(height, display, surface, float(tip_m), floor, raw)
+    if relief is None:
+        floor = max(PROMINENCE_FLOOR, PROMINENCE_SHARE_OF_STD * float(np.std(sample)))
+        return SurfaceModel(height, display, surface, float(tip_m), floor, raw)
+    floor = relief.prominence_floor_m(float(np.std(sample)))
+    return SurfaceModel(height, display, surface, float(tip_m), floor, raw, relief, relief.micro(tip_m))
 
 
 def surface_model(
@@ -197,6 +244,8 @@ def surface_model(
     tip_radius_m: float = TIP_RADIUS_M,
     surface_pitch_m: float | tuple[float, float] | None = None,
     pitch_m: float | tuple[float, float] | None = None,
+    material: Any = None,
+    relief_scale_m: float | str | None = None,
 ) -> SurfaceModel:
     """The surface model of a picture (or of a height array).
 
@@ -211,6 +260,12 @@ def surface_model(
         Real size of a pixel of the surface [m]; the display pitch by default.
     pitch_m : float or (float, float), optional
         Display pitch [m] of an array (a TextureImage carries its own).
+    material : str or Material, optional
+        A library material (docs/surfaces.md, "Materials"): heights in metres at its typical
+        relief, its hardness and micro-roughness.  None: the picture alone, as before.
+    relief_scale_m : float or "estimate", optional
+        Metres of relief per unit of luminance (given), or ``"estimate"``; with a material
+        it replaces the material's typical relief.
 
     Returns
     -------
@@ -220,6 +275,8 @@ def surface_model(
     ------
     ImageError
         Not a 2-D array of finite heights, or a pitch or tip that is not positive.
+    MaterialError
+        An unknown material or a relief scale that is not a positive number.
     """
     check_finite(tip_radius_m, "<tip_radius_m>", what="tip radius", error=ImageError, above=0.0, unit="m")
     if hasattr(image, "pixels") and hasattr(image, "pitch_m"):
@@ -239,4 +296,5 @@ def surface_model(
     surface = display if surface_pitch_m is None else _pair(surface_pitch_m, "surface_pitch_m")
     if not math.isfinite(tip_radius_m):
         raise ImageError("<tip_radius_m>", "not finite")
-    return _build(raw, display, surface, float(tip_radius_m))
+    relief = relief_for(raw, surface, material, relief_scale_m)
+    return _build(raw, display, surface, float(tip_radius_m), relief)

@@ -148,8 +148,9 @@ class PathGrid:
         self.step = float(surface.step_m)
         self.history_m = float(history_m)
         self._one: tuple[np.ndarray, float, float, float] | None = None
-        if isinstance(surface, SurfaceModel):
-            # The one-picture pass reads the picture directly.
+        if isinstance(surface, SurfaceModel) and surface.micro is None:
+            # The one-picture pass reads the picture directly (a material's micro-roughness
+            # is drawn by the picture's own lookup, as a composite's heights are).
             self._one = (*surface.lookup_table(), float(surface.prominence_floor))
         span = int(self.history_m / self.step) + 2
         self._alloc(4 * span + 256)

@@ -24,7 +24,7 @@ import numpy as np
 
 from . import _stroke_kernels
 from ._stroke_kernels import CLUSTER, LATE, MERGED, RATE_ONLY, fire_due, place_crossings, window_stats
-from .events import (CLUSTER_INTERVAL_S, FULL_PROMINENCE, MIN_INTERVAL_S, RATE_ONLY_HZ, PulseEvent,
+from .events import (CLUSTER_INTERVAL_S, MIN_INTERVAL_S, RATE_ONLY_HZ, PulseEvent, full_prominence,
                      pressure_scale)
 from .path import HISTORY_M, PathGrid
 from .path import warm as path_warm
@@ -99,6 +99,7 @@ class SurfaceStroke:
         self._path = PathGrid(surface)
         tip = getattr(surface, "tip_radius_m", 0.25e-3) / max(getattr(surface, "surface_per_display", 1.0), 1e-12)
         self._same_m = SAME_BUMP_SHARE * tip
+        self._full = full_prominence(surface)  # a surface in metres has its own
         warm()
         # Rows: time [s], strength, flags, arc [m]: events handed out and due, the newest
         # FIRED_KEPT in a ring, and those handed out by the latest batch, not yet due.
@@ -194,7 +195,7 @@ class SurfaceStroke:
         # Every fired arc in the ring is checked: those behind this window can never match.
         n = place_crossings(
             idx, prom, tc, floors, fl0, w.k0, w.step, self._ring, min(self._nfired, FIRED_KEPT), self._same_m,
-            late, now, scale, self._last_fired_t, FULL_PROMINENCE, RATE_ONLY_HZ, MIN_INTERVAL_S, CLUSTER_INTERVAL_S,
+            late, now, scale, self._last_fired_t, self._full, RATE_ONLY_HZ, MIN_INTERVAL_S, CLUSTER_INTERVAL_S,
             pend)
         self._npend = n
         if not n:

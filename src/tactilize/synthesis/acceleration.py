@@ -32,8 +32,10 @@ How it is computed, so that stepping through pixels adds nothing:
    (full at :data:`~tactilize.surface.events.REFERENCE_PRESSURE` and above).
 
 Heights are in luminance units (docs/references.md, section 3 (luminance as
-height)), so the acceleration is in luminance units per s^2; :func:`to_full_scale`
-maps it to an audio sample in [-1, 1].
+height)), so the acceleration is in luminance units per s^2, or, on a surface in
+metres (a material or a relief scale, docs/surfaces.md, "Materials"), in m/s^2
+with the material's micro-roughness in the heights; :func:`to_full_scale` maps it
+to an audio sample in [-1, 1] (the surface's own full scale, :func:`full_scale_of`).
 
 Units: SI (s, m, Hz).
 
@@ -64,6 +66,7 @@ __all__ = [
     "Mirrored",
     "audio_rows",
     "to_full_scale",
+    "full_scale_of",
     "spectrum",
     "spectral_peak_hz",
     "spectral_centroid_hz",
@@ -172,7 +175,10 @@ def heights_along(surface: Any, x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
     px, py = base.display_pitch_m
     # Pixel centres sit at (i + 0.5) pitch.
     coords = np.stack([y / py - 0.5, x / px - 0.5])
-    return map_coordinates(_coefficients(base), coords, order=3, mode="mirror", prefilter=False)
+    h = map_coordinates(_coefficients(base), coords, order=3, mode="mirror", prefilter=False)
+    if getattr(base, "micro", None) is not None:  # a material's roughness below the pixels
+        h = h + base.micro_at(x, y)
+    return h
 
 
 def _path_spline(t: np.ndarray, xy: np.ndarray) -> Any:
@@ -308,10 +314,20 @@ def _pressure_scale(pressure: Any, t: np.ndarray, grid: np.ndarray) -> np.ndarra
     return np.minimum(1.0, np.maximum(0.0, pk) / REFERENCE_PRESSURE)
 
 
-def to_full_scale(signal: AccelerationSignal, gain: float = 1.0) -> tuple[np.ndarray, int]:
-    """Audio samples in [-1, 1]: acceleration over :data:`FULL_SCALE_ACCELERATION` times
-    ``gain``, clipped; returns them and how many were clipped."""
-    x = signal.samples * (gain / FULL_SCALE_ACCELERATION)
+def full_scale_of(surface: Any) -> float:
+    """Acceleration at full scale for ``surface`` [m/s^2 on a surface in metres, else luminance
+    units / s^2]: its own (``SurfaceModel.full_scale_acceleration``) or
+    :data:`FULL_SCALE_ACCELERATION`."""
+    base = getattr(surface, "surface", surface)  # a Mirrored view
+    own = getattr(base, "full_scale_acceleration", None)
+    return FULL_SCALE_ACCELERATION if own is None else float(own)
+
+
+def to_full_scale(signal: AccelerationSignal, gain: float = 1.0,
+                  full_scale: float = FULL_SCALE_ACCELERATION) -> tuple[np.ndarray, int]:
+    """Audio samples in [-1, 1]: acceleration over ``full_scale`` (:func:`full_scale_of` the
+    surface) times ``gain``, clipped; returns them and how many were clipped."""
+    x = signal.samples * (gain / full_scale)
     clipped = int(np.count_nonzero(np.abs(x) > 1.0))
     return np.clip(x, -1.0, 1.0), clipped
 
@@ -356,7 +372,7 @@ def audio_rows(surface: Any, speeds_mm_s: Sequence[float], duration_s: float = 1
         y = np.full(t.size, surface.height_m / 2)
         sig = tip_acceleration(view, t, x, y, sample_rate_hz=sample_rate_hz, start_s=0.0, end_s=duration_s)
         f, p = spectrum(sig)
-        a = sig.samples / FULL_SCALE_ACCELERATION
+        a = sig.samples / full_scale_of(surface)
         rows.append({
             "speed_mm_s": float(v),
             "peak_hz": spectral_peak_hz(f, p, sig.band_hz),

@@ -1,0 +1,21 @@
+"""Materials: what a photograph of a surface cannot show (docs/surfaces.md, "Materials").
+
+- :mod:`.library`: the material library (``library.toml``), :func:`material` by name;
+- :mod:`.relief`: a picture's relief scale in metres and the hardness of its material;
+- :mod:`.roughness`: the micro-roughness below a picture's resolution, drawn by position;
+- :mod:`.threshold`: the vibrotactile detection threshold in displacement and acceleration.
+
+Every number's source: docs/references.md, section 11 (material library).
+"""
+
+from .library import Material, library, material, material_names
+from .relief import (FULL_PROMINENCE_M, FULL_SCALE_ACCELERATION_M_S2, Relief, contact_radius_m, relief_for)
+from .roughness import MicroRoughness
+from .threshold import (LEAST_FELT_PROMINENCE_M, sensation_ratio, threshold_acceleration_m_s2,
+                        threshold_displacement_m)
+
+__all__ = [
+    "Material", "library", "material", "material_names", "Relief", "relief_for", "contact_radius_m",
+    "MicroRoughness", "FULL_SCALE_ACCELERATION_M_S2", "FULL_PROMINENCE_M", "LEAST_FELT_PROMINENCE_M",
+    "sensation_ratio", "threshold_acceleration_m_s2", "threshold_displacement_m",
+]
