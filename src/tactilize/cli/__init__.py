@@ -450,3 +450,7 @@ main.add_command(_experiment)
 from .profile import profile as _profile  # noqa: E402  (click only)
 
 main.add_command(_profile)
+
+from .site import site as _site  # noqa: E402  (click only; the builder loads when it runs)
+
+main.add_command(_site)
