@@ -143,6 +143,7 @@ _PAGE_HEAD = """<!doctype html>
 <meta charset="utf-8">
 <meta name="viewport" content="width=device-width, initial-scale=1">
 <title>{title}</title>
+<link rel="icon" href="data:,">
 <link rel="stylesheet" href="{root}shop.css">
 <script type="module" src="{root}tactile-surface.js"></script>
 </head>
