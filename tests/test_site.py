@@ -96,3 +96,28 @@ def test_cli_site_builds_and_bad_input_is_one_line_and_exit_2(tmp_path):
         assert r.exit_code == 2, (args, r.output)
         assert len(r.output.strip().splitlines()) == 1, r.output
         assert r.output.startswith("tactilize: ")
+
+
+def test_serve_site_router_hands_out_the_built_files_only(tmp_path):
+    from fastapi import FastAPI
+    from fastapi.testclient import TestClient
+
+    from tactilize.errors import CatalogError
+    from tactilize.site.routes import site_router
+
+    (tmp_path / "ph").mkdir()
+    _photo(tmp_path / "ph" / "a.png", size=(200, 150))
+    s = build_site(str(tmp_path / "ph"), tmp_path / "out")
+    (tmp_path / "secret.txt").write_text("no")
+    app = FastAPI()
+    app.include_router(site_router(tmp_path / "out"))
+    c = TestClient(app)
+    assert "<tactile-surface" in c.get("/shop/").text
+    js = c.get("/shop/tactile-surface.js")
+    assert js.status_code == 200 and js.headers["content-type"].startswith("text/javascript")
+    m = c.get(f"/shop/models/{s.products[0]['slug']}.tsf")
+    assert m.status_code == 200 and m.content[:4] == b"TSF1"
+    assert c.get("/shop/../secret.txt").status_code == 404
+    assert c.get("/shop/%2e%2e/secret.txt").status_code == 404
+    with pytest.raises(CatalogError):
+        site_router(tmp_path / "ph")

@@ -129,9 +129,8 @@ def model_bytes(pixels: np.ndarray, pitch: tuple[float, float], *, model_px: int
 def _photo(path: str, out: Path, photo_px: int) -> tuple[int, int]:
     from PIL import Image, ImageOps
 
-    with Image.open(path) as im:
-        im = ImageOps.exif_transpose(im)
-        im = im.convert("RGB")
+    with Image.open(path) as opened:
+        im = ImageOps.exif_transpose(opened).convert("RGB")
         im.thumbnail((photo_px, photo_px), Image.Resampling.LANCZOS)
         im.save(out, "JPEG", quality=82, optimize=True, progressive=True)
         return im.size

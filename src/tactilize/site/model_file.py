@@ -104,7 +104,8 @@ class ModelFile:
         pixel] (the file's own by default); the real scale stays the file's."""
         h = self.header
         disp = h["display_pitch_m"] if display_pitch_m is None else display_pitch_m
-        pair = (float(disp), float(disp)) if np.isscalar(disp) else (float(disp[0]), float(disp[1]))  # type: ignore[index]
+        vals = [float(v) for v in np.broadcast_to(np.asarray(disp, dtype=np.float64), (2,))]
+        pair = (vals[0], vals[1])
         surf = (float(h["surface_pitch_m"][0]), float(h["surface_pitch_m"][1]))
         heights = self.heights
         return SurfaceModel(heights, pair, surf, float(h["tip_radius_m"]), float(h["prominence_floor"]), heights)
