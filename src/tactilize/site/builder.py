@@ -143,8 +143,11 @@ _PAGE_HEAD = """<!doctype html>
 <meta name="viewport" content="width=device-width, initial-scale=1">
 <title>{title}</title>
 <link rel="icon" href="data:,">
-<link rel="stylesheet" href="{root}shop.css">
+{preload}<link rel="stylesheet" href="{root}shop.css">
 <script type="module" src="{root}tactile-surface.js"></script>
+<link rel="modulepreload" href="{root}surface-rule.js">
+<link rel="modulepreload" href="{root}pen-input.js">
+<link rel="modulepreload" href="{root}vibrate.js">
 </head>
 <body>
 """
@@ -160,15 +163,20 @@ def _card(p: dict[str, Any], root: str, link: bool) -> str:
             '</article>\n')
 
 
+def _preload(products: list[dict[str, Any]], root: str) -> str:
+    return "".join(f'<link rel="preload" href="{root}models/{p["slug"]}.tsf" as="fetch" crossorigin>\n' for p in products)
+
+
 def _write_pages(out: Path, products: list[dict[str, Any]], title: str) -> None:
-    head = _PAGE_HEAD.format(title=html.escape(title), root="")
+    # The first screen's models load with the page, not after its first layout.
+    head = _PAGE_HEAD.format(title=html.escape(title), root="", preload=_preload(products[:4], ""))
     cards = "".join(_card(p, "", True) for p in products)
     (out / "index.html").write_text(
         head + f"<header><h1>{html.escape(title)}</h1><p>Press and drag on a photo to feel it.</p></header>\n"
         f'<main class="grid">\n{cards}</main>\n</body>\n</html>\n', encoding="utf-8")
     (out / "p").mkdir(exist_ok=True)
     for p in products:
-        page = _PAGE_HEAD.format(title=html.escape(p["id"]), root="../")
+        page = _PAGE_HEAD.format(title=html.escape(p["id"]), root="../", preload=_preload([p], "../"))
         (out / "p" / f"{p['slug']}.html").write_text(
             page + f'<header><a href="../index.html">All products</a></header>\n<main class="one">\n'
             f'{_card(p, "../", False)}</main>\n</body>\n</html>\n', encoding="utf-8")

@@ -86,7 +86,7 @@ export class TactileSurface extends HTMLElement {
     this.rings = [];          // visual cue: {t_ms, x, y, s}
     this.vib = new VibrationPulses();
     this.audio = null;        // {ctx, node, offset, lastAt}
-    this.stats = { batches: 0, latencyMs: [], firstRenderMs: null, events: 0 };
+    this.stats = { batches: 0, latencyMs: [], workMs: [], firstRenderMs: null, modelMs: null, events: 0 };
     this._wire(root);
   }
 
@@ -106,7 +106,9 @@ export class TactileSurface extends HTMLElement {
   /** Load the model when the element comes near the screen (a long grid loads what is seen). */
   _watch() {
     if (this.observer) this.observer.disconnect();
-    if (typeof IntersectionObserver !== "function") { this.load(); return; }
+    // In (or near) the first screen: now, not after the observer's first report (a frame later).
+    const r = this.getBoundingClientRect();
+    if (typeof IntersectionObserver !== "function" || r.top < innerHeight + 300) { this.load(); return; }
     this.observer = new IntersectionObserver((entries) => {
       if (entries.some((e) => e.isIntersecting)) { this.observer.disconnect(); this.load(); }
     }, { rootMargin: "300px" });
@@ -119,7 +121,7 @@ export class TactileSurface extends HTMLElement {
       this.modelPromise = fetch(new URL(this.getAttribute("model"), document.baseURI))
         .then((r) => { if (!r.ok) throw new Error(`model: HTTP ${r.status}`); return r.arrayBuffer(); })
         .then(parseModel)
-        .then((m) => { this.model = m; this._drain(); return m; })
+        .then((m) => { this.model = m; this.stats.modelMs = performance.now(); this._drain(); return m; })
         .catch((e) => { this.hint.textContent = `Cannot feel this photo (${e.message})`; throw e; });
       this.modelPromise.catch(() => {});
     }
@@ -184,6 +186,7 @@ export class TactileSurface extends HTMLElement {
   }
 
   _render(rows) {
+    const entry = performance.now();
     const m = this.model;
     if (!this.renderer) {
       const w = this.rect.width * CSS_PX_M / m.cols, h = this.rect.height * CSS_PX_M / m.rows;
@@ -199,8 +202,10 @@ export class TactileSurface extends HTMLElement {
     st.batches++;
     st.events += events.length;
     if (st.firstRenderMs === null) st.firstRenderMs = now;
+    // From the newest sample's own timestamp (the browser's dispatch included), and this element's work alone.
     st.latencyMs.push(now - newest[0]);
-    if (st.latencyMs.length > 4000) st.latencyMs.splice(0, 2000);
+    st.workMs.push(now - entry);
+    if (st.latencyMs.length > 4000) { st.latencyMs.splice(0, 2000); st.workMs.splice(0, 2000); }
   }
 
   /** Hand the events not yet fired to every output that is on; they replace what was handed before. */
