@@ -327,12 +327,13 @@ def batch(
 @click.option("--profile", "profile_name", default=None, help="Preset name or TOML file [default: surface].")
 @click.option("--open/--no-open", "open_browser", default=None, help="Open the page in a browser [default: when a display exists].")
 @click.option("--catalog", "catalog_path", default=None, help="Also serve this catalog (Parquet folder or SQLAlchemy URL) at /api/catalog.")
+@click.option("--site", "site_dir", default=None, help="Also serve a site written by `tactilize site` at /shop/.")
 @click.option("--max-sockets", type=click.IntRange(1, 10_000), default=32, show_default=True,
               help="Pages (WebSockets) connected at once, at most; one more is refused with 503.")
 @click.option("--lan", is_flag=True, help="Serve on this machine's network address for a phone: prints the address and a QR code.")
 @click.option("--https", "use_https", is_flag=True, help="HTTPS with a self-signed certificate kept in the user data dir (audio and raw pen updates on a phone need it).")
 def serve(host: str, port: int, output_spec: str, profile_name: str | None, open_browser: bool | None, catalog_path: str | None,
-          max_sockets: int, lan: bool, use_https: bool) -> None:
+          site_dir: str | None, max_sockets: int, lan: bool, use_https: bool) -> None:
     """Serve the tactile pen page: textures, pen stroke, live drive, simulated wire."""
     from ..web.serve import serve as run
 
@@ -341,6 +342,10 @@ def serve(host: str, port: int, output_spec: str, profile_name: str | None, open
         from ..catalog.api import catalog_router
 
         routers.append(catalog_router(catalog_path))  # a bad catalog fails here, before the socket opens
+    if site_dir is not None:
+        from ..site.routes import site_router
+
+        routers.append(site_router(site_dir))
     run(host, port, output_spec, profile_name, open_browser, extra_routers=routers, echo=click.echo,
         warn=lambda s: click.echo(s, err=True), max_sockets=max_sockets, lan=lan, https=use_https)
 
@@ -474,3 +479,7 @@ from .profile import profile as _profile  # noqa: E402  (click only)
 main.add_command(_profile)
 
 main.add_command(materials_cmd)
+
+from .site import site as _site  # noqa: E402  (click only; the builder loads when it runs)
+
+main.add_command(_site)

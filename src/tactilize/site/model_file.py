@@ -1,0 +1,226 @@
+"""The surface model as a compact file a web page reads: quantised tip-filtered heights and the rule's parameters.
+
+A shop page renders the ``surface`` rendering in the browser (docs/shop.md), so it
+needs what :class:`~tactilize.surface.model.SurfaceModel` holds, small enough to load
+with a product page: the tip-filtered heights at the model's resolution, 8 bits each,
+their real-world scale, and every parameter of the rule the page runs
+(``site/static/surface-rule.js``).  Python writes the parameters from the constants
+of :mod:`tactilize.surface` and :mod:`tactilize.pen.tracker`, so the page never has a
+copy of its own.
+
+Layout (little-endian)::
+
+    b"TSF1"                      magic
+    uint32                       N, the header's length in bytes
+    N bytes                      the header, JSON (UTF-8)
+    the rest                     zlib stream of rows x cols bytes: the residuals of
+                                 the header's predictor ("left" or "gradient"),
+                                 modulo 256, row by row
+
+Height of a pixel = ``offset + q * scale`` (float64 arithmetic), rounded to float32:
+Python (:func:`read_model`) and JavaScript compute it the same way, so both renderers
+see the same heights to the bit.
+
+Units: SI (m, s, Hz); heights in luminance units.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+import zlib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import ImageError
+from ..pen.tracker import StrokeTracker
+from ..surface import events as _events
+from ..surface import stroke as _stroke
+from ..surface.model import SurfaceModel
+from ..surface.path import HISTORY_M
+from ..synthesis.acceleration import VOICE_COIL_BAND_HZ
+
+__all__ = ["MAGIC", "FORMAT_VERSION", "ModelFile", "rule_parameters", "encode_model", "decode_model",
+           "read_model", "write_model"]
+
+MAGIC = b"TSF1"
+FORMAT_VERSION = 1
+_PREDICTORS = ("left", "gradient")
+
+
+def rule_parameters() -> dict[str, Any]:
+    """Every parameter of the surface rule the page runs, from the Python renderer's own constants."""
+    tr = StrokeTracker()
+    return {
+        "lookahead_s": _stroke.LOOKAHEAD_S,
+        "late_s": _stroke.LATE_S,
+        "same_bump_share": _stroke.SAME_BUMP_SHARE,
+        "max_gap_s": _stroke.MAX_GAP_S,
+        "still_speed_m_s": _stroke.STILL_SPEED_M_S,
+        "max_ahead_m": _stroke.MAX_AHEAD_M,
+        "fired_kept": _stroke.FIRED_KEPT,
+        "history_m": HISTORY_M,
+        "full_prominence": _events.FULL_PROMINENCE,
+        "rate_only_hz": _events.RATE_ONLY_HZ,
+        "min_interval_s": _events.MIN_INTERVAL_S,
+        "cluster_interval_s": _events.CLUSTER_INTERVAL_S,
+        "reference_pressure": _events.REFERENCE_PRESSURE,
+        "wavelet_band_hz": list(VOICE_COIL_BAND_HZ),
+        "tracker": {
+            "window_s": tr.window_s, "min_samples": tr.min_samples, "min_travel_m": tr.min_travel_m,
+            "max_window_s": tr.max_window_s, "max_gap_s": tr.max_gap_s, "max_speed_m_s": tr.max_speed_m_s,
+            "still_speed_m_s": tr.still_speed_m_s, "max_samples": tr._buf.maxlen,
+        },
+    }
+
+
+@dataclass(frozen=True)
+class ModelFile:
+    """A decoded model file.
+
+    Attributes
+    ----------
+    header : dict
+        The JSON header (scale, material, parameters).
+    levels : ndarray of uint8, shape (rows, cols)
+        The quantised heights.
+    """
+
+    header: dict[str, Any]
+    levels: np.ndarray
+
+    @property
+    def heights(self) -> np.ndarray:
+        """Heights [luminance units], float32, as the page computes them."""
+        h = self.header
+        return (float(h["offset"]) + self.levels.astype(np.float64) * float(h["scale"])).astype(np.float32)
+
+    def surface(self, display_pitch_m: float | tuple[float, float] | None = None) -> SurfaceModel:
+        """The :class:`SurfaceModel` the page renders: these heights (already tip-filtered, so not
+        filtered again), the file's prominence floor, shown at ``display_pitch_m`` [m per model
+        pixel] (the file's own by default); the real scale stays the file's."""
+        h = self.header
+        disp = h["display_pitch_m"] if display_pitch_m is None else display_pitch_m
+        vals = [float(v) for v in np.broadcast_to(np.asarray(disp, dtype=np.float64), (2,))]
+        pair = (vals[0], vals[1])
+        surf = (float(h["surface_pitch_m"][0]), float(h["surface_pitch_m"][1]))
+        heights = self.heights
+        return SurfaceModel(heights, pair, surf, float(h["tip_radius_m"]), float(h["prominence_floor"]), heights)
+
+
+def _residuals(q: np.ndarray, predictor: str) -> np.ndarray:
+    """Residuals (mod 256) of ``q`` under ``predictor``; :func:`_undo` inverts them."""
+    v = q.astype(np.int16)
+    pred = np.zeros_like(v)
+    pred[:, 1:] = v[:, :-1]
+    if predictor == "gradient":
+        # Left + up - up-left; the first column predicts from above.
+        pred[1:, 1:] = v[1:, :-1] + v[:-1, 1:] - v[:-1, :-1]
+        pred[1:, 0] = v[:-1, 0]
+    return ((v - pred) & 0xFF).astype(np.uint8)
+
+
+def _undo(r: np.ndarray, predictor: str) -> np.ndarray:
+    rows, cols = r.shape
+    out = np.zeros((rows, cols), dtype=np.int64)
+    ri = r.astype(np.int64)
+    for y in range(rows):
+        if predictor == "gradient" and y > 0:
+            out[y, 0] = (out[y - 1, 0] + ri[y, 0]) & 0xFF
+            for x in range(1, cols):
+                out[y, x] = (out[y, x - 1] + out[y - 1, x] - out[y - 1, x - 1] + ri[y, x]) & 0xFF
+        else:
+            out[y] = np.cumsum(ri[y]) & 0xFF
+    return out.astype(np.uint8)
+
+
+def encode_model(surface: SurfaceModel, *, material: str | None = None, product_id: str | None = None) -> bytes:
+    """The model file of ``surface`` (its tip-filtered heights quantised to 8 bits over their range).
+
+    Parameters
+    ----------
+    surface : SurfaceModel
+        At the resolution the page renders at.
+    material : str, optional
+        Passed through into the header (a manifest's ``material`` column).
+    product_id : str, optional
+        The catalogue id, for the header.
+
+    Returns
+    -------
+    bytes
+    """
+    h = np.asarray(surface.height, dtype=np.float64)
+    lo, hi = float(h.min()), float(h.max())
+    scale = (hi - lo) / 255.0 if hi > lo else 1.0 / 255.0
+    q = np.clip(np.round((h - lo) / scale), 0, 255).astype(np.uint8)
+    best = b""
+    chosen = _PREDICTORS[0]
+    for predictor in _PREDICTORS:
+        packed = zlib.compress(_residuals(q, predictor).tobytes(), 9)
+        if not best or len(packed) < len(best):
+            best, chosen = packed, predictor
+    rows, cols = q.shape
+    header = {
+        "format": "tactilize-surface",
+        "version": FORMAT_VERSION,
+        "id": product_id,
+        "cols": int(cols),
+        "rows": int(rows),
+        "offset": lo,
+        "scale": scale,
+        "predictor": chosen,
+        "display_pitch_m": list(surface.display_pitch_m),
+        "surface_pitch_m": list(surface.surface_pitch_m),
+        "tip_radius_m": surface.tip_radius_m,
+        "prominence_floor": surface.prominence_floor,
+        "material": material,
+        "rule": rule_parameters(),
+    }
+    text = json.dumps(header, separators=(",", ":")).encode("utf-8")
+    return MAGIC + struct.pack("<I", len(text)) + text + best
+
+
+def decode_model(data: bytes, source: str = "<model>") -> ModelFile:
+    """Read a model file's bytes.
+
+    Raises
+    ------
+    ImageError
+        Not a model file of this version, or damaged.
+    """
+    if len(data) < 8 or data[:4] != MAGIC:
+        raise ImageError(source, "not a tactilize surface model (no TSF1 magic)")
+    (n,) = struct.unpack("<I", data[4:8])
+    try:
+        header = json.loads(data[8 : 8 + n].decode("utf-8"))
+        raw = zlib.decompress(data[8 + n :])
+    except (UnicodeDecodeError, json.JSONDecodeError, zlib.error) as exc:
+        raise ImageError(source, f"damaged model file ({exc.__class__.__name__})") from None
+    if header.get("version") != FORMAT_VERSION or header.get("predictor") not in _PREDICTORS:
+        raise ImageError(source, f"model file version {header.get('version')!r} is not {FORMAT_VERSION}")
+    rows, cols = int(header["rows"]), int(header["cols"])
+    if len(raw) != rows * cols:
+        raise ImageError(source, f"holds {len(raw)} heights, not {rows} x {cols}")
+    levels = _undo(np.frombuffer(raw, dtype=np.uint8).reshape(rows, cols), header["predictor"])
+    return ModelFile(header, levels)
+
+
+def write_model(path: str | Path, surface: SurfaceModel, **kw: Any) -> int:
+    """Write :func:`encode_model` to ``path``; returns its size [bytes]."""
+    data = encode_model(surface, **kw)
+    Path(path).write_bytes(data)
+    return len(data)
+
+
+def read_model(path: str | Path) -> ModelFile:
+    """:func:`decode_model` of a file."""
+    p = Path(path)
+    try:
+        data = p.read_bytes()
+    except OSError as exc:
+        raise ImageError(str(p), f"cannot read ({exc.strerror or exc.__class__.__name__})") from None
+    return decode_model(data, str(p))
