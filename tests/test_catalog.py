@@ -8,6 +8,9 @@ like an image, a manifest row with a bad width.
 
 from __future__ import annotations
 
+from tactilize.mapping import DEFAULT_PRESET
+from tactilize.surface.straight import rendered_drive
+
 import io
 import json
 import math
@@ -193,7 +196,8 @@ def test_every_good_image_has_a_correct_row_and_every_bad_one_its_reason(shop, p
     df = read_catalog(out)
     assert len(df) == N_GOOD + len(bad) and df["id"].is_unique
     rows = {r["id"]: r for r in df.to_dict("records")}
-    profile = Profile.preset("paper")
+    # The batch renders as every other command does by default (the surface rendering).
+    profile = Profile.preset(DEFAULT_PRESET)
 
     for ident, word in bad.items():
         row = rows[ident]
@@ -217,7 +221,7 @@ def test_every_good_image_has_a_correct_row_and_every_bad_one_its_reason(shop, p
         for key, value in texture_map(img, sample_px="auto").summary().items():
             assert row[f"map_{key}"] == pytest.approx(value, rel=1e-9, abs=1e-12), (row["id"], key)
         for speed, label in zip(SPEEDS_M_S, ("30", "60", "120")):
-            drv = profile.drive(feat, speed_m_s=speed)
+            drv = rendered_drive(profile, img, feat, speed)
             assert row[f"drive_{label}mm_s_pulse_frequency_hz"] == pytest.approx(drv.pulse_frequency_hz, rel=1e-9)
             assert row[f"drive_{label}mm_s_pulse_width_s"] == pytest.approx(drv.pulse_width_s, rel=1e-9)
             assert row[f"drive_{label}mm_s_clamped"] == ",".join(drv.clamped)
@@ -352,7 +356,7 @@ def test_catalog_reader(shop, pooled):
     _, bad = shop
     cat = Catalog(pooled[0])
     assert cat.counts() == {"total": N_GOOD + len(bad), "ok": N_GOOD, "failed": len(bad)}
-    assert cat.profile.name == "paper" and cat.speeds_m_s == SPEEDS_M_S
+    assert cat.profile.name == DEFAULT_PRESET and cat.speeds_m_s == SPEEDS_M_S
     row = cat.get("dept1/item0001.jpg")
     assert row["status"] == "ok" and isinstance(row["width_px"], int)
     stored = dict(cat.stored_drives(row))

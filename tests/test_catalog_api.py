@@ -46,7 +46,7 @@ def shop(tmp_path_factory):
 def client(request, shop, tmp_path_factory):
     out_dir = tmp_path_factory.mktemp("api_out")
     out = out_dir / "cat.parquet" if request.param == "parquet" else f"sqlite:///{out_dir / 'cat.db'}"
-    summary = run_batch(shop, out, workers=1)
+    summary = run_batch(shop, out, profile="paper", workers=1)
     assert (summary.ok, summary.failed) == (len(GOOD), 1)
     return TestClient(create_catalog_app(out))
 
@@ -154,7 +154,7 @@ def test_router_mounts_in_another_app(shop, tmp_path):
     from fastapi import FastAPI
 
     out = tmp_path / "c.parquet"
-    run_batch(shop, out, workers=1)
+    run_batch(shop, out, profile="paper", workers=1)
     app = FastAPI()
     app.include_router(catalog_router(out, prefix="/shop"))
     r = TestClient(app).get("/shop/products/sofa.png")

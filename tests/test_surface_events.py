@@ -194,7 +194,7 @@ def test_above_150_per_second_only_rate_and_never_above_the_band():
     t, x, y = _line(0.16, 2e-3, 38e-3, 2.5e-3, rate_hz=1000.0)
     ev = stroke_events(sm, t, x, y)
     stats = event_statistics(ev)
-    assert RATE_ONLY_HZ < stats["rate_hz"] <= MAX_RATE_HZ * 1.01
+    assert RATE_ONLY_HZ < stats.rate_hz <= MAX_RATE_HZ * 1.01
     assert all("rate_only" in e.clamped for e in ev[3:-3])
     assert min(np.diff([e.t_s for e in ev])) >= 1 / MAX_RATE_HZ - 1e-12
 

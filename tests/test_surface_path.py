@@ -70,7 +70,7 @@ class ScratchPath:
         else:
             xp = yp = tp = np.zeros(0)
         h, ids, fl = self.surface.regions(np.concatenate((xk, xp)), np.concatenate((yk, yp)))
-        return Window(h, ids, fl, int(ks[0]) if ks.size else 0, ks.size, tk, tp, step)
+        return Window(h, ids, fl, int(ks[0]) if ks.size else 0, ks.size, np.concatenate((tk, tp)), step)
 
 
 def _stroke(path_cls, surface):

@@ -189,16 +189,16 @@ def _surface_report(profile: Profile, images: dict[str, Any] | None, speeds_mm_s
         measured: dict[str, tuple[float, float]] = {}
         for name, sm in surfaces.items():
             d, events, stats = surface_stroke_drive(sm, profile, v / 1e3)
-            measured[name] = (stats["rate_hz"], stats["interval_cv"])
+            measured[name] = (stats.rate_hz, stats.interval_cv)
             row = {
                 "texture": name,
                 "speed_mm_s": float(v),
-                "frequency_hz": stats["rate_hz"],
+                "frequency_hz": stats.rate_hz,
                 "pulse_width_ms": d.pulse_width_s * 1e3,
-                "strength": stats["strength"],
+                "strength": stats.strength,
                 "regularity": d.regularity,
-                "interval_cv": stats["interval_cv"],
-                "pulses": stats["pulses"],
+                "interval_cv": stats.interval_cv,
+                "pulses": stats.pulses,
                 "clamped": sorted({c for e in events for c in e.clamped}),
             }
             row.update(_felt_columns(d, wire, simulate_wire))

@@ -23,7 +23,8 @@ import numpy as np
 from .. import __version__
 from ..errors import CatalogError, ImageError, TactilizeError
 from ..image import DEFAULT_MAX_PIXELS, TextureImage, load_image
-from ..mapping import Profile
+from ..mapping import DEFAULT_PRESET, Profile
+from ..surface.straight import rendered_drive
 from .sources import CatalogItem
 
 __all__ = [
@@ -49,8 +50,9 @@ FORMAT_VERSION = 3
 #: any change to the features, the texture map or the drives that moves a stored
 #: value.  1 stands for every catalog written before the version was recorded
 #: (format 2 and earlier); 2: ``mean_level`` is the plain mean, and i_s with it
-#: (commit fc1de98).
-ANALYSIS_VERSION = 2
+#: (commit fc1de98); 3: a surface profile's drives are its rendering's (the equivalent Drive
+#: of a steady stroke's events), not its laws'.
+ANALYSIS_VERSION = 3
 
 
 @dataclass(frozen=True)
@@ -82,7 +84,7 @@ class AnalysisSettings:
         whole-tile values on gratings of 4.5 to 31 pixels (docs/batch.md).
     """
 
-    profile: Profile = field(default_factory=lambda: Profile.preset("paper"))
+    profile: Profile = field(default_factory=lambda: Profile.preset(DEFAULT_PRESET))
     speeds_m_s: tuple[float, ...] = DEFAULT_SPEEDS_M_S
     dpi: float | None = None
     analysis_pitch_m: float | None = None
@@ -169,8 +171,14 @@ def _row_from_image(img: TextureImage, settings: AnalysisSettings) -> dict[str, 
             row[key] = value
     for key, value in tmap.summary().items():
         row[f"map_{key}"] = value
+    surface = None
+    if settings.profile.rendering == "surface":
+        from ..surface.model import surface_model
+
+        surface = surface_model(img, tip_radius_m=settings.profile.tip_radius_m)
     for speed in settings.speeds_m_s:
-        drv = settings.profile.drive(feat, speed_m_s=speed)
+        # What every command renders for this picture stroked steadily at this speed.
+        drv = rendered_drive(settings.profile, img, feat, speed, surface=surface)
         prefix = f"drive_{speed_label(speed)}_"
         row[prefix + "pulse_frequency_hz"] = drv.pulse_frequency_hz
         row[prefix + "pulse_width_s"] = drv.pulse_width_s

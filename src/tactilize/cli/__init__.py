@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from ..errors import TactilizeError, check_finite
+from ..mapping.profile import DEFAULT_PRESET
 from ..encode import dumps
 from .materials import describe_relief, material_option, materials_cmd, surface_only
 
@@ -170,7 +171,7 @@ def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, 
 @click.argument("image")
 @click.option("--speed", "speed_mm_s", type=float, required=True, help="Stroking speed [mm/s].")
 @click.option("--direction-deg", type=float, default=None, help="Stroke direction [deg], counter-clockwise from +x.")
-@click.option("--profile", "profile_name", default="surface", show_default=True, help="Preset name or TOML file.")
+@click.option("--profile", "profile_name", default=DEFAULT_PRESET, show_default=True, help="Preset name or TOML file.")
 @click.option("--dpi", type=float, callback=_positive("dpi"), help="Pixels per inch of the displayed image.")
 @click.option("--width-mm", type=float, callback=_positive("width-mm"), help="Displayed width of the image [mm].")
 @click.option("--output", "output_spec", default=None, help="Send the drive to: simulated | serial:PATH | audio[:DEVICE].")
@@ -266,7 +267,7 @@ def controller_emulator(link: str | None) -> None:
 @main.command()
 @click.argument("source")
 @click.option("--out", "out", required=True, help="Parquet catalog folder, or an SQLAlchemy URL (sqlite:///shop.db).")
-@click.option("--profile", "profile_name", default="paper", show_default=True, help="Preset name or TOML file.")
+@click.option("--profile", "profile_name", default=DEFAULT_PRESET, show_default=True, help="Preset name or TOML file.")
 @click.option("--dpi", type=float, callback=_positive("dpi"), help="Pixels per inch where the manifest says nothing.")
 @click.option("--analysis-dpi", type=float, callback=_positive("analysis-dpi"), help="Lowest resolution the analysis may use; lets JPEGs decode at 1/2..1/8 size.")
 @click.option("--full-map", is_flag=True, help="Measure every texture-map tile whole (default: its centred half when that holds two periods).")
@@ -384,7 +385,7 @@ _CIRCUIT_HELP = "Driver circuit: aa-resistor (default), usb-resistor, aa-sink, a
 @click.option("--image", "image_path", default=None, help="Or an image file to stroke.")
 @click.option("--speed", "speed_mm_s", type=float, default=None, help="Steady stroking speed [mm/s].")
 @click.option("--direction", "direction_deg", type=float, default=None, help="Stroke direction [deg, y up].")
-@click.option("--profile", "profile_name", default="surface", show_default=True, help="Preset name or TOML file.")
+@click.option("--profile", "profile_name", default=DEFAULT_PRESET, show_default=True, help="Preset name or TOML file.")
 @click.option("--standby/--no-standby", default=True, show_default=True,
               help="The wire waits in standby (or cold and off) when the pen touches.")
 @click.option("--open-loop", is_flag=True, help="The controller trusts the nominal circuit and air.")
@@ -447,7 +448,7 @@ def envelope_cmd(wire: str, circuit: str, length_mm: float | None, plot_path: st
 @click.option("--format", "fmt", type=str, required=True, help="wav | csv | json | log | ahap | android | hjif | haptic")
 @click.option("--drive", "drive_kind", type=click.Choice(["profile", "wire"]), default="profile", show_default=True,
               help="The profile's drive (for phones, players, voice coils) or what the simulated SMA wire applied.")
-@click.option("--profile", "profile_name", default="surface", show_default=True, help="Preset name or TOML file.")
+@click.option("--profile", "profile_name", default=DEFAULT_PRESET, show_default=True, help="Preset name or TOML file.")
 @click.option("--dpi", type=float, callback=_positive("dpi"), help="Pixels per inch of the displayed image.")
 @click.option("--width-mm", type=float, callback=_positive("width-mm"), help="Displayed width of the image [mm].")
 @click.option("-o", "--output", "out_path", required=True, help="File to write.")

@@ -8,6 +8,7 @@ from typing import Any
 import click
 
 from ..errors import TactilizeError
+from ..mapping.profile import DEFAULT_PRESET
 
 __all__ = ["profile"]
 
@@ -18,7 +19,7 @@ def profile() -> None:
 
 
 @profile.command("report")
-@click.option("--profile", "profile_name", default="surface", show_default=True, help="Preset name or TOML file.")
+@click.option("--profile", "profile_name", default=DEFAULT_PRESET, show_default=True, help="Preset name or TOML file.")
 @click.option("--image", "images", multiple=True, help="An image to include instead of the built-in textures (repeat).")
 @click.option("--dpi", type=float, default=None, help="Pixels per inch of the given images.")
 @click.option("--width-mm", type=float, default=None, help="Displayed width of the given images [mm].")

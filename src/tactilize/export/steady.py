@@ -59,16 +59,26 @@ def wav_bytes(
     """
     drives = _drives(drive)
     duration = _duration(duration_s)
+    _check_wav_rate(sample_rate_hz)
+    return pcm_wav(_signals(drives, duration, sample_rate_hz), sample_rate_hz)
+
+
+def _check_wav_rate(sample_rate_hz: Any) -> None:
+    """A WAV's rate is a whole positive number of Hz (checked before any signal is made)."""
     if not isinstance(sample_rate_hz, int) or isinstance(sample_rate_hz, bool) or sample_rate_hz <= 0:
         raise SignalError("<sample rate>", f"WAV needs a whole positive number of Hz, got {sample_rate_hz!r}")
-    return pcm_wav(_signals(drives, duration, sample_rate_hz), sample_rate_hz)
 
 
 def pcm_wav(x: np.ndarray, sample_rate_hz: int, *, signed: bool = False) -> bytes:
     """16-bit PCM WAV bytes of samples ``x`` (n, channels) in [0, 1] (1 is full scale, 32767),
-    or in [-1, 1] when ``signed`` (an acceleration: :mod:`.wav`)."""
-    if not isinstance(sample_rate_hz, int) or isinstance(sample_rate_hz, bool) or sample_rate_hz <= 0:
-        raise SignalError("<sample rate>", f"WAV needs a whole positive number of Hz, got {sample_rate_hz!r}")
+    or in [-1, 1] when ``signed`` (an acceleration: :mod:`.wav`).
+
+    Raises
+    ------
+    SignalError
+        ``sample_rate_hz`` is not a whole positive number of Hz.
+    """
+    _check_wav_rate(sample_rate_hz)
     pcm = np.round(np.clip(x, -1.0 if signed else 0.0, 1.0) * 32767).astype("<i2")
     buf = io.BytesIO()
     with wave.open(buf, "wb") as w:

@@ -20,9 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import SignalError
 
-__all__ = ["StrokeAcceleration", "pcm_wav_signed", "stroke_wav_source"]
+__all__ = ["StrokeAcceleration", "stroke_wav_source"]
 
 
 @dataclass(frozen=True)
@@ -93,12 +92,3 @@ def stroke_wav_source(timeline: Any, stroke: Any, surface: Any, drive: str = "pr
         return timeline
     origin = 0.0 if synthetic else float(stroke.t_s[0])  # the timeline's t = 0 on the stroke's clock [s]
     return StrokeAcceleration(stroke, surface, origin, origin + float(timeline.end_s), mirror=synthetic)
-
-
-def pcm_wav_signed(x: np.ndarray, sample_rate_hz: int) -> bytes:
-    """16-bit PCM WAV bytes of signed samples ``x`` (n, channels) in [-1, 1] (1 is 32767)."""
-    from .steady import pcm_wav
-
-    if not isinstance(sample_rate_hz, int) or isinstance(sample_rate_hz, bool) or sample_rate_hz <= 0:
-        raise SignalError("<sample rate>", f"WAV needs a whole positive number of Hz, got {sample_rate_hz!r}")
-    return pcm_wav(x, sample_rate_hz, signed=True)

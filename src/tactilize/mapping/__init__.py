@@ -32,9 +32,10 @@ from .laws import (
     law_kinds,
 )
 from .limits import ActuatorLimits
-from .profile import DriveFeatures, FeaturesForDrive, Profile, preset_names
+from .profile import DEFAULT_PRESET, DriveFeatures, FeaturesForDrive, Profile, preset_names
 
 __all__ = [
+    "DEFAULT_PRESET",
     "Drive",
     "ActuatorLimits",
     "LinearFrequency",

@@ -35,12 +35,14 @@ from .laws import (
 )
 from .limits import ActuatorLimits
 
-__all__ = ["Profile", "preset_names", "DriveFeatures", "FeaturesForDrive", "RENDERINGS", "TIP_RADIUS_RANGE_M"]
+__all__ = ["DEFAULT_PRESET", "Profile", "preset_names", "DriveFeatures", "FeaturesForDrive", "RENDERINGS", "TIP_RADIUS_RANGE_M"]
 
 #: How a profile renders a picture: ``steady`` (one drive from the picture's features
 #: and the stroke's speed, the paper's way) or ``surface`` (a pulse per bump the tip
 #: crosses, docs/surfaces.md).  A TOML without ``rendering`` is steady.
 RENDERINGS = ("steady", "surface")
+#: The preset every command and the library use when none is named: the surface rendering.
+DEFAULT_PRESET = "surface"
 
 
 @runtime_checkable
@@ -194,9 +196,9 @@ class Profile:
 
     @classmethod
     def resolve(cls, name_or_path: str | Path | None) -> "Profile":
-        """A preset by name, or a TOML file by path; the paper preset for None."""
+        """A preset by name, or a TOML file by path; :data:`DEFAULT_PRESET` for None."""
         if name_or_path is None:
-            return cls.preset("paper")
+            return cls.preset(DEFAULT_PRESET)
         text = str(name_or_path)
         if text in preset_names():
             return cls.preset(text)

@@ -14,11 +14,12 @@ Units: SI (s, m); heights and prominences in luminance units.
 
 from __future__ import annotations
 
-import math
 from typing import Any, NamedTuple
 
 import numpy as np
 from scipy.signal import find_peaks  # at import: a first stroke must not wait for it (0.5 s and more)
+
+from .model import SurfaceLike
 
 __all__ = ["Crossings", "resample_path", "crossings_along", "bumps_in"]
 
@@ -59,8 +60,6 @@ def resample_path(t_s: Any, x_m: Any, y_m: Any, step_m: float, s0_m: float = 0.0
     (t_s, x_m, y_m, s_m) : ndarrays
         ``s_m`` counts from ``s0_m`` at the first sample.
     """
-    if len(t_s) <= _SHORT:
-        return _resample_short(t_s, x_m, y_m, step_m, s0_m)
     t = np.asarray(t_s, dtype=np.float64)
     x = np.asarray(x_m, dtype=np.float64)
     y = np.asarray(y_m, dtype=np.float64)
@@ -75,39 +74,13 @@ def resample_path(t_s: Any, x_m: Any, y_m: Any, step_m: float, s0_m: float = 0.0
     return np.interp(grid, s, t), np.interp(grid, s, x), np.interp(grid, s, y), grid
 
 
-#: Up to this many samples a path's vertices are handled in plain Python (a pen batch's
-#: window holds a few dozen, where each NumPy call costs more than the arithmetic).
-_SHORT = 64
-
-
-def _resample_short(t_s: Any, x_m: Any, y_m: Any, step_m: float, s0_m: float) -> tuple[np.ndarray, ...]:
-    """:func:`resample_path` for a few dozen samples: the arc lengths in plain Python, one grid."""
-    x, y = [float(v) for v in x_m], [float(v) for v in y_m]
-    t = [float(v) for v in t_s]
-    kt, kx, ky, ks = [t[0]], [x[0]], [y[0]], [s0_m]
-    c = 0.0
-    for i in range(1, len(t)):
-        d = math.hypot(x[i] - x[i - 1], y[i] - y[i - 1])
-        if d > 0:
-            c += d
-            kt.append(t[i])
-            kx.append(x[i])
-            ky.append(y[i])
-            ks.append(s0_m + c)
-    if len(ks) < 2:
-        return np.array(kt), np.array(kx), np.array(ky), np.array(ks)
-    n = int((ks[-1] - ks[0]) / step_m) + 1
-    grid = ks[0] + step_m * np.arange(n)
-    return np.interp(grid, ks, kt), np.interp(grid, ks, kx), np.interp(grid, ks, ky), grid
-
-
-def crossings_along(surface: Any, t_s: np.ndarray, x_m: np.ndarray, y_m: np.ndarray, s_m: np.ndarray) -> Crossings:
+def crossings_along(surface: SurfaceLike, t_s: np.ndarray, x_m: np.ndarray, y_m: np.ndarray, s_m: np.ndarray) -> Crossings:
     """The bumps of ``surface`` crossed along an already resampled path.
 
     Parameters
     ----------
-    surface : SurfaceModel or CompositeSurface
-        Anything with ``regions(x_m, y_m) -> (heights, region ids, floors)``.
+    surface : SurfaceLike
+        Its ``regions(x_m, y_m) -> (heights, region ids, floors)`` is read.
     t_s, x_m, y_m, s_m : ndarray
         The resampled path (:func:`resample_path`).
     """

@@ -15,7 +15,7 @@ by the pen's renderer, which needs to know which pulses an output has played by 
 The least lag over the window is kept as a queue of the lags that can still become
 the least (each newer and smaller than the one before it): a batch costs a few
 steps however many batches the window holds (500 at 4 ms batches), not a pass over
-them all (docs/surfaces.md, "Server work per pen batch", round 5).
+them all.
 
 Units: seconds.
 """

@@ -52,6 +52,16 @@ class CompositeSurface:
 
     surface_per_display = 1.0
 
+    @property
+    def width_m(self) -> float:
+        """Width of the grid of cells [display m]."""
+        return self.cols * self.cell_m[0]
+
+    @property
+    def height_m(self) -> float:
+        """Height of the grid of cells [display m]."""
+        return -(-len(self.surfaces) // self.cols) * self.cell_m[1]
+
     def regions(self, x_m: np.ndarray, y_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(heights, picture index or -1, prominence floors) at display points [m]."""
         x = np.asarray(x_m, dtype=np.float64)

@@ -18,7 +18,7 @@ import math
 from typing import Any, Sequence
 
 from ..drive import Drive
-from .events import PulseEvent
+from .events import EventStatistics, PulseEvent, event_statistics
 
 __all__ = ["equivalent_drive", "window_statistics", "drive_of_statistics", "regularity_of_cv", "WINDOW_S"]
 
@@ -33,62 +33,23 @@ def regularity_of_cv(cv: float) -> float:
     return float(min(1.0, max(0.0, 1.0 - cv / _FULL_JITTER_CV)))
 
 
-def window_statistics(
-    events: Sequence[PulseEvent], now_s: float, window_s: float = WINDOW_S
-) -> tuple[int, float, float, float, tuple[str, ...]]:
-    """What the equivalent drive is made of: the events from ``now_s - window_s`` [s] on.
-
-    Returns
-    -------
-    tuple
-        Count; rate [1/s] ((n - 1) over their span, ``1 / window_s`` for a lone event);
-        the coefficient of variation of their intervals (0 below two intervals); mean
-        strength; the names that clamped any of them, sorted.  Zeros and () for none.
-    """
-    # Plain Python in one pass, the sums left to right (the pen path's compiled pass,
-    # _stroke_kernels.window_stats, adds in the same order and gives the same bits).
+def window_statistics(events: Sequence[PulseEvent], now_s: float, window_s: float = WINDOW_S) -> EventStatistics:
+    """:func:`~.events.event_statistics` of the events from ``now_s - window_s`` [s] on (all
+    those ahead included); a lone event there is a rate of ``1 / window_s``."""
     since = now_s - window_s
-    t: list[float] = []
-    total = 0.0
-    names: set[str] = set()
-    for e in events:
-        if e.t_s >= since:
-            t.append(e.t_s)
-            total += e.strength
-            if e.clamped:
-                names.update(e.clamped)
-    n = len(t)
-    if not n:
-        return 0, 0.0, 0.0, 0.0, ()
-    t.sort()
-    if n >= 2 and t[-1] > t[0]:
-        iv = [b - a for a, b in zip(t, t[1:])]
-        acc = 0.0
-        for x in iv:
-            acc += x
-        mean = acc / len(iv)
-        cv = 0.0
-        if len(iv) > 1:
-            sq = 0.0
-            for x in iv:
-                d = x - mean
-                sq += d * d
-            cv = math.sqrt(sq / len(iv)) / mean
-        rate = (n - 1) / (t[-1] - t[0])
-    else:
-        rate, cv = 1.0 / window_s, 0.0
-    return n, rate, cv, total / n, tuple(sorted(names))
+    return event_statistics([e for e in events if e.t_s >= since], window_s)
 
 
-def drive_of_statistics(stats: tuple[int, float, float, float, tuple[str, ...]], profile: Any = None) -> Drive:
+def drive_of_statistics(stats: EventStatistics, profile: Any = None) -> Drive:
     """The steady drive of a window's :func:`window_statistics` (see :func:`equivalent_drive`)."""
-    n, rate, cv, strength, clamped = stats
-    if not n:
+    if not stats.pulses:
         return Drive.off()
+    strength = stats.strength
     width_law = getattr(profile, "width", None)
     width = float(width_law(strength)) if width_law is not None else 4e-4 * strength
     width = max(width, 2e-5)
-    d = Drive(float(rate), width, 1.0, clamped, min(1.0, max(0.0, strength)), regularity_of_cv(cv))
+    d = Drive(float(stats.rate_hz), width, 1.0, stats.clamped, min(1.0, max(0.0, strength)),
+              regularity_of_cv(stats.interval_cv))
     limits = getattr(profile, "limits", None)
     return limits.apply(d) if limits is not None else d
 

@@ -36,6 +36,7 @@ __all__ = [
     "REFERENCE_PRESSURE",
     "pressure_scale",
     "event_statistics",
+    "EventStatistics",
     "local_rate_hz",
 ]
 
@@ -214,26 +215,57 @@ def stroke_events(
     return place_events(c.t_s, strength_of(c.prominence, c.floor, pressure, full_prominence(surface)))
 
 
-def event_statistics(events: Sequence[PulseEvent], duration_s: float | None = None) -> dict[str, float]:
-    """Rate [1/s], intervals' coefficient of variation and mean strength of events.
+class EventStatistics(NamedTuple):
+    """What a span of events amounts to: the one statistic every consumer reads.
 
-    The rate is (n - 1) over the span of the events, or n over ``duration_s`` [s]
-    when given (a stroke's whole length, silent stretches counted).
+    Attributes
+    ----------
+    pulses : int
+        How many events.
+    rate_hz : float
+        Pulses per second: (n - 1) over the span from the first event to the last; where
+        that span is empty (one event, or all at one instant) n over the span the events
+        were gathered in (a lone event in a 150 ms window is 6.7 pulses/s: one pulse in
+        that time), 0 when that span is not given.
+    interval_cv : float
+        Coefficient of variation of the intervals (0 below two intervals).
+    strength : float
+        Mean strength.
+    clamped : tuple of str
+        Every name that clamped any of them, sorted.
+    """
+
+    pulses: int
+    rate_hz: float
+    interval_cv: float
+    strength: float
+    clamped: tuple[str, ...]
+
+
+def event_statistics(events: Sequence[PulseEvent], span_s: float | None = None) -> EventStatistics:
+    """Rate [1/s], intervals' coefficient of variation, mean strength and clamps of ``events``.
+
+    Parameters
+    ----------
+    events : sequence of PulseEvent
+        Any order.
+    span_s : float, optional
+        The time the events were gathered in [s] (a window, a whole stroke): it gives the
+        rate where the events themselves span no time (:class:`EventStatistics`).
     """
     n = len(events)
-    if n == 0:
-        return {"rate_hz": 0.0, "interval_cv": 0.0, "strength": 0.0, "pulses": 0}
-    t = np.array([e.t_s for e in events])
-    iv = np.diff(t)
-    if duration_s is not None and duration_s > 0:
-        rate = n / duration_s
+    if not n:
+        return EventStatistics(0, 0.0, 0.0, 0.0, ())
+    t = sorted(e.t_s for e in events)
+    names: set[str] = set()
+    for e in events:
+        names.update(e.clamped)
+    strength = math.fsum(e.strength for e in events) / n
+    if n >= 2 and t[-1] > t[0]:
+        iv = [b - a for a, b in zip(t, t[1:])]
+        mean = math.fsum(iv) / len(iv)
+        cv = math.sqrt(math.fsum((x - mean) ** 2 for x in iv) / len(iv)) / mean if len(iv) > 1 else 0.0
+        rate = (n - 1) / (t[-1] - t[0])
     else:
-        rate = (n - 1) / (t[-1] - t[0]) if n > 1 and t[-1] > t[0] else 0.0
-    cv = float(np.std(iv) / np.mean(iv)) if iv.size > 1 and np.mean(iv) > 0 else 0.0
-    return {
-        "rate_hz": float(rate),
-        "interval_cv": cv,
-        "strength": float(np.mean([e.strength for e in events])),
-        "pulses": n,
-    }
-
+        rate, cv = (n / span_s if span_s else 0.0), 0.0
+    return EventStatistics(n, rate, cv, strength, tuple(sorted(names)))

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from scipy.ndimage import map_coordinates
@@ -33,7 +33,7 @@ from scipy.ndimage import map_coordinates
 from ..errors import ImageError, check_finite
 from ..materials.relief import relief_for
 
-__all__ = ["SurfaceModel", "surface_model", "TIP_RADIUS_M", "PROMINENCE_FLOOR", "PROMINENCE_SHARE_OF_STD"]
+__all__ = ["SurfaceLike", "SurfaceModel", "surface_model", "TIP_RADIUS_M", "PROMINENCE_FLOOR", "PROMINENCE_SHARE_OF_STD"]
 
 #: Default stylus tip radius [m]: docs/references.md, section 3 (stylus tip).
 TIP_RADIUS_M = 0.25e-3
@@ -45,6 +45,40 @@ PROMINENCE_FLOOR = 0.02
 PROMINENCE_SHARE_OF_STD = 0.2
 #: Pixels used to estimate the standard deviation, at most (a strided subsample).
 _STD_SAMPLE_PX = 1 << 18
+
+
+class SurfaceLike(Protocol):
+    """What every consumer reads of a surface: one picture (:class:`SurfaceModel`) or several
+    side by side (:class:`~tactilize.surface.composite.CompositeSurface`)."""
+
+    @property
+    def step_m(self) -> float:
+        """Spacing [display m] at which a profile along a path is sampled."""
+        ...
+
+    @property
+    def tip_radius_m(self) -> float:
+        """The stylus tip's radius [m on the real surface]."""
+        ...
+
+    @property
+    def surface_per_display(self) -> float:
+        """Real surface metres per display metre."""
+        ...
+
+    @property
+    def width_m(self) -> float:
+        """Width where shown [display m]."""
+        ...
+
+    @property
+    def height_m(self) -> float:
+        """Height where shown [display m]."""
+        ...
+
+    def regions(self, x_m: np.ndarray, y_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(heights, region ids (-1 off every picture), prominence floors) at display points [m]."""
+        ...
 
 
 @dataclass(frozen=True, eq=False)
@@ -141,12 +175,6 @@ class SurfaceModel:
         object.__setattr__(self, "_padded", np.pad(self.height, 1, mode="edge"))
         object.__setattr__(self, "_inv_pitch", (1.0 / self.display_pitch_m[0], 1.0 / self.display_pitch_m[1]))
 
-    def lookup_table(self) -> tuple[np.ndarray, float, float]:
-        """(the height padded by one edge pixel all round, pixels per display metre across and
-        down): what :meth:`regions` reads, for the pen window's compiled search
-        (:mod:`tactilize.surface._kernels`)."""
-        return self._padded, self._inv_pitch[0], self._inv_pitch[1]
-
     def sample(self, x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
         """Tip-filtered height at display positions [m] (from the top-left, y down),
         bilinear between pixel centres; NaN outside the picture."""
@@ -160,8 +188,6 @@ class SurfaceModel:
         # Pixel coordinates; in the padded picture pixel centres are at 1 .. cols.
         x = np.asarray(x_m, dtype=np.float64) * self._inv_pitch[0]
         y = np.asarray(y_m, dtype=np.float64) * self._inv_pitch[1]
-        # One compiled call (scipy.ndimage): a pen batch samples a few dozen points, where
-        # each NumPy call's overhead, not the arithmetic, is the cost.
         h = map_coordinates(self._padded, (y + 0.5, x + 0.5), output=np.float64, order=1, mode="nearest",
                             prefilter=False)
         if self.micro is not None:

@@ -9,11 +9,9 @@ adds the points of its own new segments and looks their heights up once, keeps
 (docs/surfaces.md, "Along the stroke, in real time").  :meth:`PathGrid.window`
 is then exactly what resampling the whole path every batch would give.
 
-On one picture (a :class:`~tactilize.surface.model.SurfaceModel`) the window's
-prediction, heights and bumps are one compiled pass (:func:`._kernels.search_window`);
-on anything else (a composite of pictures) its ``regions`` gives the heights and
-:func:`._kernels.bumps_into` the bumps.  Either is exactly what
-:func:`~tactilize.surface.bumps.bumps_in` finds on the same profile.
+The window's heights come from the surface's ``regions`` and its bumps from
+:func:`~tactilize.surface.bumps.bumps_in`, the one bump search: a window is a few
+dozen points, searched in tens of microseconds, well inside a pen batch.
 
 Segments are straight between samples, and a segment's time runs from the
 sample before it: a pen that rests and then moves on leaves at the end of the
@@ -25,13 +23,12 @@ Units: SI (s, m); heights in luminance units.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import NamedTuple
 
 import numpy as np
 
-from . import _kernels
 from .bumps import bumps_in
-from .model import SurfaceModel
+from .model import SurfaceLike
 
 __all__ = ["PathGrid", "HISTORY_M", "Window"]
 
@@ -39,57 +36,34 @@ __all__ = ["PathGrid", "HISTORY_M", "Window"]
 HISTORY_M = 4e-3
 
 
-class Window:
+class Window(NamedTuple):
     """The profile a batch searches: the kept points, then the predicted ones.
-
-    Made from arrays (a reference computation) or, by :meth:`PathGrid.window`, as a
-    view of the grid's buffers with its bumps already searched.
 
     Attributes
     ----------
     h, ids, floors : ndarray
-        Heights, region ids and prominence floors at every point (:meth:`SurfaceModel.regions`).
+        Heights, region ids and prominence floors at every point (the surface's ``regions``).
     k0 : int
         Grid index of the first point: point ``i`` is at arc ``(k0 + i) * step`` [m].
     kept : int
         How many of the points are behind the newest sample (the rest are predicted).
+    t_s : ndarray
+        Time [s] the path reaches each point.
+    step : float
+        The grid's step [m].
     """
 
-    __slots__ = ("_h", "_ids", "_fl", "_t", "_a", "_stop", "k0", "kept", "step", "_found")
-    _t: np.ndarray
-    _found: tuple[np.ndarray, np.ndarray, np.ndarray] | None
-
-    def __init__(self, h, ids, floors, k0, kept, t_kept, t_pred, step) -> None:
-        self._h, self._ids, self._fl = h, ids, floors
-        self._t = np.concatenate((np.asarray(t_kept, dtype=np.float64), np.asarray(t_pred, dtype=np.float64)))
-        self._a, self._stop = 0, len(h)
-        self.k0, self.kept, self.step = k0, kept, step
-        self._found = None
-
-    @classmethod
-    def _of(cls, grid: "PathGrid", a: int, stop: int, kept: int, found: tuple) -> "Window":
-        """Points ``a .. stop - 1`` of ``grid``'s buffers, ``found`` = (indices, prominences, times) of its bumps."""
-        w = object.__new__(cls)
-        w._h, w._ids, w._fl, w._t = grid._h, grid._id, grid._fl, grid._t
-        w._a, w._stop, w.kept, w.step, w._found = a, stop, kept, grid.step, found
-        w.k0 = grid._k0 + a
-        return w
-
-    @property
-    def h(self) -> np.ndarray:
-        return self._h[self._a : self._stop]
-
-    @property
-    def ids(self) -> np.ndarray:
-        return self._ids[self._a : self._stop]
-
-    @property
-    def floors(self) -> np.ndarray:
-        return self._fl[self._a : self._stop]
+    h: np.ndarray
+    ids: np.ndarray
+    floors: np.ndarray
+    k0: int
+    kept: int
+    t_s: np.ndarray
+    step: float
 
     def t_at(self, i: int) -> float:
         """Time [s] the path reaches point ``i``."""
-        return float(self._t[self._a + i])
+        return float(self.t_s[i])
 
     def s_at(self, i: int) -> float:
         """Arc length [m] of point ``i``."""
@@ -97,32 +71,7 @@ class Window:
 
     def bumps(self) -> tuple[np.ndarray, np.ndarray]:
         """(indices, prominences) of the profile's bumps (:func:`~tactilize.surface.bumps.bumps_in`)."""
-        idx, prom, _ = self._search()
-        return idx, prom
-
-    def bump_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
-        """The bumps for a compiled pass: indices, prominences, times [s], and the floors'
-        buffer with the offset of point 0 in it (point ``i``'s floor is ``floors[offset + i]``)."""
-        idx, prom, t = self._search()
-        return idx, prom, t, self._fl, self._a
-
-    def _search(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        if self._found is None:
-            idx, prom = bumps_in(self.h, self.ids, self.floors)
-            self._found = (idx, prom, self._t[self._a + np.asarray(idx, dtype=np.intp)])
-        return self._found
-
-
-def warm() -> None:
-    """Make the window's compiled search ready in this process (:func:`._kernels.warm`): once,
-    at the first :class:`PathGrid` or when a server starts, never on a pen batch."""
-    global _warm
-    if not _warm:
-        _kernels.warm()
-        _warm = True
-
-
-_warm = False
+        return bumps_in(self.h, self.ids, self.floors)
 
 
 class PathGrid:
@@ -142,16 +91,10 @@ class PathGrid:
     and, while a window is searched, the predicted points after them.
     """
 
-    def __init__(self, surface: Any, history_m: float = HISTORY_M) -> None:
-        warm()
+    def __init__(self, surface: SurfaceLike, history_m: float = HISTORY_M) -> None:
         self.surface = surface
         self.step = float(surface.step_m)
         self.history_m = float(history_m)
-        self._one: tuple[np.ndarray, float, float, float] | None = None
-        if isinstance(surface, SurfaceModel) and surface.micro is None:
-            # The one-picture pass reads the picture directly (a material's micro-roughness
-            # is drawn by the picture's own lookup, as a composite's heights are).
-            self._one = (*surface.lookup_table(), float(surface.prominence_floor))
         span = int(self.history_m / self.step) + 2
         self._alloc(4 * span + 256)
         self.reset()
@@ -164,10 +107,6 @@ class PathGrid:
             b[: a.size] = a
         self._bufs = bufs
         self._t, self._x, self._y, self._h, self._id, self._fl = bufs
-        # The search's output: bumps' indices and prominences (at most one every other point).
-        self._oi = np.zeros(cap, dtype=np.intp)
-        self._op = np.zeros(cap)
-        self._ot = np.zeros(cap)  # and their times
         self._cap = cap
 
     def reset(self) -> None:
@@ -195,8 +134,6 @@ class PathGrid:
 
     def add(self, t: float, x: float, y: float) -> None:
         """A sample whose time is after the newest one's [s, m]: its segment's points join the path."""
-        # Floats, whatever the caller passed: an integer time would make the compiled passes
-        # compile again for it on a pen batch (seconds, once).
         t, x, y = float(t), float(x), float(y)
         last = self.last
         if last is None:
@@ -251,7 +188,7 @@ class PathGrid:
         Returns
         -------
         Window or None
-            None before the first sample; its bumps already searched.
+            None before the first sample.
         """
         last = self.last
         if last is None:
@@ -272,19 +209,15 @@ class PathGrid:
         stop = end + npred
         # The window starts HISTORY_M behind the newest sample.
         a = min(end, max(0, math.ceil((s0 - self.history_m) / step) - self._k0))
-        one = self._one
-        if one is not None:
-            count = _kernels.search_window(
-                one[0], one[1], one[2], one[3], self._t, self._x, self._y, self._h, self._id, self._fl,
-                n, end, npred, k1, step, t0, x0, y0, s0, ux, uy, speed_m_s, a, self._oi, self._op, self._ot)
-        else:
-            if npred:
-                _kernels.predict_into(self._t, self._x, self._y, end, npred, k1, step, t0, x0, y0, s0, ux, uy,
-                                      speed_m_s)
-            if stop > n:
-                h, ids, fl = self.surface.regions(self._x[n:stop], self._y[n:stop])
-                self._h[n:stop], self._id[n:stop], self._fl[n:stop] = h, ids, fl
-            count = _kernels.bumps_into(self._h, self._id, self._fl, a, stop, self._oi, self._op)
-            self._ot[:count] = self._t[a + self._oi[:count]]
+        if npred:
+            off = np.arange(k1, k1 + npred) * step - s0
+            self._x[end:stop] = x0 + ux * off
+            self._y[end:stop] = y0 + uy * off
+            self._t[end:stop] = t0 + off / speed_m_s
+        if stop > n:
+            h, ids, fl = self.surface.regions(self._x[n:stop], self._y[n:stop])
+            self._h[n:stop], self._id[n:stop], self._fl[n:stop] = h, ids, fl
         self._n, self._m = end, 0
-        return Window._of(self, a, stop, end - a, (self._oi[:count], self._op[:count], self._ot[:count]))
+        # Copies: the buffers slide and are written again by the next batch.
+        return Window(self._h[a:stop].copy(), self._id[a:stop].copy(), self._fl[a:stop].copy(), self._k0 + a,
+                      end - a, self._t[a:stop].copy(), step)

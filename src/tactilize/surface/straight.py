@@ -18,8 +18,9 @@ from typing import Any
 import numpy as np
 
 from ..drive import Drive
-from .equivalent import equivalent_drive
-from .events import PulseEvent, event_statistics, stroke_events
+from .equivalent import drive_of_statistics
+from .events import EventStatistics, PulseEvent, event_statistics, stroke_events
+from .model import SurfaceLike
 
 __all__ = ["straight_stroke", "surface_stroke_drive", "rendered_drive", "STROKE_S", "STROKE_RATE_HZ"]
 
@@ -48,27 +49,16 @@ def straight_stroke(width_m: float, height_m: float, speed_m_s: float, direction
     return t, cx + ux * s, cy + uy * s
 
 
-def surface_stroke_drive(surface: Any, profile: Any, speed_m_s: float, direction_rad: float | None = None,
-                         pressure: float | None = None) -> tuple[Drive, list[PulseEvent], dict[str, float]]:
-    """The events of a steady stroke on ``surface``, their statistics and their equivalent Drive.
-
-    Returns
-    -------
-    (Drive, list of PulseEvent, dict)
-        The dict holds ``rate_hz``, ``interval_cv``, ``strength``, ``pulses``.
-    """
+def surface_stroke_drive(surface: SurfaceLike, profile: Any, speed_m_s: float, direction_rad: float | None = None,
+                         pressure: float | None = None) -> tuple[Drive, list[PulseEvent], EventStatistics]:
+    """The events of a steady stroke on ``surface``, their statistics over the whole stroke and
+    their equivalent Drive (:func:`~.equivalent.drive_of_statistics`)."""
     if speed_m_s <= 0:
         return Drive.off(), [], event_statistics([])
     t, x, y = straight_stroke(surface.width_m, surface.height_m, speed_m_s, direction_rad or 0.0)
     events = stroke_events(surface, t, x, y, pressure)
-    stats = event_statistics(events, duration_s=float(t[-1]))
-    if not events:
-        return Drive.off(), events, stats
-    drive = equivalent_drive(events, float(t[-1]), profile, window_s=float(t[-1]) + 1.0)
-    # The stroke's rate counts its silent stretches too (n over the whole stroke).
-    drive = drive.replace(pulse_frequency_hz=max(stats["rate_hz"], 1e-3))
-    limits = getattr(profile, "limits", None)
-    return (limits.apply(drive) if limits is not None else drive), events, stats
+    stats = event_statistics(events, float(t[-1]))
+    return drive_of_statistics(stats, profile), events, stats
 
 
 def rendered_drive(profile: Any, image: Any, features: Any, speed_m_s: float,

@@ -18,18 +18,15 @@ Units: SI (s, m).
 from __future__ import annotations
 
 import math
-from typing import Any, Iterable
+from collections import deque
+from typing import Iterable, NamedTuple, Protocol
 
-import numpy as np
-
-from . import _stroke_kernels
-from ._stroke_kernels import CLUSTER, LATE, MERGED, RATE_ONLY, fire_due, place_crossings, window_stats
-from .events import (CLUSTER_INTERVAL_S, MIN_INTERVAL_S, RATE_ONLY_HZ, PulseEvent, full_prominence,
-                     pressure_scale)
+from .equivalent import EventStatistics, window_statistics
+from .events import PulseEvent, full_prominence, place_events, strengths
+from .model import SurfaceLike
 from .path import HISTORY_M, PathGrid
-from .path import warm as path_warm
 
-__all__ = ["SurfaceStroke", "LOOKAHEAD_S", "HISTORY_M", "LATE_S", "warm"]
+__all__ = ["SurfaceStroke", "TimedPosition", "LOOKAHEAD_S", "HISTORY_M", "LATE_S"]
 
 #: How far ahead the path is predicted [s]: more than a batch and its transport
 #: (4 + 1 ms on the page), so a crossing between batches is scheduled before it
@@ -41,7 +38,7 @@ LOOKAHEAD_S = 0.025
 #: by the batch after its crossing (its prominence needs its far side, beyond the
 #: prediction): then a crossing since the previous batch plays too, up to LOOKAHEAD_S
 #: late, rather than leaving a ridge out (13 of 16 corduroy ridges at 60 Hz samples
-#: before this rule, 16 after).
+#: without this rule, 16 with it).
 LATE_S = 0.005
 #: Two crossings within this share of the tip radius of arc are one bump.
 SAME_BUMP_SHARE = 0.5
@@ -57,29 +54,24 @@ MAX_AHEAD_M = 0.025
 FIRED_KEPT = 256
 
 
-def _names(flags: int) -> tuple[str, ...]:
-    """A PulseEvent's ``clamped`` for :func:`._stroke_kernels.place_crossings`' flags, in the order
-    :func:`.events.place_events` and the late rule add them."""
-    return tuple(name for bit, name in ((RATE_ONLY, "rate_only"), (CLUSTER, "cluster"), (MERGED, "merged"),
-                                        (LATE, "late")) if flags & bit)
+class TimedPosition(Protocol):
+    """A pen sample as the stroke reads it (:class:`tactilize.pen.samples.PenSample` is one)."""
+
+    @property
+    def t_s(self) -> float: ...
+
+    @property
+    def x_m(self) -> float: ...
+
+    @property
+    def y_m(self) -> float: ...
 
 
-_CLAMPED = tuple(_names(f) for f in range(16))
-#: The same, sorted (the equivalent Drive's ``clamped``: every name in its window).
-_SORTED = tuple(tuple(sorted(c)) for c in _CLAMPED)
+class _Handed(NamedTuple):
+    """An event handed out, with the arc [m] of its bump along the stroke."""
 
-
-def warm() -> None:
-    """Make every compiled pass of the pen's surface path ready in this process (the window's search,
-    the stroke's bookkeeping): once, at the first stroke or when a server starts, never on a pen batch."""
-    global _warm
-    path_warm()
-    if not _warm:
-        _stroke_kernels.warm()
-        _warm = True
-
-
-_warm = False
+    event: PulseEvent
+    arc_m: float
 
 
 class SurfaceStroke:
@@ -87,28 +79,22 @@ class SurfaceStroke:
 
     Parameters
     ----------
-    surface : SurfaceModel or CompositeSurface
+    surface : SurfaceLike
         What is under the pen (display coordinates).
     lookahead_s : float
         Prediction horizon [s].
     """
 
-    def __init__(self, surface: Any, lookahead_s: float = LOOKAHEAD_S) -> None:
+    def __init__(self, surface: SurfaceLike, lookahead_s: float = LOOKAHEAD_S) -> None:
         self.surface = surface
         self.lookahead_s = float(lookahead_s)
         self._path = PathGrid(surface)
-        tip = getattr(surface, "tip_radius_m", 0.25e-3) / max(getattr(surface, "surface_per_display", 1.0), 1e-12)
-        self._same_m = SAME_BUMP_SHARE * tip
+        self._same_m = SAME_BUMP_SHARE * surface.tip_radius_m / max(surface.surface_per_display, 1e-12)
         self._full = full_prominence(surface)  # a surface in metres has its own
-        warm()
-        # Rows: time [s], strength, flags, arc [m]: events handed out and due, the newest
-        # FIRED_KEPT in a ring, and those handed out by the latest batch, not yet due.
-        self._ring = np.zeros((4, FIRED_KEPT))
-        self._nfired = 0  # fired so far (the ring holds the newest)
-        self._pend = np.zeros((4, 16))
-        self._npend = 0
-        self._stats = np.zeros(5)
-        self._last_fired_t = math.nan
+        # Handed out and due (the newest FIRED_KEPT), and handed out by the latest batch, not yet due.
+        self._fired: deque[_Handed] = deque(maxlen=FIRED_KEPT)
+        self._pending: list[_Handed] = []
+        self._last_fired_t: float | None = None
         self.now_s: float | None = None
         #: Pulses that became due with the latest update (handed out before, due by now).
         self.newly_fired = 0
@@ -116,14 +102,14 @@ class SurfaceStroke:
     def reset(self) -> None:
         """Forget the stroke (lift, a new picture)."""
         self._path.reset()
-        self._nfired = 0
-        self._npend = 0
-        self._last_fired_t = math.nan
+        self._fired.clear()
+        self._pending = []
+        self._last_fired_t = None
         self.now_s = None
 
     def update(
         self,
-        samples: Iterable[Any],
+        samples: Iterable[TimedPosition],
         speed_m_s: float,
         direction_rad: float | None,
         pressure: float | None = None,
@@ -170,39 +156,61 @@ class SurfaceStroke:
             return []
         now = path.last[0]
         previous, self.now_s = self.now_s, now
-        # What was handed out and is due by now (by the output's clock) has fired.
-        self.newly_fired = 0
-        if self._npend:
-            played = now if played_until_s is None or played_until_s < now else played_until_s
-            before = self._nfired
-            self._nfired, self._last_fired_t = fire_due(self._pend, self._npend, played, self._ring, before,
-                                                        self._last_fired_t)
-            self.newly_fired = self._nfired - before
-            self._npend = 0
+        self._fire_due(now if played_until_s is None else max(now, played_until_s))
         moving = direction_rad is not None and speed_m_s > STILL_SPEED_M_S
         w = path.window(speed_m_s, direction_rad if moving else None, self.lookahead_s, MAX_AHEAD_M)
         if w is None:
             return []
-        idx, prom, tc, floors, fl0 = w.bump_arrays()
-        count = idx.shape[0]
-        if not count:
+        idx, prom = w.bumps()
+        if not idx.size:
             return []
         late = now - LATE_S if previous is None else now - min(LOOKAHEAD_S, max(LATE_S, now - previous))
-        scale = pressure_scale(pressure)
-        if count > self._pend.shape[1]:
-            self._pend = np.zeros((4, 2 * count))
-        pend = self._pend
-        # Every fired arc in the ring is checked: those behind this window can never match.
-        n = place_crossings(
-            idx, prom, tc, floors, fl0, w.k0, w.step, self._ring, min(self._nfired, FIRED_KEPT), self._same_m,
-            late, now, scale, self._last_fired_t, self._full, RATE_ONLY_HZ, MIN_INTERVAL_S, CLUSTER_INTERVAL_S,
-            pend)
-        self._npend = n
-        if not n:
+        start_m = w.s_at(0) - self._same_m
+        found: list[tuple[float, float, float, float]] = []  # (time [s], arc [m], prominence, floor)
+        for i, p in zip(idx.tolist(), prom.tolist()):
+            t = w.t_at(i)
+            if t <= late:
+                continue  # too late to be felt as this bump
+            arc = w.s_at(i)
+            if not self._played(arc, start_m):
+                found.append((max(t, now), arc, p, float(w.floors[i])))
+        if not found:
             return []
-        clamped = _CLAMPED
-        return [PulseEvent(t, st, clamped[int(f)])
-                for t, st, f in zip(pend[0, :n].tolist(), pend[1, :n].tolist(), pend[2, :n].tolist())]
+        found.sort(key=lambda c: c[0])  # path order is time order but for a reversal's edge
+        placed = place_events([c[0] for c in found],
+                              strengths([c[2] for c in found], [c[3] for c in found], pressure, self._full),
+                              previous_t_s=self._last_fired_t)
+        # A placed event keeps its crossing's time; crossings at one instant merge into the first.
+        arc_of: dict[float, float] = {}
+        for c in found:
+            arc_of.setdefault(c[0], c[1])
+        self._pending = [_Handed(e._replace(clamped=e.clamped + ("late",)) if e.t_s <= now else e, arc_of[e.t_s])
+                         for e in placed]
+        return [h.event for h in self._pending]
+
+    def _fire_due(self, played_s: float) -> None:
+        """What was handed out and is due by ``played_s`` [s] (the output's clock) has fired."""
+        before = len(self._pending)
+        due = [h for h in self._pending if h.event.t_s <= played_s]
+        for h in due:
+            self._fired.append(h)
+            if self._last_fired_t is None or h.event.t_s > self._last_fired_t:
+                self._last_fired_t = h.event.t_s
+        self.newly_fired = len(due)
+        if before:
+            self._pending = []
+
+    def _played(self, arc_m: float, start_m: float) -> bool:
+        """A fired pulse's bump is within :data:`SAME_BUMP_SHARE` of the tip radius of ``arc_m``."""
+        same = self._same_m
+        # Newest first: fired arcs grow along the stroke, so none behind ``start_m`` (the window's
+        # start) can be this bump, nor any older one.
+        for h in reversed(self._fired):
+            if h.arc_m < start_m:
+                return False
+            if -same < h.arc_m - arc_m < same:
+                return True
+        return False
 
     def recent(self, window_s: float) -> list[PulseEvent]:
         """Events fired in the last ``window_s`` [s] before the newest sample (oldest first), and
@@ -210,23 +218,15 @@ class SurfaceStroke:
         if self.now_s is None:
             return []
         since = self.now_s - window_s
-        nr = min(self._nfired, FIRED_KEPT)
-        order = [(self._nfired - nr + j) % FIRED_KEPT for j in range(nr)]
-        cols = [(self._ring, c) for c in order] + [(self._pend, k) for k in range(self._npend)]
-        return [PulseEvent(float(a[0, c]), float(a[1, c]), _CLAMPED[int(a[2, c])]) for a, c in cols
-                if a[0, c] >= since]
+        return [h.event for h in (*self._fired, *self._pending) if h.event.t_s >= since]
 
-    def window_statistics(self, window_s: float) -> tuple[int, float, float, float, tuple[str, ...]]:
-        """:func:`~.equivalent.window_statistics` of :meth:`recent` events, without making them:
-        count, rate [1/s], intervals' CV, mean strength and the names that clamped them."""
+    def window_statistics(self, window_s: float) -> EventStatistics:
+        """:func:`~.equivalent.window_statistics` of the :meth:`recent` events."""
         if self.now_s is None:
-            return 0, 0.0, 0.0, 0.0, ()
-        out = self._stats
-        window_stats(self._ring, self._nfired, self._pend, self._npend, self.now_s - window_s, window_s, out)
-        n, rate, cv, strength, flags = out.tolist()
-        return int(n), rate, cv, strength, _SORTED[int(flags)]
+            return window_statistics([], 0.0, window_s)
+        return window_statistics(self.recent(window_s), self.now_s, window_s)
 
     def rest(self) -> list[PulseEvent]:
         """The pen rests: nothing more is predicted, what was pending is withdrawn."""
-        self._npend = 0
+        self._pending = []
         return []

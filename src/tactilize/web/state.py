@@ -232,9 +232,7 @@ class ServerState:
 
     def warm(self) -> None:
         """Generate every built-in picture, its map and its surface (about a second, once)."""
-        from ..surface.stroke import warm as warm_search  # scipy.signal and numba: not on a pen batch's path
-
-        warm_search()  # the pen path's compiled passes, loaded (or compiled once per machine) now
+        from ..surface import stroke  # noqa: F401  (scipy.signal loaded now, not on a pen batch's path)
 
         for tid in self._builtin_ids:
             e = self.textures.get(tid)
