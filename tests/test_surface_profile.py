@@ -84,7 +84,10 @@ def _strokes(v=0.05, t_end=0.8, y=10e-3, rate=500.0):
 def test_renderer_fires_events_on_the_simulated_wire():
     img, tmap, sm = _picture()
     out = SimulatedOutput(channels=2, start=False)
-    r = PenRenderer(tmap, Profile.preset("surface"), out, surface=sm)
+    # The host's clock moves with the simulated one: a loaded machine taking longer
+    # between batches must not read as batches arriving late.
+    host_s = [0.0]
+    r = PenRenderer(tmap, Profile.preset("surface"), out, surface=sm, clock=lambda: host_s[0])
     out.standby()
     out.advance(1.0)
     samples = _strokes()
@@ -94,6 +97,7 @@ def test_renderer_fires_events_on_the_simulated_wire():
         scheduled += len(res.events)
         assert res.to_dict()["events"] == len(res.events)
         out.advance(0.004)
+        host_s[0] += 0.004
     fired = out.event_counts()[0]["fired"]
     assert fired >= 10 and scheduled >= fired
     # A resting pen is silent: nothing more fires.
