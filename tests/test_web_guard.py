@@ -28,6 +28,16 @@ def test_the_accepted_hosts_are_loopback_and_the_bind_address_and_what_an_option
     assert accepted_hosts("[::1]") == accepted_hosts("::1")
     assert host_name("[::1]:8765") == "::1" and host_name("LocalHost.:80") == "localhost"
     assert host_name("evil.example:8765") == "evil.example"
+    assert host_name("::1") == "::1" and host_name("[fe80::1%eth0]:80") == "fe80::1%eth0" and host_name("") == ""
+
+
+@pytest.mark.parametrize("host", ["127.0.0.1:8765@evil.example", "localhost@evil.example", "[::1", "[::1]evil",
+                                  "127.0.0.1:80:81", "127.0.0.1:x", "127.0.0.1/evil", "evil.example#127.0.0.1",
+                                  "[::1]:8765@evil.example"])
+def test_a_malformed_host_is_not_loopback(pen, host):
+    assert host_name(host) not in accepted_hosts("127.0.0.1"), host
+    c, _ = pen
+    assert c.get("/api/config", headers={"Host": host}).status_code == 421
 
 
 @pytest.fixture()

@@ -24,6 +24,7 @@ socket of the app it wraps, the ones other packages mount included.
 from __future__ import annotations
 
 import logging
+import re
 import socket
 from typing import Any, Iterable
 from urllib.parse import urlsplit
@@ -40,14 +41,26 @@ _SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 _WILDCARDS = frozenset({"", "0.0.0.0", "::"})
 
 
+#: A Host header: a name or IPv4 address, or an IPv6 address in brackets, then
+#: an optional port of digits (RFC 9110, section 7.2; RFC 3986, section 3.2.2).
+_HOST_HEADER = re.compile(r"(?:(?P<name>[a-z0-9._~%-]*)|\[(?P<ipv6>[0-9a-f:.]+(?:%[a-z0-9._~-]+)?)\])(?::[0-9]*)?")
+#: An IPv6 address given bare, as ``--host ::1`` may be.
+_BARE_IPV6 = re.compile(r"[0-9a-f:.]+(?:%[a-z0-9._~-]+)?")
+
+
 def host_name(value: str) -> str:
     """The host part of a ``Host`` header or ``--host`` value: lower case, no port,
-    IPv6 without brackets (``"[::1]:8765"`` -> ``"::1"``)."""
+    IPv6 without brackets (``"[::1]:8765"`` -> ``"::1"``).
+
+    A value that is no host (``"127.0.0.1:80@evil.example"``, ``"[::1"``) comes
+    back whole, so it matches none of the names a server accepts.
+    """
     v = value.strip().lower()
-    if v.startswith("["):
-        v = v[1:v.find("]")] if "]" in v else v[1:]
-    elif v.count(":") == 1:
-        v = v.split(":", 1)[0]
+    m = _HOST_HEADER.fullmatch(v)
+    if m is not None:
+        v = m.group("ipv6") or m.group("name")
+    elif v.count(":") < 2 or _BARE_IPV6.fullmatch(v) is None:
+        return v
     return v.rstrip(".")  # "localhost." is localhost (a fully qualified name)
 
 
