@@ -22,6 +22,7 @@ from sqlalchemy.exc import OperationalError
 from starlette.concurrency import run_in_threadpool
 from starlette.websockets import WebSocketDisconnect
 
+from ..web.limits import MessageRate
 from .errors import FlowError
 from .strokes import StrokeHandler
 
@@ -120,13 +121,23 @@ async def pump(ws, handler: StrokeHandler) -> None:
         while (doc := await out.get()) is not None:
             await ws.send_json(doc)
 
+    async def tell(text: str) -> None:
+        out.put_nowait({"type": "error", "error": text, "source": "stroke", "status": 429})
+
     sending = asyncio.create_task(sender())
     refreshing: asyncio.Future | None = None
+    budget = MessageRate()
     try:
         while not sending.done():
             message = await ws.receive()
             if message["type"] == "websocket.disconnect":
                 return
+            # Dropped unread: the other participants' drives do not wait for a
+            # flood, and a dropped batch, never acknowledged, is sent again.
+            if not budget.take():
+                if await budget.refuse(ws, tell):
+                    return
+                continue
             text = message.get("text")
             if text is None and message.get("bytes") is not None:
                 text = message["bytes"].decode("utf-8", "replace")

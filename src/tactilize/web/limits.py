@@ -13,13 +13,18 @@ figures; docs/safety.md says which test pins each.
 from __future__ import annotations
 
 import asyncio
+import collections
+import logging
+import time
 from contextlib import asynccontextmanager
-from typing import Any, AsyncIterator, Callable
+from typing import Any, AsyncIterator, Awaitable, Callable, Counter
 
 from ..errors import RequestError
 
-__all__ = ["WorkGate", "read_body", "UPLOADS_ADMITTED", "UPLOADS_RUNNING", "EXPORTS_ADMITTED", "EXPORTS_RUNNING",
+__all__ = ["WorkGate", "read_body", "MessageRate", "MESSAGES_PER_S", "MESSAGE_BURST", "FLOOD_CLOSE_CODE", "UPLOADS_ADMITTED", "UPLOADS_RUNNING", "EXPORTS_ADMITTED", "EXPORTS_RUNNING",
            "MAX_EXPORT_BODY_BYTES", "MAX_UPLOAD_BYTES", "MAX_UPLOAD_PIXELS"]
+
+log = logging.getLogger("tactilize.web")
 
 #: Largest upload accepted [bytes]: a high-quality phone photo fits.
 MAX_UPLOAD_BYTES = 12 * 1024 * 1024
@@ -36,6 +41,16 @@ EXPORTS_ADMITTED = 2
 EXPORTS_RUNNING = 1
 #: Longest stroke-export body [bytes]: 60 000 samples as JSON rows fit in about 6 MB.
 MAX_EXPORT_BODY_BYTES = 8 * 1024 * 1024
+
+#: Messages one WebSocket may send a second, on average [1/s]: the pen page sends
+#: one per pointer event, raw updates included (a 1 kHz mouse: 1000 a second;
+#: docs/references.md, section 5), the experiments' page one per 30 ms.
+MESSAGES_PER_S = 2000.0
+#: Messages one WebSocket may send at once beyond that rate; also how many
+#: refused messages end the connection (:class:`MessageRate`).
+MESSAGE_BURST = 2000
+#: WebSocket close code for a page that goes on flooding: policy violation (RFC 6455, 7.4.1).
+FLOOD_CLOSE_CODE = 1008
 
 
 class WorkGate:
@@ -100,3 +115,76 @@ async def read_body(request: Any, limit_bytes: int, what: str, message: str | No
         if len(body) > limit_bytes:
             raise RequestError(what, too_long, 413)
     return bytes(body)
+
+
+class MessageRate:
+    """One WebSocket's message budget: a token bucket of :data:`MESSAGE_BURST`
+    messages, refilled at :data:`MESSAGES_PER_S`.
+
+    Every message the socket receives asks :meth:`take`; a refused one is
+    dropped unread, so one page's flood costs the others no parsing and no
+    rendering.  A page whose refused messages reach :data:`MESSAGE_BURST` is
+    no pen (a real pen never meets the rate) and :attr:`flooding` says to
+    close its socket.
+
+    Parameters
+    ----------
+    rate_per_s : float, optional
+        Refill rate [messages/s]; :data:`MESSAGES_PER_S` by default.
+    burst : int, optional
+        Bucket size [messages]; :data:`MESSAGE_BURST` by default.
+    clock : callable, optional
+        Monotonic time [s]; :func:`time.monotonic` by default.
+    """
+
+    def __init__(self, rate_per_s: float | None = None, burst: int | None = None,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.rate_per_s = float(MESSAGES_PER_S if rate_per_s is None else rate_per_s)
+        self.burst = int(MESSAGE_BURST if burst is None else burst)
+        self._clock = clock
+        self._tokens = float(self.burst)
+        self._at_s = clock()
+        #: messages refused so far
+        self.dropped = 0
+
+    def take(self) -> bool:
+        """True when one more message fits the budget; else counts it as dropped."""
+        now_s = self._clock()
+        self._tokens = min(float(self.burst), self._tokens + (now_s - self._at_s) * self.rate_per_s)
+        self._at_s = now_s
+        if self._tokens >= 1.0:
+            self._tokens -= 1.0
+            return True
+        self.dropped += 1
+        return False
+
+    @property
+    def flooding(self) -> bool:
+        """The socket has had :attr:`burst` messages refused: close it."""
+        return self.dropped >= self.burst
+
+    async def refuse(self, ws: Any, tell: Callable[[str], Awaitable[None]], counters: Counter[str] | None = None) -> bool:
+        """After :meth:`take` refused a message: count it, tell the page the
+        first time, close a flooding socket (True: it is closed).
+
+        Parameters
+        ----------
+        ws : WebSocket
+            The socket the message came from.
+        tell : async callable
+            Sends the page one line, in its socket's error message.
+        counters : Counter, optional
+            The server's counters; ``messages_dropped`` counts the message.
+        """
+        counters = collections.Counter() if counters is None else counters
+        counters["messages_dropped"] += 1
+        reason = (f"too many messages (more than {self.rate_per_s:g} a second); messages are dropped, and the "
+                  f"connection is closed after {self.burst} of them")
+        if self.flooding:
+            counters["sockets_flooding"] += 1
+            log.warning("WebSocket closed: %s", reason)
+            await ws.close(code=FLOOD_CLOSE_CODE, reason="too many messages")
+            return True
+        if self.dropped == 1:
+            await tell(reason)
+        return False
