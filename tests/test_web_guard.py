@@ -162,3 +162,15 @@ def test_a_live_server_refuses_forged_origins_and_sockets_beyond_max_sockets():
     finally:
         proc.terminate()
         proc.communicate(timeout=30)
+
+
+def test_http_requests_beyond_the_cap_are_refused_with_503(pen):
+    c, _ = pen
+    guard = c.app.state.guard
+    guard.requests = guard.max_requests  # as if that many were being answered
+    try:
+        r = c.get("/api/config")
+        assert r.status_code == 503 and "too many requests" in r.json()["error"] and guard.refused["requests"] == 1
+    finally:
+        guard.requests = 0
+    assert c.get("/api/config").status_code == 200 and guard.requests == 0

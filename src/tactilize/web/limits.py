@@ -6,7 +6,8 @@ a core; the server is on a laptop.  Each kind of heavy request passes a
 server at once (their bodies read, waiting or working) and one more is refused
 with 503 before its body is read; of those admitted, ``running`` work at once.
 Bodies are read with :func:`read_body`, which refuses one longer than its cap
-with 413 before it is all in memory.  docs/serve.md ("Bounds") lists the
+with 413 before it is all in memory, and one that trickles in with 408, so a
+slow client leaves the gate soon.  docs/serve.md ("Bounds") lists the
 figures; docs/safety.md says which test pins each.
 """
 
@@ -21,22 +22,40 @@ from typing import Any, AsyncIterator, Awaitable, Callable, Counter
 
 from ..errors import RequestError
 
-__all__ = ["WorkGate", "read_body", "MessageRate", "MESSAGES_PER_S", "MESSAGE_BURST", "FLOOD_CLOSE_CODE", "UPLOADS_ADMITTED", "UPLOADS_RUNNING", "EXPORTS_ADMITTED", "EXPORTS_RUNNING",
+__all__ = ["WorkGate", "read_body", "MessageRate", "HEADER_TIMEOUT_S", "BODY_GRACE_S", "BODY_MIN_BYTES_S",
+           "MAX_REQUESTS", "MESSAGES_PER_S", "MESSAGE_BURST", "FLOOD_CLOSE_CODE", "UPLOADS_ADMITTED", "UPLOADS_RUNNING", "EXPORTS_ADMITTED", "EXPORTS_RUNNING",
            "MAX_EXPORT_BODY_BYTES", "MAX_UPLOAD_BYTES", "MAX_UPLOAD_PIXELS"]
 
 log = logging.getLogger("tactilize.web")
+
+#: Time a request's head (its request line and headers) may take to arrive [s],
+#: from the connection's opening or the end of its previous response; beyond
+#: it the connection gets 408 and is closed (web/serve.py).  A browser sends
+#: the head in one write.
+HEADER_TIMEOUT_S = 10.0
+#: Time a request body may take before it must keep up :data:`BODY_MIN_BYTES_S` [s].
+BODY_GRACE_S = 5.0
+#: Average rate a request body must keep after :data:`BODY_GRACE_S` [bytes/s]:
+#: a 12 MB upload may take three minutes; a client trickling a byte now and
+#: then gets 408 and frees its place (:func:`read_body`).
+BODY_MIN_BYTES_S = 64 * 1024
+#: HTTP requests answered at once (their heads in), besides the WebSockets; one
+#: more gets 503 (web/guard.py).  A connection still sending its head is not
+#: one of them: it waits for no place another client needs.
+MAX_REQUESTS = 64
 
 #: Largest upload accepted [bytes]: a high-quality phone photo fits.
 MAX_UPLOAD_BYTES = 12 * 1024 * 1024
 #: Largest upload accepted [pixels]: 16 Mpx; analysing it takes about a second.
 MAX_UPLOAD_PIXELS = 16 * 1024 * 1024
 
-#: Uploads inside the server at once (one analysing, one waiting); one more gets 503.
-UPLOADS_ADMITTED = 2
+#: Uploads inside the server at once (their bodies arriving, waiting or
+#: analysing); one more gets 503.  Two slow clients leave room for two others.
+UPLOADS_ADMITTED = 4
 #: Uploads analysed at once: a 16 Mpx picture needs about 260 MB while it is analysed.
 UPLOADS_RUNNING = 1
-#: Stroke exports inside the server at once; one more gets 503.
-EXPORTS_ADMITTED = 2
+#: Stroke exports inside the server at once (as uploads); one more gets 503.
+EXPORTS_ADMITTED = 4
 #: Stroke exports rendered at once (a minute of wire simulation takes seconds of a core).
 EXPORTS_RUNNING = 1
 #: Longest stroke-export body [bytes]: 60 000 samples as JSON rows fit in about 6 MB.
@@ -95,12 +114,14 @@ class WorkGate:
 
 async def read_body(request: Any, limit_bytes: int, what: str, message: str | None = None) -> bytes:
     """The request body, refused with 413 once longer than ``limit_bytes``
-    (by its Content-Length before reading, else as soon as it is exceeded).
+    (by its Content-Length before reading, else as soon as it is exceeded),
+    and with 408 once it falls behind :data:`BODY_MIN_BYTES_S` on average after
+    :data:`BODY_GRACE_S`.
 
     Raises
     ------
     RequestError
-        413 too long, 400 a Content-Length that is not a number.
+        413 too long, 408 too slow, 400 a Content-Length that is not a number.
     """
     too_long = message or f"{what} too large (limit {limit_bytes // (1024 * 1024)} MB)"
     try:
@@ -109,12 +130,24 @@ async def read_body(request: Any, limit_bytes: int, what: str, message: str | No
         raise RequestError("Content-Length", "bad Content-Length header", 400) from None
     if declared > limit_bytes:
         raise RequestError(what, too_long, 413)
+    loop = asyncio.get_running_loop()
+    start_s = loop.time()
+    chunks = request.stream().__aiter__()
     body = bytearray()
-    async for chunk in request.stream():
+    while True:
+        # The deadline moves on with every byte that came: a body arriving at
+        # the minimum rate never meets it.
+        deadline_s = start_s + BODY_GRACE_S + len(body) / BODY_MIN_BYTES_S
+        try:
+            chunk = await asyncio.wait_for(chunks.__anext__(), max(0.0, deadline_s - loop.time()))
+        except StopAsyncIteration:
+            return bytes(body)
+        except asyncio.TimeoutError:
+            raise RequestError(what, f"{what} too slow: send the body at {BODY_MIN_BYTES_S // 1024} KiB/s or more "
+                               f"(after the first {BODY_GRACE_S:g} s)", 408) from None
         body += chunk
         if len(body) > limit_bytes:
             raise RequestError(what, too_long, 413)
-    return bytes(body)
 
 
 class MessageRate:
