@@ -18,7 +18,7 @@ import collections
 import logging
 import time
 from contextlib import asynccontextmanager
-from typing import Any, AsyncIterator, Awaitable, Callable, Counter
+from typing import Any, AsyncIterator, Awaitable, Callable, MutableMapping
 
 from ..errors import RequestError
 
@@ -196,7 +196,7 @@ class MessageRate:
         """The socket has had :attr:`burst` messages refused: close it."""
         return self.dropped >= self.burst
 
-    async def refuse(self, ws: Any, tell: Callable[[str], Awaitable[None]], counters: Counter[str] | None = None) -> bool:
+    async def refuse(self, ws: Any, tell: Callable[[str], Awaitable[None]], counters: MutableMapping[str, int] | None = None) -> bool:
         """After :meth:`take` refused a message: count it, tell the page the
         first time, close a flooding socket (True: it is closed).
 
@@ -206,8 +206,8 @@ class MessageRate:
             The socket the message came from.
         tell : async callable
             Sends the page one line, in its socket's error message.
-        counters : Counter, optional
-            The server's counters; ``messages_dropped`` counts the message.
+        counters : mapping of str to int, optional
+            The server's counters (a :class:`collections.Counter`); ``messages_dropped`` counts the message.
         """
         counters = collections.Counter() if counters is None else counters
         counters["messages_dropped"] += 1
