@@ -59,9 +59,8 @@ def bind_socket(host: str, port: int) -> socket.socket:
 def _head_deadline_protocol(header_timeout_s: float) -> type:
     """uvicorn's HTTP protocol, with a deadline for each request's head.
 
-    uvicorn waits for a request line and headers as long as the client likes: a
-    hundred connections that never finish theirs held every place of its
-    concurrency limit, and the page answered 503 while they stayed open.  Here
+    uvicorn waits for a request line and headers as long as the client likes, so
+    a connection that never finishes its head would stay open for good.  Here
     the head must be in within ``header_timeout_s`` [s] of the connection's
     opening or its previous response's end; else 408, and the connection closes.
     """
@@ -146,7 +145,7 @@ def server_config(app: Any, host: str, port: int, *, ssl_files: tuple[str, str] 
         ws_ping_timeout=20.0,
         lifespan="on",
         # No limit_concurrency: uvicorn counts a connection still sending its
-        # head against it, so slow clients filled it.  The guard bounds the
+        # head against it, so slow clients could fill it.  The guard bounds the
         # sockets and the requests being answered (web/guard.py), the head
         # deadline above the rest.
     )
