@@ -162,3 +162,58 @@ def test_kill_mid_trial_reconnects_and_keeps_every_sample_in_its_trial(tmp_path)
     assert events[0]["detail"]["gap_s"] > 0
     assert [r["stroke_interrupted"] for r in __import__("tactilize.experiments.analysis", fromlist=["x"])
             .tidy_answers(store).to_dict("records")] == [True, False]
+
+
+@pytest.mark.browser
+def test_an_answer_refused_with_503_is_kept_and_sent_again(tmp_path):
+    """A full disk answers 503 (tests/test_experiments_disk_full.py); the page keeps the answer and resends it."""
+    from playwright.sync_api import expect, sync_playwright
+
+    proto, db, port = _two_trial_protocol(tmp_path), tmp_path / "resend.sqlite3", _free_port()
+    proc = _start(proto, db, port)
+    refused = []
+
+    def full_disk(route):
+        if len(refused) < 2:  # the disk is full for the first two tries
+            refused.append(route.request.post_data)
+            route.fulfill(status=503, content_type="application/json",
+                          body='{"error": "the database cannot store this now (database or disk is full)", '
+                               '"source": "store", "retry": true}')
+        else:
+            route.continue_()
+
+    try:
+        with sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_ARGS)
+            try:
+                page = browser.new_page(viewport={"width": 1200, "height": 900})
+                errors = []
+                page.on("pageerror", lambda e: errors.append(str(e)))
+                page.goto(f"http://127.0.0.1:{port}/experiment/")
+                page.fill("#participant-id", "R02")
+                page.check("#consent")
+                page.click("#start")
+                page.check("#felt")
+                page.click("#calibrate")
+                expect(page.locator("#trial-title")).to_have_text("Trial 1 of 2")
+                page.wait_for_function("document.body.dataset.pen === 'live'")
+                _stroke(page)
+                page.locator("#tabs button").nth(1).click()
+                _stroke(page)
+                page.check('#answers input[name="comfort"][value="4"]')
+                page.route("**/answers", full_disk)
+                page.click("#submit")  # one click: the page does the rest
+                expect(page.locator("#message")).to_contain_text("kept and sent again")
+                expect(page.locator("#trial-title")).to_have_text("Trial 2 of 2", timeout=30000)
+                assert len(refused) == 2 and refused[0] == refused[1]  # the same answer each time
+                assert errors == []
+            finally:
+                browser.close()
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+    rows = Store(str(db), must_exist=True).answer_rows()
+    assert [(r["trial"], r["rating"]) for r in rows] == [(0, 4)]

@@ -76,6 +76,27 @@ def test_a_resent_batch_is_stored_once(tmp_path):
     assert _rows(db, "select batch_id, n_samples from stroke_batches") == [("p-7", 5)]
 
 
+@pytest.mark.timeout(180)
+def test_a_batch_near_the_float_limit_is_refused_and_the_session_lives(tmp_path):
+    db = str(tmp_path / "huge.sqlite3")
+    huge = 1.7e308
+    with TestClient(create_experiment_app("alpha-law", db), base_url="http://127.0.0.1") as client:
+        token, trial = open_session(client)
+        image = trial["images"][0]["id"]
+        with client.websocket_connect(f"ws://127.0.0.1/experiment/ws/{token}") as ws:
+            ws.send_json(pen_batch(0, image, "p-1"))
+            assert until(ws, "ack")[-1]["stored"] == "stored"
+            for k, rows in enumerate([[[48.0, huge, 3.0, 0.4], [56.0, -huge, 3.0, 0.4]],
+                                      [[huge, 4.0, 3.0, 0.4], [-huge, 4.5, 3.0, 0.4]],
+                                      [[64.0, 4.0, huge, 0.4], [72.0, 4.5, 3.0, 0.4]]]):
+                ws.send_json({"trial": 0, "image": image, "batch": f"h-{k}", "samples": rows})
+                err = until(ws, "error")[-1]
+                assert err["status"] == 422 and "must be within" in err["error"], err
+            ws.send_json(pen_batch(0, image, "p-2", start=10))
+            assert until(ws, "ack")[-1]["stored"] == "stored"
+    assert _rows(db, "select batch_id from stroke_batches order by batch_id") == [("p-1",), ("p-2",)]
+
+
 def test_the_unique_key_not_only_a_check_keeps_a_batch_single(tmp_path):
     db = str(tmp_path / "unique.sqlite3")
     with TestClient(create_experiment_app("alpha-law", db), base_url="http://127.0.0.1") as client:

@@ -92,6 +92,29 @@ def test_a_command_without_its_extra_says_which_to_install(where, cmd, module, e
     assert "Traceback" not in res.stderr and "internal error" not in res.stderr
 
 
+@pytest.mark.parametrize("module", ["pandas", "pyarrow"])
+def test_serve_with_a_parquet_catalog_without_its_extra_says_so_at_start(where, module):
+    folder = Path(where["tmp"]) / "shop.parquet"
+    folder.mkdir(exist_ok=True)
+    (folder / "_catalog.json").write_text('{"settings": {}}')  # what `batch` writes first
+    env = dict(os.environ, TACTILIZE_TEST_HIDE=module)
+    paths = [os.path.abspath(p) for p in env.get("PYTHONPATH", "").split(os.pathsep) if p]
+    env["PYTHONPATH"] = os.pathsep.join([str(Path(where["tmp"]) / "hide"), *paths])
+    proc = subprocess.Popen([sys.executable, "-m", "tactilize.cli", "serve", "--catalog", str(folder), "--port", "0",
+                             "--no-open"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                            cwd=where["tmp"])
+    try:
+        out, err = proc.communicate(timeout=120)
+    except subprocess.TimeoutExpired:  # it started serving: the fault would be a 500 at the first request
+        proc.kill()
+        out, err = proc.communicate(timeout=30)
+        pytest.fail(f"serve started without {module}: {out[-500:]}")
+    lines = err.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1, err
+    assert module in lines[0] and "pip install 'tactilize[batch]'" in lines[0] and str(folder) in lines[0], lines[0]
+    assert "serving" not in out
+
+
 def test_the_hider_hides_only_what_it_is_told(where):
     # The same command with the module present gets past the import (the test above
     # would pass on any exit 2 otherwise).

@@ -357,6 +357,30 @@ def test_ws_malformed_messages_get_errors_and_connection_lives(client):
         assert recv_type(ws, "drive")["on"]
 
 
+#: Batches whose finite values are near the float limit: their differences overflow.
+HUGE = 1.7e308
+HUGE_BATCHES = [
+    [[0, 10, 10, 0.5], [8, HUGE, 10, 0.5], [16, 12, 10, 0.5]],
+    [[0, 10, 10, 0.5], [8, -HUGE, HUGE, 0.5]],
+    [[0, 10, -HUGE, 0.5], [8, 10, 10, 0.5]],
+    [[HUGE, 10, 10, 0.5], [-HUGE, 12, 10, 0.5]],
+    [[0, 10, 10, 0.5, HUGE, 0.0]],
+]
+
+
+@pytest.mark.parametrize("profile", ["surface", "paper"])
+def test_ws_batches_near_the_float_limit_are_refused_and_the_session_lives(client, profile):
+    with client.websocket_connect("ws://127.0.0.1/ws") as ws:
+        hello(ws, profile=profile)
+        for k, rows in enumerate(HUGE_BATCHES):
+            ws.send_text(json.dumps({"type": "samples", "seq": k, "samples": rows}))
+            m = recv_type(ws, "error")
+            assert "must be within" in m["message"], m
+        # The session is the same one, still stroking.
+        ws.send_text(json.dumps({"type": "samples", "samples": stroke_rows(20.0, t0=5000.0)}))
+        assert recv_type(ws, "drive")["on"]
+
+
 def test_ws_samples_before_texture_are_refused(client):
     with client.websocket_connect("ws://127.0.0.1/ws") as ws:
         ws.send_text(json.dumps({"type": "samples", "samples": stroke_rows(20.0)}))

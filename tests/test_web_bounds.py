@@ -4,15 +4,18 @@ cap is in test_web_guard.py.  No times are asserted: the tests wait on events.""
 
 from __future__ import annotations
 
+import json
 import threading
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from starlette.websockets import WebSocketDisconnect
 
 from tactilize.data import png_bytes
 from tactilize.actuators.recording import RecordingOutput
 from tactilize.web import create_app
+from tactilize.web import limits
 from tactilize.web.limits import MAX_EXPORT_BODY_BYTES, UPLOADS_ADMITTED
 
 LOCAL = "http://127.0.0.1"
@@ -105,3 +108,61 @@ def test_an_upload_with_a_vanishing_width_is_a_clear_422(app, width_mm):
     with TestClient(app, base_url=LOCAL) as c:
         r = c.post("/api/textures", files={"file": ("tiny.png", _png())}, data={"width_mm": width_mm})
         assert r.status_code == 422 and "tiny.png" in r.json()["error"] and "pixel" in r.json()["error"]
+
+
+# ------------------------------------------------------------------- one page's flood
+
+
+@pytest.fixture()
+def tight_budget(monkeypatch):
+    """A budget of 50 messages per socket, never refilled within a test: the counts are exact, no clock read."""
+    monkeypatch.setattr(limits, "MESSAGES_PER_S", 1e-9)
+    monkeypatch.setattr(limits, "MESSAGE_BURST", 50)
+    return 50
+
+
+def test_a_flooding_pen_page_is_dropped_and_closed_and_another_page_is_answered(app, tight_budget):
+    with TestClient(app, base_url=LOCAL) as c:
+        with c.websocket_connect("ws://127.0.0.1/ws") as calm, c.websocket_connect("ws://127.0.0.1/ws") as flood:
+            for i in range(4 * tight_budget):
+                flood.send_text(json.dumps({"type": "ping", "id": i}))
+            for i in range(tight_budget - 10):  # the other page, while the flood is read
+                calm.send_text(json.dumps({"type": "ping", "id": i}))
+                assert calm.receive_json()["id"] == i
+            seen = []
+            with pytest.raises(WebSocketDisconnect) as closed:
+                for _ in range(4 * tight_budget):  # bounded: the socket closes well before
+                    seen.append(flood.receive_json())
+            assert closed.value.code == limits.FLOOD_CLOSE_CODE == 1008
+            assert [m["id"] for m in seen[:tight_budget]] == list(range(tight_budget))  # the budget: answered
+            assert [m["type"] for m in seen[tight_budget:]] == ["error"]  # then told once, then closed
+            assert "too many messages" in seen[-1]["message"]
+            calm.send_text(json.dumps({"type": "ping", "id": "after"}))
+            assert calm.receive_json()["id"] == "after"  # the other page lives on
+    counters = app.state.tactilize.counters
+    assert counters["messages_dropped"] == tight_budget and counters["sockets_flooding"] == 1
+
+
+def test_a_flooding_participant_page_is_closed_and_another_is_answered(tmp_path, tight_budget):
+    from tactilize.experiments.web import create_experiment_app
+
+    from _experiment_socket import open_session
+
+    with TestClient(create_experiment_app("alpha-law", str(tmp_path / "flood.sqlite3")), base_url=LOCAL) as c:
+        flooder, _ = open_session(c, "F1")
+        other, _ = open_session(c, "F2")
+        with c.websocket_connect(f"ws://127.0.0.1/experiment/ws/{other}") as calm, \
+                c.websocket_connect(f"ws://127.0.0.1/experiment/ws/{flooder}") as flood:
+            for i in range(4 * tight_budget):
+                flood.send_text(json.dumps({"type": "ping"}))
+            for _ in range(tight_budget - 10):
+                calm.send_text(json.dumps({"type": "ping"}))
+                assert calm.receive_json()["type"] == "pong"
+            seen = []
+            with pytest.raises(WebSocketDisconnect) as closed:
+                for _ in range(4 * tight_budget):
+                    seen.append(flood.receive_json())
+            assert closed.value.code == 1008
+            assert len(seen) <= tight_budget + 1 and all(m["type"] in ("pong", "error") for m in seen)
+            calm.send_text(json.dumps({"type": "ping"}))
+            assert calm.receive_json()["type"] == "pong"

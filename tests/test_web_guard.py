@@ -28,6 +28,16 @@ def test_the_accepted_hosts_are_loopback_and_the_bind_address_and_what_an_option
     assert accepted_hosts("[::1]") == accepted_hosts("::1")
     assert host_name("[::1]:8765") == "::1" and host_name("LocalHost.:80") == "localhost"
     assert host_name("evil.example:8765") == "evil.example"
+    assert host_name("::1") == "::1" and host_name("[fe80::1%eth0]:80") == "fe80::1%eth0" and host_name("") == ""
+
+
+@pytest.mark.parametrize("host", ["127.0.0.1:8765@evil.example", "localhost@evil.example", "[::1", "[::1]evil",
+                                  "127.0.0.1:80:81", "127.0.0.1:x", "127.0.0.1/evil", "evil.example#127.0.0.1",
+                                  "[::1]:8765@evil.example"])
+def test_a_malformed_host_is_not_loopback(pen, host):
+    assert host_name(host) not in accepted_hosts("127.0.0.1"), host
+    c, _ = pen
+    assert c.get("/api/config", headers={"Host": host}).status_code == 421
 
 
 @pytest.fixture()
@@ -152,3 +162,15 @@ def test_a_live_server_refuses_forged_origins_and_sockets_beyond_max_sockets():
     finally:
         proc.terminate()
         proc.communicate(timeout=30)
+
+
+def test_http_requests_beyond_the_cap_are_refused_with_503(pen):
+    c, _ = pen
+    guard = c.app.state.guard
+    guard.requests = guard.max_requests  # as if that many were being answered
+    try:
+        r = c.get("/api/config")
+        assert r.status_code == 503 and "too many requests" in r.json()["error"] and guard.refused["requests"] == 1
+    finally:
+        guard.requests = 0
+    assert c.get("/api/config").status_code == 200 and guard.requests == 0

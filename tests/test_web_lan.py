@@ -94,6 +94,17 @@ def test_the_certificate_names_the_hosts_and_is_reused(tmp_path):
     assert "10.0.0.9" not in certificate_names(certificate_for([], tmp_path)[0])
 
 
+def test_a_key_regenerated_over_a_readable_key_file_is_owner_only(tmp_path):
+    cert, key = certificate_for([], tmp_path)
+    old_key = key.read_bytes()
+    os.chmod(key, 0o644)  # as an older version, a copy or an umask may have left it
+    cert.write_text("not a certificate")  # forces a new certificate and key
+    _, key2 = certificate_for(["10.0.0.9"], tmp_path)
+    assert key2 == key and key2.read_bytes() != old_key
+    assert stat.S_IMODE(os.stat(key2).st_mode) == 0o600
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([cert.name, key.name])  # no temporary file left
+
+
 def test_serve_lan_prints_the_address_a_qr_and_what_works(monkeypatch):
     import uvicorn
 

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import CatalogError
+from ..extras import require
 from ..drive import Drive
 from ..mapping import DriveFeatures, Profile
 from .analysis import DEFAULT_SPEEDS_M_S, speed_label
@@ -123,6 +124,10 @@ class Catalog:
             if not meta_path.exists():
                 raise CatalogError(self.location, "not a catalog (no _catalog.json): make one with `tactilize batch`")
             self.settings = json.loads(meta_path.read_text("utf-8")).get("settings", {})
+            # The parts are read at the first request: a missing extra is said now,
+            # in one line, rather than as a 500 on every request.
+            for module in ("pandas", "pyarrow.parquet"):
+                require(module, self.location, prefer="batch")
         try:
             self.profile = Profile.from_dict(self.settings["profile"], source=f"{self.location} profile")
         except KeyError:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import logging
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
 from functools import partial
@@ -17,13 +18,17 @@ from typing import Any
 
 import anyio
 from anyio.lowlevel import RunVar
+from sqlalchemy.exc import OperationalError
 from starlette.concurrency import run_in_threadpool
 from starlette.websockets import WebSocketDisconnect
 
+from ..web.limits import MessageRate
 from .errors import FlowError
 from .strokes import StrokeHandler
 
 __all__ = ["pump", "pen_executor", "PEN_THREADS", "in_store_thread", "STORE_THREADS"]
+
+log = logging.getLogger(__name__)
 
 #: Threads of the pen messages' own executor (:func:`pen_executor`).
 PEN_THREADS = 2
@@ -56,7 +61,16 @@ async def in_store_thread(func, *args):
     if limiter is None:
         limiter = anyio.CapacityLimiter(STORE_THREADS)
         _STORE_LIMITER.set(limiter)
-    return await anyio.to_thread.run_sync(partial(func, *args), limiter=limiter)
+    try:
+        return await anyio.to_thread.run_sync(partial(func, *args), limiter=limiter)
+    except OperationalError as exc:
+        # A full disk, a database restarting: nothing of the request was stored
+        # (its transaction rolled back), and the same request will be once the
+        # store can write again.  A 503 with one line, not a 500 and a traceback.
+        reason = str(exc.orig).strip().splitlines()[0][:200] if exc.orig is not None else exc.__class__.__name__
+        log.warning("request not stored (%s); the page keeps it and sends it again", reason)
+        raise FlowError("store", f"the database cannot store this now ({reason}); the page keeps it and "
+                        "sends it again", 503, retry=True) from None
 
 
 def pen_executor() -> ThreadPoolExecutor:
@@ -107,13 +121,23 @@ async def pump(ws, handler: StrokeHandler) -> None:
         while (doc := await out.get()) is not None:
             await ws.send_json(doc)
 
+    async def tell(text: str) -> None:
+        out.put_nowait({"type": "error", "error": text, "source": "stroke", "status": 429})
+
     sending = asyncio.create_task(sender())
     refreshing: asyncio.Future | None = None
+    budget = MessageRate()
     try:
         while not sending.done():
             message = await ws.receive()
             if message["type"] == "websocket.disconnect":
                 return
+            # Dropped unread: the other participants' drives do not wait for a
+            # flood, and a dropped batch, never acknowledged, is sent again.
+            if not budget.take():
+                if await budget.refuse(ws, tell):
+                    return
+                continue
             text = message.get("text")
             if text is None and message.get("bytes") is not None:
                 text = message["bytes"].decode("utf-8", "replace")

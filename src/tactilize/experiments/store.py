@@ -85,12 +85,20 @@ def provenance(**extra: Any) -> dict[str, Any]:
     return doc
 
 
+#: Size an SQLite write-ahead log is cut back to after a checkpoint [bytes].
+WAL_LIMIT_BYTES = 16 * 1024 * 1024
+
+
 def _sqlite_pragmas(dbapi_conn, _record) -> None:
     cur = dbapi_conn.cursor()
     # WAL + FULL: a commit is on disk when it returns, and readers (the
     # experimenter's view) never block the participant's writes.
     cur.execute("PRAGMA journal_mode=WAL")
     cur.execute("PRAGMA synchronous=FULL")
+    # A WAL keeps the size it once grew to (while the disk was full and commits
+    # failed, or the pages resent what they kept); cut back after each
+    # checkpoint, the space freed on the disk stays free for the run.
+    cur.execute(f"PRAGMA journal_size_limit={WAL_LIMIT_BYTES}")
     cur.execute("PRAGMA foreign_keys=ON")
     cur.execute("PRAGMA busy_timeout=10000")
     cur.close()

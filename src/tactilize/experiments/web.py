@@ -55,6 +55,7 @@ from ..encode import jsonable
 from ..http import ErrorAnsweringRoute, is_loopback, settle_heap
 from ..redact import redact_url
 from ..web.guard import accepted_hosts, install
+from ..web.limits import read_body
 from ..web.ownership import TRIAL, page_output
 from .analysis import analyze, export_answers
 from .design import Design
@@ -76,10 +77,16 @@ def _static_dir():
     return resources.files("tactilize.experiments").joinpath("static")
 
 
+#: Longest body of a participant's request [bytes]: an answer with its 2000-character comment is a few KiB.
+MAX_REQUEST_BYTES = 256 * 1024
+
+
 async def _json_body(request: Request) -> Any:
+    # Bounded in size and time (web/limits.py): a slow body frees its request's place.
+    raw = await read_body(request, MAX_REQUEST_BYTES, "request", f"request too large (limit {MAX_REQUEST_BYTES} bytes)")
     try:
-        return await request.json()
-    except (json.JSONDecodeError, UnicodeDecodeError, ValueError):
+        return json.loads(raw)
+    except (json.JSONDecodeError, UnicodeDecodeError, ValueError, RecursionError):
         raise FlowError("request", "the body must be JSON", 400) from None
 
 

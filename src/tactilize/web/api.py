@@ -20,7 +20,7 @@ from ..errors import ImageError, RequestError
 from ..encode import jsonable
 from ..http import ErrorAnsweringRoute
 
-from .limits import MAX_UPLOAD_BYTES, MAX_UPLOAD_PIXELS
+from .limits import MAX_UPLOAD_BYTES, MAX_UPLOAD_PIXELS, read_body
 from .state import ServerState, TextureEntry
 
 __all__ = ["api_router", "MAX_UPLOAD_BYTES", "MAX_UPLOAD_PIXELS"]
@@ -110,21 +110,13 @@ def api_router() -> APIRouter:
         too_large = f"file too large (limit {MAX_UPLOAD_BYTES // (1024 * 1024)} MB)"
         # The body is bounded *before* the multipart parser sees it: a parser
         # left alone would spool any size to disk before the handler could refuse.
-        limit = MAX_UPLOAD_BYTES + _FORM_OVERHEAD
         try:
-            declared = int(request.headers.get("content-length", "0"))
-        except ValueError:
-            raise RequestError("Content-Length", "bad Content-Length header", 400) from None
-        if declared > limit:
-            s.counters["uploads_refused"] += 1
-            raise RequestError("upload", too_large, 413)
-        body = bytearray()
-        async for chunk in request.stream():
-            body += chunk
-            if len(body) > limit:
+            body = await read_body(request, MAX_UPLOAD_BYTES + _FORM_OVERHEAD, "upload", too_large)
+        except RequestError as exc:
+            if exc.status == 413:
                 s.counters["uploads_refused"] += 1
-                raise RequestError("upload", too_large, 413)
-        request._body = bytes(body)  # Starlette's form parser reads the cached body
+            raise
+        request._body = body  # Starlette's form parser reads the cached body
         try:
             form = await request.form(max_files=1, max_fields=8)
         except Exception as exc:  # malformed multipart: say so, never a 500

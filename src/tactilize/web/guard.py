@@ -24,9 +24,12 @@ socket of the app it wraps, the ones other packages mount included.
 from __future__ import annotations
 
 import logging
+import re
 import socket
 from typing import Any, Iterable
 from urllib.parse import urlsplit
+
+from .limits import MAX_REQUESTS
 
 __all__ = ["LOOPBACK_NAMES", "DEFAULT_MAX_SOCKETS", "accepted_hosts", "host_name", "Guard", "RequestGuard", "install"]
 
@@ -40,14 +43,26 @@ _SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 _WILDCARDS = frozenset({"", "0.0.0.0", "::"})
 
 
+#: A Host header: a name or IPv4 address, or an IPv6 address in brackets, then
+#: an optional port of digits (RFC 9110, section 7.2; RFC 3986, section 3.2.2).
+_HOST_HEADER = re.compile(r"(?:(?P<name>[a-z0-9._~%-]*)|\[(?P<ipv6>[0-9a-f:.]+(?:%[a-z0-9._~-]+)?)\])(?::[0-9]*)?")
+#: An IPv6 address given bare, as ``--host ::1`` may be.
+_BARE_IPV6 = re.compile(r"[0-9a-f:.]+(?:%[a-z0-9._~-]+)?")
+
+
 def host_name(value: str) -> str:
     """The host part of a ``Host`` header or ``--host`` value: lower case, no port,
-    IPv6 without brackets (``"[::1]:8765"`` -> ``"::1"``)."""
+    IPv6 without brackets (``"[::1]:8765"`` -> ``"::1"``).
+
+    A value that is no host (``"127.0.0.1:80@evil.example"``, ``"[::1"``) comes
+    back whole, so it matches none of the names a server accepts.
+    """
     v = value.strip().lower()
-    if v.startswith("["):
-        v = v[1:v.find("]")] if "]" in v else v[1:]
-    elif v.count(":") == 1:
-        v = v.split(":", 1)[0]
+    m = _HOST_HEADER.fullmatch(v)
+    if m is not None:
+        v = m.group("ipv6") or m.group("name")
+    elif v.count(":") < 2 or _BARE_IPV6.fullmatch(v) is None:
+        return v
     return v.rstrip(".")  # "localhost." is localhost (a fully qualified name)
 
 
@@ -123,22 +138,30 @@ class Guard:
     max_sockets : int
         WebSockets open at once, at most; one more is refused with HTTP 503
         before it is accepted (no session, no task is started for it).
+    max_requests : int
+        HTTP requests answered at once, at most (:data:`.limits.MAX_REQUESTS`);
+        one more is refused with 503.
     """
 
-    def __init__(self, hosts: Iterable[str], max_sockets: int = DEFAULT_MAX_SOCKETS) -> None:
-        if isinstance(max_sockets, bool) or int(max_sockets) < 1:
-            raise ValueError(f"max_sockets must be at least 1, got {max_sockets}")
+    def __init__(self, hosts: Iterable[str], max_sockets: int = DEFAULT_MAX_SOCKETS, max_requests: int = MAX_REQUESTS) -> None:
+        for name, n in (("max_sockets", max_sockets), ("max_requests", max_requests)):
+            if isinstance(n, bool) or int(n) < 1:
+                raise ValueError(f"{name} must be at least 1, got {n}")
         self.hosts = frozenset(host_name(h) for h in hosts)
         self.max_sockets = int(max_sockets)
+        self.max_requests = int(max_requests)
         #: WebSockets open now
         self.sockets = 0
+        #: HTTP requests being answered now
+        self.requests = 0
         #: refusals so far, by kind
-        self.refused: dict[str, int] = {"host": 0, "origin": 0, "sockets": 0}
+        self.refused: dict[str, int] = {"host": 0, "origin": 0, "sockets": 0, "requests": 0}
 
 
 class RequestGuard:
     """ASGI middleware: refuse requests and sockets that fail the checks above,
-    and WebSockets beyond ``guard.max_sockets`` open at once.
+    WebSockets beyond ``guard.max_sockets`` open at once and HTTP requests
+    beyond ``guard.max_requests``.
 
     A refused HTTP request gets its status and ``{"error": reason}``; a refused
     socket gets the same as the HTTP answer to its handshake where the server
@@ -162,7 +185,16 @@ class RequestGuard:
             await _refuse(scope, receive, send, *bad)
             return
         if scope["type"] == "http":
-            await self.app(scope, receive, send)
+            if g.requests >= g.max_requests:
+                g.refused["requests"] += 1
+                await _refuse(scope, receive, send, 503,
+                              f"too many requests at once ({g.requests}, limit {g.max_requests}); try again in a moment")
+                return
+            g.requests += 1
+            try:
+                await self.app(scope, receive, send)
+            finally:
+                g.requests -= 1
             return
         if g.sockets >= g.max_sockets:
             g.refused["sockets"] += 1

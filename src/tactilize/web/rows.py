@@ -18,11 +18,22 @@ from typing import Any, Iterable, Sequence
 
 from ..pen.samples import PenSample
 
-__all__ = ["DEFAULT_M_PER_CSS_PX", "sample_error", "samples_from_css"]
+__all__ = ["DEFAULT_M_PER_CSS_PX", "MAX_ABS_TIME_MS", "MAX_ABS_POSITION", "MAX_ABS_TILT_DEG", "sample_error",
+           "samples_from_css"]
 
 #: A CSS pixel is 1/96 inch by definition (docs/references.md, section 5) [m];
 #: the page replaces this with a calibrated value.
 DEFAULT_M_PER_CSS_PX = 0.0254 / 96.0
+
+#: Largest time a row may carry [ms]: 1e15 ms is 31 700 years, far beyond an
+#: epoch timestamp; beyond it, differences of two times can overflow a float.
+MAX_ABS_TIME_MS = 1e15
+#: Largest coordinate a row may carry [CSS px on the pen page, mm on the
+#: experiments' page]: kilometres either way; a finite coordinate near the
+#: float limit makes a stroke's lengths infinite.
+MAX_ABS_POSITION = 1e7
+#: Tilt range of a pointer event [deg] (docs/references.md, section 5).
+MAX_ABS_TILT_DEG = 90.0
 
 #: What a row that stops early means: no pressure (a mouse), no tilt.
 _OPTIONAL_DEFAULTS = (None, 0.0, 0.0)  # pressure, tilt_x_deg, tilt_y_deg
@@ -36,6 +47,10 @@ def _finite_number(v: Any) -> bool:
         return math.isfinite(v)
     except OverflowError:  # an integer beyond any float (JSON allows any length)
         return False
+
+
+_MAX_ABS = (MAX_ABS_TIME_MS, MAX_ABS_POSITION, MAX_ABS_POSITION, math.inf, MAX_ABS_TILT_DEG, MAX_ABS_TILT_DEG)
+_NAMES = ("time", "x", "y", "pressure", "tilt x", "tilt y")
 
 
 def sample_error(row: Any) -> str | None:
@@ -60,6 +75,8 @@ def sample_error(row: Any) -> str | None:
             continue
         if not _finite_number(v):
             return f"sample value {i} must be a finite number, got {v!r}"
+        if abs(v) > _MAX_ABS[i]:
+            return f"sample value {i} ({_NAMES[i]}) must be within +-{_MAX_ABS[i]:g}, got {v!r}"
     if len(row) > 3 and row[3] is not None and not 0.0 <= row[3] <= 1.0:
         return f"pressure must be in [0, 1], got {row[3]!r}"
     return None

@@ -23,7 +23,8 @@ DEFAULT_PROFILE = "surface"
 #: CPython GIL switch interval [s] while serving (see serve()); the bench uses the same.
 SWITCH_INTERVAL_S = 0.0005
 
-__all__ = ["DEFAULT_PROFILE", "SWITCH_INTERVAL_S", "serve", "is_loopback", "bind_socket", "display_available"]
+__all__ = ["DEFAULT_PROFILE", "SWITCH_INTERVAL_S", "serve", "server_config", "is_loopback", "bind_socket",
+           "display_available"]
 
 
 def bind_socket(host: str, port: int) -> socket.socket:
@@ -53,6 +54,101 @@ def bind_socket(host: str, port: int) -> socket.socket:
         raise TactilizeError(f"{host}:{port}", f"cannot listen ({exc.strerror or exc})") from None
     sock.set_inheritable(True)
     return sock
+
+
+def _head_deadline_protocol(header_timeout_s: float) -> type:
+    """uvicorn's HTTP protocol, with a deadline for each request's head.
+
+    uvicorn waits for a request line and headers as long as the client likes, so
+    a connection that never finishes its head would stay open for good.  Here
+    the head must be in within ``header_timeout_s`` [s] of the connection's
+    opening or its previous response's end; else 408, and the connection closes.
+    """
+    from uvicorn.protocols.http.auto import AutoHTTPProtocol
+
+    body = b'{"error": "request headers too slow"}'
+    late = (b"HTTP/1.1 408 Request Timeout\r\ncontent-type: application/json\r\nconnection: close\r\n"
+            b"content-length: " + str(len(body)).encode() + b"\r\n\r\n" + body)
+
+    class HeadDeadline(AutoHTTPProtocol):  # type: ignore[misc, valid-type]
+        _head_timer: Any = None
+
+        def connection_made(self, transport: Any) -> None:
+            super().connection_made(transport)
+            self._arm()
+
+        def on_response_complete(self) -> None:
+            super().on_response_complete()
+            self._arm()
+
+        def connection_lost(self, exc: Exception | None) -> None:
+            if self._head_timer is not None:
+                self._head_timer.cancel()
+            super().connection_lost(exc)
+
+        def _arm(self) -> None:
+            if self._head_timer is not None:
+                self._head_timer.cancel()
+            self._head_timer = self.loop.call_later(header_timeout_s, self._head_late)
+
+        def _head_late(self) -> None:
+            self._head_timer = None
+            t = self.transport
+            if t.is_closing() or t.get_protocol() is not self:  # closed, or a WebSocket now
+                return
+            if self.cycle is not None and not self.cycle.response_complete:  # its head came: being answered
+                return
+            t.write(late)
+            t.close()
+
+    return HeadDeadline
+
+
+def server_config(app: Any, host: str, port: int, *, ssl_files: tuple[str, str] | None = None,
+                  log_level: str = "warning", header_timeout_s: float | None = None) -> Any:
+    """The uvicorn configuration every server of tactilize runs with.
+
+    Parameters
+    ----------
+    app : ASGI app
+        What to serve (its guard bounds the sockets and requests at once).
+    host, port : str, int
+        The address bound (the socket itself is given to ``uvicorn.Server.run``).
+    ssl_files : (cert, key), optional
+        PEM files for HTTPS.
+    log_level : str
+        uvicorn's log level.
+    header_timeout_s : float, optional
+        Time a request's head may take [s]; :data:`.limits.HEADER_TIMEOUT_S` by default.
+
+    Returns
+    -------
+    uvicorn.Config
+    """
+    import uvicorn
+
+    from .limits import HEADER_TIMEOUT_S
+
+    return uvicorn.Config(
+        app,
+        host=host,
+        port=port,
+        http=_head_deadline_protocol(HEADER_TIMEOUT_S if header_timeout_s is None else header_timeout_s),
+        ssl_certfile=ssl_files[0] if ssl_files else None,
+        ssl_keyfile=ssl_files[1] if ssl_files else None,
+        log_level=log_level,
+        ws_max_size=1024 * 1024,  # the protocol's messages are far smaller
+        # Compression costs ~0.1 ms per message each way and saves nothing on
+        # loopback, where the page almost always is.
+        ws_per_message_deflate=False,
+        ws_ping_interval=20.0,
+        ws_ping_timeout=20.0,
+        lifespan="on",
+        # No limit_concurrency: uvicorn counts a connection still sending its
+        # head against it, so slow clients could fill it.  The guard bounds the
+        # sockets and the requests being answered (web/guard.py), the head
+        # deadline above the rest.
+    )
 
 
 def display_available() -> bool:
@@ -162,24 +258,7 @@ def serve(
                 f"tactilize: warning: serving on {host}, reachable from other machines on the network; "
                 "anyone who can reach it can drive the actuators"
             )
-        config = uvicorn.Config(
-            app,
-            host=bound_host,
-            port=bound_port,
-            ssl_certfile=ssl_files[0] if ssl_files else None,
-            ssl_keyfile=ssl_files[1] if ssl_files else None,
-            log_level=log_level,
-            ws_max_size=1024 * 1024,  # the protocol's messages are far smaller
-            # Compression costs ~0.1 ms per message each way and saves nothing on
-            # loopback, where the page almost always is.
-            ws_per_message_deflate=False,
-            ws_ping_interval=20.0,
-            ws_ping_timeout=20.0,
-            lifespan="on",
-            # Every connection beyond this gets a 503 from uvicorn itself: the
-            # sockets the guard admits, and room for the page's HTTP requests.
-            limit_concurrency=max_sockets + 64,
-        )
+        config = server_config(app, bound_host, bound_port, ssl_files=ssl_files, log_level=log_level)
         server = uvicorn.Server(config)
         # The simulated wire runs on a thread; with CPython's default 5 ms GIL
         # switch interval a pen batch could wait up to 5 ms for the event loop.

@@ -73,6 +73,7 @@ A reader task parses messages as fast as they come and keeps at most
 in one go.  When the page sends faster than the server renders, old samples
 fall off the front of the queue (counted, never queued without bound) and the
 newest always wins.  A lift discards whatever samples were waiting before it.
+Messages beyond a socket's budget (:class:`.limits.MessageRate`) are dropped unread; a flood closes it (1008).
 """
 
 from __future__ import annotations
@@ -93,6 +94,7 @@ from ..errors import TactilizeError
 from ..pen import PenRenderer
 from ..encode import dumps
 from ..pen.display import MM_PER_PX_RANGE  # the one display-scale rule, shared with the experiments
+from .limits import MessageRate
 from .rows import sample_error, samples_from_css
 from .state import ServerState
 
@@ -498,12 +500,17 @@ async def websocket_endpoint(ws: WebSocket, state: ServerState) -> None:
                 await send_text(text)
 
     tasks = [asyncio.create_task(renderer_task()), asyncio.create_task(wire_task())]
+    budget = MessageRate()
     try:
         while not closed.is_set():
             message = await ws.receive()
             session.msg_ns = time.perf_counter_ns()
             if message["type"] == "websocket.disconnect":
                 break
+            if not budget.take():  # dropped unread: the other pages' drives do not wait for a flood
+                if await budget.refuse(ws, lambda text: send({"type": "error", "message": text}), state.counters):
+                    break
+                continue
             text = message.get("text")
             if text is None:
                 text = message.get("bytes")

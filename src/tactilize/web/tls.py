@@ -13,6 +13,7 @@ from __future__ import annotations
 import datetime as _dt
 import ipaddress
 import os
+import tempfile
 from pathlib import Path
 from typing import Iterable
 
@@ -119,9 +120,18 @@ def certificate_for(hosts: Iterable[str], directory: str | os.PathLike | None = 
     )
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        fd = os.open(key_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-        with os.fdopen(fd, "wb") as f:
-            f.write(key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8, serialization.NoEncryption()))
+        # A new file, made owner-only (mkstemp: 0600), then moved over the old
+        # key: opening the old one would keep whatever mode it had (0644 too),
+        # and the key is never readable by others, not even for a moment.
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=".serve-key-")
+        try:
+            with os.fdopen(fd, "wb") as f:
+                f.write(key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8,
+                                          serialization.NoEncryption()))
+            os.replace(tmp, key_path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
         cert_path.write_bytes(cert.public_bytes(serialization.Encoding.PEM))
     except OSError as exc:
         raise TactilizeError(str(folder), f"cannot store the HTTPS certificate ({exc.strerror or exc})") from None

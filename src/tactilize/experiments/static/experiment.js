@@ -273,8 +273,26 @@ function updateSubmit() {
     || Object.keys(ratings()).length !== trial.questions.length;
 }
 
+// A 503 to an answer: the store cannot write now (a full disk, a database
+// restarting).  The page keeps the answer and sends it again, waiting longer each
+// time; its submission_id makes a resend that was stored after all harmless.
+const ANSWER_RESEND_MS = 2000;
+const ANSWER_RESEND_MAX_MS = 30000;
+
+async function sendAnswer(body) {
+  for (let wait = ANSWER_RESEND_MS; ; wait = Math.min(2 * wait, ANSWER_RESEND_MAX_MS)) {
+    try {
+      return await call("POST", `sessions/${session}/answers`, body);
+    } catch (err) {
+      if (err.status !== 503) throw err;
+      message(`Your answer could not be saved yet; it is kept and sent again in ${Math.round(wait / 1000)} s.`);
+      await new Promise((resolve) => setTimeout(resolve, wait));
+    }
+  }
+}
+
 $("submit").addEventListener("click", () => guarded(async () => {
-  const doc = await call("POST", `sessions/${session}/answers`, {
+  const doc = await sendAnswer({
     trial: trial.index, ratings: ratings(),
     response_time_s: (performance.now() - shownAt) / 1000,
     submission_id: `${session}:${trial.index}`,
