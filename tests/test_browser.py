@@ -245,6 +245,20 @@ def test_page_gallery_and_surface(page):
         assert el.get_attribute("title")  # says the unit
 
 
+def test_fig5_is_above_the_fold_on_a_laptop_screen(browser, server):
+    """At 1280 x 800 the paper's Fig. 5 (picture, spectrum, tile map) is on the first
+    screen, beside the picture and the wire's plot, without scrolling."""
+    with opened_page(browser, server, viewport={"width": 1280, "height": 800}) as pg:
+        pick(pg, "corduroy")
+        pg.wait_for_function("document.querySelector('#spectrum-name').textContent !== '–'")
+        fig = pg.get_by_test_id("spectrum-figure").bounding_box()
+        plot = pg.get_by_test_id("plot").bounding_box()
+        assert fig is not None and plot is not None
+        assert fig["y"] + fig["height"] <= 800, fig
+        assert plot["height"] >= 100  # the plot stays readable
+        assert pg.evaluate("document.scrollingElement.scrollTop") == 0
+
+
 def test_pen_stroke_two_speeds_then_lift(page):
     pick(page, "corduroy")
     pen = Pen(page)
@@ -642,7 +656,7 @@ def _blue(im):
 def drawn(page):
     """(trail, plot) screenshots once both show a stroke (a trail and a pulse
     train), else None: the drawing runs at its own pace, in a worker."""
-    trail, plot = _pixels(page, "#trail"), _pixels(page, "#plot")
+    trail, plot = _pixels(page, "#surface"), _pixels(page, "#plot")
     return (trail, plot) if _red(trail) > 100 and _blue(plot) > 20 else None
 
 
@@ -661,7 +675,9 @@ def test_the_plot_and_the_trail_are_drawn_off_the_main_thread(page):
     assert page.get_by_test_id("drawing-mode").text_content() == "worker"
     pick(page, "corduroy")
     is_red, red, blue = _is_red, _red, _blue
-    assert red(_pixels(page, "#trail")) == 0
+    # The trail as the user sees it: inside the surface (the trail canvas spans the whole
+    # map of copies, which the surface cuts; below it are the figures, Fig. 5's red marks too).
+    assert red(_pixels(page, "#surface")) == 0
     pen = Pen(page)
     box = surface_box(page)
     x0, y = box["x"] + 10, box["y"] + 40
@@ -675,15 +691,15 @@ def test_the_plot_and_the_trail_are_drawn_off_the_main_thread(page):
     # The trail runs along the stroke, at its height, and nowhere else.
     rows = np.nonzero(is_red(trail).any(axis=1))[0]
     assert red(trail) > 100
-    scale = trail.shape[1] / page.locator("#trail").bounding_box()["width"]
-    assert abs(rows.mean() / scale - (y - page.locator("#trail").bounding_box()["y"])) < 4
+    scale = trail.shape[1] / page.locator("#surface").bounding_box()["width"]
+    assert abs(rows.mean() / scale - (y - page.locator("#surface").bounding_box()["y"])) < 4
     assert blue(plot) > 20
     # A new stroke clears the old trail (awaited: the worker clears it when it gets there).
     pen._send("mousePressed", x0, y + 60, 1)
-    top = page.locator("#trail").bounding_box()["y"]
+    top = page.locator("#surface").bounding_box()["y"]
 
     def old_trail_gone():
-        rows = np.nonzero(is_red(_pixels(page, "#trail")).any(axis=1))[0]
+        rows = np.nonzero(is_red(_pixels(page, "#surface")).any(axis=1))[0]
         return not (np.abs(rows / scale - (y - top)) < 4).any()
 
     assert until(old_trail_gone), "a new stroke left the old trail on the surface"

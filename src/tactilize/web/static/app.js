@@ -119,7 +119,8 @@ function stageSize() {
   const w = s.clientWidth || 600;
   const top = s.getBoundingClientRect().top + window.scrollY;
   const phone = getComputedStyle($("#stage")).display === "contents";
-  const below = (phone ? $("#drive-group") : $("#plot-figure")).getBoundingClientRect().height || 0;
+  // The figures under the picture (the wire's plot, and Fig. 5 beside it on a wide screen) stay on the first screen.
+  const below = (phone ? $("#drive-group") : $("#figures")).getBoundingClientRect().height || 0;
   const h = Math.max(phone ? 160 : 200, window.innerHeight - top - below - (phone ? 12 : 24));
   return [w, h];
 }
