@@ -160,6 +160,36 @@ def test_js_rule_equals_python_rule(site, base, pw):
         page.close()
 
 
+def test_inflate_equals_zlib(site, base, pw):
+    """The page's own inflater gives zlib's bytes for every block type, and refuses damaged streams."""
+    import zlib
+
+    rng = np.random.default_rng(9)
+    texts = {
+        "stored (noise)": rng.integers(0, 256, 70_000, dtype=np.uint8).tobytes(),
+        "fixed codes (short)": b"tactile surface " * 3,
+        "dynamic codes, long matches": bytes(50_000) + bytes(range(256)) * 40,
+        "model residuals": (rng.normal(0, 6, 80_000).round().astype(np.int64) & 0xFF).astype(np.uint8).tobytes(),
+        "empty": b"",
+    }
+    cases = [(name, zlib.compress(data, level), data) for name, data in texts.items() for level in (1, 9)]
+    page = pw[1].new_page()
+    try:
+        page.goto(base + "/index.html")
+        for name, packed, data in cases:
+            got = page.evaluate("""async ([packed, size]) => { const r = await import('/surface-rule.js');
+                return Array.from(r.inflate(new Uint8Array(packed), size)); }""", [list(packed), len(data)])
+            assert bytes(got) == data, name
+        packed = zlib.compress(texts["model residuals"], 9)
+        for damaged in (packed[:-200], packed[:2] + bytes(len(packed) - 2), b"\x00\x00" + packed[2:]):
+            err = page.evaluate("""async ([packed, size]) => { const r = await import('/surface-rule.js');
+                try { r.inflate(new Uint8Array(packed), size); return null; } catch (e) { return e.message; } }""",
+                                [list(damaged), 80_000])
+            assert err and "damaged" in err, err
+    finally:
+        page.close()
+
+
 def test_wavelet_rows_equal_python(site, base, pw):
     """The page's wavelets for a batch's events are Python's ``wavelet_rows``."""
     from tactilize.surface.events import PulseEvent
