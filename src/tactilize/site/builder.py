@@ -218,8 +218,12 @@ def build_site(source: str, out: str | Path, *, title: str = "Products", model_p
     CatalogError
         The source cannot be read, or the output is not a folder that can be written.
     """
-    items: list[CatalogItem] = discover(source)
-    materials = _materials(source)
+    return _build(discover(source), _materials(source), out, title=title, model_px=model_px, photo_px=photo_px,
+                  max_model_bytes=max_model_bytes, progress=progress)
+
+
+def _build(items: list[CatalogItem], materials: dict[str, str], out: str | Path, *, title: str, model_px: int,
+           photo_px: int, max_model_bytes: int, progress: Callable[[str], None] | None) -> SiteSummary:
     target = Path(out)
     if target.exists() and not target.is_dir():
         raise CatalogError(str(target), "exists and is not a folder")
