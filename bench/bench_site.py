@@ -11,6 +11,7 @@ Builds a site of three generated 2000 x 1500 photos, serves it with Python's own
 * **event to outputs**: trusted touch strokes (CDP) with the vibration toggle on (the motor
   recorded, not driven) and the sound on; per batch, the time from the newest sample's
   ``timeStamp`` to the events handed to the motor and the audio worklet, p50 / p99 [ms];
+  and per pulse event, how long before its bump is crossed it first reached them [ms];
 * **scroll**: animation-frame intervals while a finger swipes the product grid, and while
   a finger strokes a photo: p50 / p99 [ms], frames over 33 ms, long tasks (> 50 ms).
 
@@ -179,6 +180,10 @@ def main() -> int:
                   f"p99 {np.percentile(lat, 99):.2f} ms; the element's own work: p50 {np.percentile(work, 50):.2f} ms, "
                   f"p99 {np.percentile(work, 99):.2f} ms ({lat.size} batches, {st['events']} events, "
                   f"{vib} vibrate calls; goal p99 <= 16)")
+            lead = np.array(st["leadMs"])
+            print(f"each pulse event first handed to the outputs, before its bump is crossed: p50 {np.percentile(lead, 50):.1f} ms, "
+                  f"p1 {np.percentile(lead, 1):.1f} ms ahead; {(lead >= 0).mean() * 100:.0f} % ahead of time, "
+                  f"the rest at most {max(0.0, -lead.min()):.1f} ms late ({lead.size} events)")
             print(f"frames while stroking a photo: p50 {f50:.1f} ms, p99 {f99:.1f} ms, {slow} over 33 ms, "
                   f"{long_stroke} long tasks")
             ctx.close()

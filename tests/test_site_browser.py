@@ -303,7 +303,9 @@ def test_phone_stroke_vibrates_validly_and_only_when_asked(site, base, pw):
     assert not late, f"vibrated at rest: {late}"
     foreign = [u for u in requests if not u.startswith(base + "/")]
     assert not foreign, f"requests beyond the site's own files: {foreign}"
-    assert all(u.split("?")[0].rsplit(".", 1)[-1] in ("html", "css", "js", "tsf", "jpg") for u in requests), requests
+    assert all(u.split("?")[0].rsplit(".", 1)[-1] in ("html", "css", "js", "jpg") for u in requests), requests
+    # The product page holds its model: it is decoded from the page, never fetched.
+    assert not [u for u in requests if u.endswith(".tsf")], requests
 
 
 def test_touch_taken_only_on_the_photo_and_several_products_on_a_page(site, base, pw):
@@ -338,3 +340,52 @@ def test_touch_taken_only_on_the_photo_and_several_products_on_a_page(site, base
         assert abs(page.evaluate("window.scrollY") - before) < 1, "a stroke on a photo scrolled the page"
     finally:
         ctx.close()
+
+
+def test_a_hand_written_page_needs_no_build_step_and_starts_no_output_unasked(site, base, pw):
+    """The shop's own page, as someone writes it: one module tag, two elements from the copied files.
+    No bundler and no bare import (every import is a relative file); only the site's files requested;
+    no audio context and no vibration until their toggles are tapped."""
+    import re
+
+    out, summary = site
+    for js in out.glob("*.js"):
+        specs = re.findall(r"""(?:import|from)\s*\(?\s*["']([^"']+)["']""", js.read_text())
+        assert all(s.startswith("./") for s in specs), f"{js.name} imports {specs}"
+    a, b = summary.products[0]["slug"], summary.products[1]["slug"]
+    (out / "embed").mkdir(exist_ok=True)
+    (out / "embed" / "plain.html").write_text(
+        '<!doctype html>\n<meta name="viewport" content="width=device-width, initial-scale=1">\n<p>Our fabrics</p>\n'
+        '<script type="module" src="../tactile-surface.js"></script>\n'
+        f'<tactile-surface model="../models/{a}.tsf" image="../img/{a}.jpg" label="A"></tactile-surface>\n'
+        f'<tactile-surface model="../models/{b}.tsf" image="../img/{b}.jpg" label="B"></tactile-surface>\n')
+    ctx = phone(pw, RECORD + """
+window.__audio = 0;
+const Real = window.AudioContext;
+window.AudioContext = class extends Real { constructor(...a) { super(...a); window.__audio++; } };
+""")
+    requests = []
+    ctx.on("request", lambda r: requests.append(r.url))
+    page = ctx.new_page()
+    try:
+        page.goto(base + "/embed/plain.html")
+        page.wait_for_function("[...document.querySelectorAll('tactile-surface')].every((e) => e.model !== null)", timeout=15000)
+        second = page.locator("tactile-surface").nth(1)
+        second.scroll_into_view_if_needed()
+        box = second.locator(".pic").bounding_box()
+        Finger(page).stroke(box["x"] + 20, box["y"] + box["height"] / 2, box["x"] + box["width"] - 20, 0.5)
+        page.wait_for_timeout(100)
+        stats = page.evaluate("[...document.querySelectorAll('tactile-surface')].map((e) => [e.stats.batches, e.stats.events])")
+        assert stats[0][0] == 0 and stats[1][0] > 5 and stats[1][1] > 0, stats
+        assert page.evaluate("[window.__audio, window.__vibrations.length]") == [0, 0], "an output started unasked"
+        sound = second.locator("button.snd")
+        assert sound.is_visible()
+        page.wait_for_timeout(600)
+        sound.tap()
+        page.wait_for_function("window.__audio === 1", timeout=5000)
+    finally:
+        ctx.close()
+    foreign = [u for u in requests if not u.startswith(base + "/")]
+    assert not foreign, f"requests beyond the site's own files: {foreign}"
+    kinds = {u.split("?")[0].rsplit(".", 1)[-1] for u in requests}
+    assert kinds <= {"html", "js", "tsf", "jpg"}, requests

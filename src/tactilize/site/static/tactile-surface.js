@@ -110,7 +110,8 @@ export class TactileSurface extends HTMLElement {
     this.rings = [];          // visual cue: {t_ms, x, y, s}
     this.vib = new VibrationPulses();
     this.audio = null;        // {ctx, node, offset, lastAt}
-    this.stats = { batches: 0, latencyMs: [], workMs: [], firstRenderMs: null, modelMs: null, events: 0 };
+    this.stats = { batches: 0, latencyMs: [], workMs: [], leadMs: [], firstRenderMs: null, modelMs: null, events: 0 };
+    this.handed = new Set();  // the stroke's events already handed to the outputs, by time [s]
     this._wire(root);
   }
 
@@ -215,6 +216,7 @@ export class TactileSurface extends HTMLElement {
     this.rect = r;
     this.renderer = null;  // made with the display pitch of this stroke, when the model is there
     this.queue = [];
+    this.handed.clear();
     if (this.audio) this.audio.offset = null;
     const dpr = window.devicePixelRatio || 1;
     this.canvas.width = Math.round(r.width * dpr);
@@ -252,7 +254,11 @@ export class TactileSurface extends HTMLElement {
     // From the newest sample's own timestamp (the browser's dispatch included), and this element's work alone.
     st.latencyMs.push(now - newest[0]);
     st.workMs.push(now - entry);
+    // What is felt: how long before its bump is crossed each event first reached the outputs
+    // (the rule looks ahead along the stroke, so a delivered event is usually still to come).
+    for (const e of events) if (!this.handed.has(e.t)) { this.handed.add(e.t); st.leadMs.push(e.t * 1000 - now); }
     if (st.latencyMs.length > 4000) { st.latencyMs.splice(0, 2000); st.workMs.splice(0, 2000); }
+    if (st.leadMs.length > 4000) st.leadMs.splice(0, 2000);
   }
 
   /** Hand the events not yet fired to every output that is on; they replace what was handed before. */
