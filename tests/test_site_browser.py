@@ -311,6 +311,8 @@ def test_phone_stroke_vibrates_validly_and_only_when_asked(site, base, pw):
 def test_touch_taken_only_on_the_photo_and_several_products_on_a_page(site, base, pw):
     out, summary = site
     ctx = phone(pw)
+    requests = []
+    ctx.on("request", lambda r: requests.append(r.url))
     page = ctx.new_page()
     try:
         page.goto(base + "/index.html")
@@ -340,6 +342,10 @@ def test_touch_taken_only_on_the_photo_and_several_products_on_a_page(site, base
         assert abs(page.evaluate("window.scrollY") - before) < 1, "a stroke on a photo scrolled the page"
     finally:
         ctx.close()
+    # The first card's model is in the page; the others' preloads are the element's own loads, not a second copy.
+    models = [u for u in requests if u.endswith(".tsf")]
+    assert not [u for u in models if summary.products[0]["slug"] in u], models
+    assert models and len(models) == len(set(models)), models
 
 
 def test_a_hand_written_page_needs_no_build_step_and_starts_no_output_unasked(site, base, pw):

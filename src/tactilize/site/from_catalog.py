@@ -53,10 +53,11 @@ def cache_root() -> Path:
 def _rows(location: str) -> list[dict[str, Any]]:
     from ..catalog.reader import read_catalog
 
+    import pandas as pd
+
     df = read_catalog(location)
     keep = [c for c in ("id", "path", "status", "width_mm") if c in df.columns]
-    rows = df[keep].to_dict("records")
-    return [{k: (None if v is None or v != v else v) for k, v in r.items()} for r in rows]  # NaN / NA -> None
+    return [{k: (None if pd.isna(v) else v) for k, v in r.items()} for r in df[keep].to_dict("records")]
 
 
 def catalog_site(location: str | os.PathLike, *, cache: str | Path | None = None, title: str = "Products") -> CatalogSite:
