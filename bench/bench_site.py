@@ -17,7 +17,7 @@ Builds a site of three generated 2000 x 1500 photos, serves it with Python's own
 
 Prints figures, asserts nothing::
 
-    PYTHONPATH=src python bench/bench_site.py [--throttle 4] [--seconds 3]
+    PYTHONPATH=src python bench/bench_site.py [--throttle 4] [--seconds 3] [--loads 10]
 """
 
 from __future__ import annotations
