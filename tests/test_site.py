@@ -121,3 +121,66 @@ def test_serve_site_router_hands_out_the_built_files_only(tmp_path):
     assert c.get("/shop/%2e%2e/secret.txt").status_code == 404
     with pytest.raises(CatalogError):
         site_router(tmp_path / "ph")
+
+
+def test_pages_hold_the_first_models_and_preload_the_next(tmp_path):
+    import base64
+    import re
+
+    for i in range(3):
+        _photo(tmp_path / f"p{i}.png", size=(300, 200), seed=i)
+    s = build_site(str(tmp_path / "p*.png"), tmp_path / "site")
+    held = lambda page: re.findall(r'<script type="application/octet-stream">([^<]+)</script>', page)
+    index = (tmp_path / "site" / "index.html").read_text()
+    first, second = s.products[0]["slug"], s.products[1]["slug"]
+    assert [base64.b64decode(t) for t in held(index)] == [(tmp_path / "site" / "models" / f"{first}.tsf").read_bytes()]
+    assert f'href="models/{second}.tsf" as="fetch"' in index and f'href="models/{first}.tsf" as="fetch"' not in index
+    page = (tmp_path / "site" / "p" / f"{second}.html").read_text()
+    assert [base64.b64decode(t) for t in held(page)] == [(tmp_path / "site" / "models" / f"{second}.tsf").read_bytes()]
+
+
+def _catalog(tmp_path, n=3):
+    from tactilize.catalog import run_batch
+
+    (tmp_path / "pics").mkdir()
+    for i in range(n):
+        _photo(tmp_path / "pics" / f"fabric{i}.png", size=(240, 180), seed=i)
+    run_batch(str(tmp_path / "pics"), tmp_path / "cat", workers=1)
+    return tmp_path / "cat"
+
+
+def test_catalog_site_is_built_once_from_the_catalogues_pictures_and_says_what_it_cannot_show(tmp_path):
+    from tactilize.site.from_catalog import catalog_site
+
+    cat = _catalog(tmp_path)
+    built = catalog_site(cat, cache=tmp_path / "cache")
+    assert built.products == 3 and not built.missing and not built.reused and built.note(str(cat)) is None
+    assert (built.folder / "index.html").is_file() and len(list((built.folder / "models").glob("*.tsf"))) == 3
+    assert catalog_site(cat, cache=tmp_path / "cache").reused
+    (tmp_path / "pics" / "fabric1.png").unlink()
+    again = catalog_site(cat, cache=tmp_path / "cache")
+    assert not again.reused and again.products == 2 and again.missing == ("fabric1.png",)
+    note = again.note(str(cat))
+    assert "\n" not in note and "1 of 3 products have no source picture" in note
+    assert "fabric1" not in (again.folder / "index.html").read_text()
+
+
+def test_cli_serve_catalog_mounts_its_shop_site(tmp_path, monkeypatch):
+    import tactilize.web.serve as web_serve
+    from fastapi.testclient import TestClient
+    from fastapi import FastAPI
+
+    cat = _catalog(tmp_path, n=2)
+    (tmp_path / "pics" / "fabric0.png").unlink()
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    seen = {}
+    monkeypatch.setattr(web_serve, "serve", lambda *a, extra_routers=(), **kw: seen.setdefault("routers", list(extra_routers)))
+    r = CliRunner().invoke(main, ["serve", "--catalog", str(cat), "--no-open"])
+    assert r.exit_code == 0, r.output
+    assert [line for line in r.stderr.splitlines() if "no source picture" in line][0].count("1 of 2") == 1
+    app = FastAPI()
+    for router in seen["routers"]:
+        app.include_router(router)
+    c = TestClient(app)
+    assert "fabric1" in c.get("/shop/index.html").text and "fabric0" not in c.get("/shop/").text
+    assert c.get("/api/catalog").json()["total"] == 2

@@ -160,6 +160,36 @@ def test_js_rule_equals_python_rule(site, base, pw):
         page.close()
 
 
+def test_inflate_equals_zlib(site, base, pw):
+    """The page's own inflater gives zlib's bytes for every block type, and refuses damaged streams."""
+    import zlib
+
+    rng = np.random.default_rng(9)
+    texts = {
+        "stored (noise)": rng.integers(0, 256, 70_000, dtype=np.uint8).tobytes(),
+        "fixed codes (short)": b"tactile surface " * 3,
+        "dynamic codes, long matches": bytes(50_000) + bytes(range(256)) * 40,
+        "model residuals": (rng.normal(0, 6, 80_000).round().astype(np.int64) & 0xFF).astype(np.uint8).tobytes(),
+        "empty": b"",
+    }
+    cases = [(name, zlib.compress(data, level), data) for name, data in texts.items() for level in (1, 9)]
+    page = pw[1].new_page()
+    try:
+        page.goto(base + "/index.html")
+        for name, packed, data in cases:
+            got = page.evaluate("""async ([packed, size]) => { const r = await import('/surface-rule.js');
+                return Array.from(r.inflate(new Uint8Array(packed), size)); }""", [list(packed), len(data)])
+            assert bytes(got) == data, name
+        packed = zlib.compress(texts["model residuals"], 9)
+        for damaged in (packed[:-200], packed[:2] + bytes(len(packed) - 2), b"\x00\x00" + packed[2:]):
+            err = page.evaluate("""async ([packed, size]) => { const r = await import('/surface-rule.js');
+                try { r.inflate(new Uint8Array(packed), size); return null; } catch (e) { return e.message; } }""",
+                                [list(damaged), 80_000])
+            assert err and "damaged" in err, err
+    finally:
+        page.close()
+
+
 def test_wavelet_rows_equal_python(site, base, pw):
     """The page's wavelets for a batch's events are Python's ``wavelet_rows``."""
     from tactilize.surface.events import PulseEvent
@@ -273,12 +303,16 @@ def test_phone_stroke_vibrates_validly_and_only_when_asked(site, base, pw):
     assert not late, f"vibrated at rest: {late}"
     foreign = [u for u in requests if not u.startswith(base + "/")]
     assert not foreign, f"requests beyond the site's own files: {foreign}"
-    assert all(u.split("?")[0].rsplit(".", 1)[-1] in ("html", "css", "js", "tsf", "jpg") for u in requests), requests
+    assert all(u.split("?")[0].rsplit(".", 1)[-1] in ("html", "css", "js", "jpg") for u in requests), requests
+    # The product page holds its model: it is decoded from the page, never fetched.
+    assert not [u for u in requests if u.endswith(".tsf")], requests
 
 
 def test_touch_taken_only_on_the_photo_and_several_products_on_a_page(site, base, pw):
     out, summary = site
     ctx = phone(pw)
+    requests = []
+    ctx.on("request", lambda r: requests.append(r.url))
     page = ctx.new_page()
     try:
         page.goto(base + "/index.html")
@@ -308,3 +342,56 @@ def test_touch_taken_only_on_the_photo_and_several_products_on_a_page(site, base
         assert abs(page.evaluate("window.scrollY") - before) < 1, "a stroke on a photo scrolled the page"
     finally:
         ctx.close()
+    # The first card's model is in the page; the others' preloads are the element's own loads, not a second copy.
+    models = [u for u in requests if u.endswith(".tsf")]
+    assert not [u for u in models if summary.products[0]["slug"] in u], models
+    assert models and len(models) == len(set(models)), models
+
+
+def test_a_hand_written_page_needs_no_build_step_and_starts_no_output_unasked(site, base, pw):
+    """The shop's own page, as someone writes it: one module tag, two elements from the copied files.
+    No bundler and no bare import (every import is a relative file); only the site's files requested;
+    no audio context and no vibration until their toggles are tapped."""
+    import re
+
+    out, summary = site
+    for js in out.glob("*.js"):
+        specs = re.findall(r"""(?:import|from)\s*\(?\s*["']([^"']+)["']""", js.read_text())
+        assert all(s.startswith("./") for s in specs), f"{js.name} imports {specs}"
+    a, b = summary.products[0]["slug"], summary.products[1]["slug"]
+    (out / "embed").mkdir(exist_ok=True)
+    (out / "embed" / "plain.html").write_text(
+        '<!doctype html>\n<meta name="viewport" content="width=device-width, initial-scale=1">\n<p>Our fabrics</p>\n'
+        '<script type="module" src="../tactile-surface.js"></script>\n'
+        f'<tactile-surface model="../models/{a}.tsf" image="../img/{a}.jpg" label="A"></tactile-surface>\n'
+        f'<tactile-surface model="../models/{b}.tsf" image="../img/{b}.jpg" label="B"></tactile-surface>\n')
+    ctx = phone(pw, RECORD + """
+window.__audio = 0;
+const Real = window.AudioContext;
+window.AudioContext = class extends Real { constructor(...a) { super(...a); window.__audio++; } };
+""")
+    requests = []
+    ctx.on("request", lambda r: requests.append(r.url))
+    page = ctx.new_page()
+    try:
+        page.goto(base + "/embed/plain.html")
+        page.wait_for_function("[...document.querySelectorAll('tactile-surface')].every((e) => e.model !== null)", timeout=15000)
+        second = page.locator("tactile-surface").nth(1)
+        second.scroll_into_view_if_needed()
+        box = second.locator(".pic").bounding_box()
+        Finger(page).stroke(box["x"] + 20, box["y"] + box["height"] / 2, box["x"] + box["width"] - 20, 0.5)
+        page.wait_for_timeout(100)
+        stats = page.evaluate("[...document.querySelectorAll('tactile-surface')].map((e) => [e.stats.batches, e.stats.events])")
+        assert stats[0][0] == 0 and stats[1][0] > 5 and stats[1][1] > 0, stats
+        assert page.evaluate("[window.__audio, window.__vibrations.length]") == [0, 0], "an output started unasked"
+        sound = second.locator("button.snd")
+        assert sound.is_visible()
+        page.wait_for_timeout(600)
+        sound.tap()
+        page.wait_for_function("window.__audio === 1", timeout=5000)
+    finally:
+        ctx.close()
+    foreign = [u for u in requests if not u.startswith(base + "/")]
+    assert not foreign, f"requests beyond the site's own files: {foreign}"
+    kinds = {u.split("?")[0].rsplit(".", 1)[-1] for u in requests}
+    assert kinds <= {"html", "js", "tsf", "jpg"}, requests

@@ -327,8 +327,8 @@ def batch(
 @click.option("--output", "output_spec", default="simulated", show_default=True, help="simulated | serial:PORT | audio[:DEVICE]")
 @click.option("--profile", "profile_name", default=None, help="Preset name or TOML file [default: surface].")
 @click.option("--open/--no-open", "open_browser", default=None, help="Open the page in a browser [default: when a display exists].")
-@click.option("--catalog", "catalog_path", default=None, help="Also serve this catalog (Parquet folder or SQLAlchemy URL) at /api/catalog.")
-@click.option("--site", "site_dir", default=None, help="Also serve a site written by `tactilize site` at /shop/.")
+@click.option("--catalog", "catalog_path", default=None, help="Also serve this catalog (Parquet folder or SQLAlchemy URL) at /api/catalog, and its shop site at /shop/.")
+@click.option("--site", "site_dir", default=None, help="Also serve a site written by `tactilize site` at /shop/ (instead of the catalog's own).")
 @click.option("--max-sockets", type=click.IntRange(1, 10_000), default=32, show_default=True,
               help="Pages (WebSockets) connected at once, at most; one more is refused with 503.")
 @click.option("--lan", is_flag=True, help="Serve on this machine's network address for a phone: prints the address and a QR code.")
@@ -343,6 +343,13 @@ def serve(host: str, port: int, output_spec: str, profile_name: str | None, open
         from ..catalog.api import catalog_router
 
         routers.append(catalog_router(catalog_path))  # a bad catalog fails here, before the socket opens
+        if site_dir is None:
+            from ..site.from_catalog import catalog_site
+
+            built = catalog_site(catalog_path)
+            site_dir = str(built.folder)
+            if built.note(catalog_path):
+                click.echo(f"tactilize: {built.note(catalog_path)}", err=True)
     if site_dir is not None:
         from ..site.routes import site_router
 

@@ -1,8 +1,9 @@
 """A shop's catalogue as a static site whose product photos can be felt on a phone (docs/shop.md).
 
 :mod:`.model_file` writes (and reads) the compact surface model a page loads;
-:mod:`.builder` makes the site from a catalogue source; :mod:`.routes` serves a
-built site from ``tactilize serve``.  The rendering itself runs in the browser
+:mod:`.builder` makes the site from a catalogue source; :mod:`.from_catalog` makes
+it from a catalogue ``tactilize batch`` wrote; :mod:`.routes` serves a built site
+from ``tactilize serve``.  The rendering itself runs in the browser
 (``static/surface-rule.js``), by the rule of :mod:`tactilize.surface`.
 """
 

@@ -23,6 +23,7 @@ Units: SI (m); sizes in bytes.
 
 from __future__ import annotations
 
+import base64
 import hashlib
 import html
 import json
@@ -46,6 +47,8 @@ __all__ = ["build_site", "model_bytes", "SiteSummary", "MODEL_PX", "PHOTO_PX", "
 MODEL_PX = 384
 #: Long side of the photo shown [px]: sharp on a phone's 2.6 to 3 device pixels per CSS pixel.
 PHOTO_PX = 1024
+#: Products whose model is written into the product grid's page itself (each product page holds its own).
+INLINE_MODELS = 1
 #: A model file is made smaller until it is at most this big [bytes].
 MAX_MODEL_BYTES = 64 * 1024
 #: This package's page modules.
@@ -153,12 +156,15 @@ _PAGE_HEAD = """<!doctype html>
 """
 
 
-def _card(p: dict[str, Any], root: str, link: bool) -> str:
+def _card(p: dict[str, Any], root: str, link: bool, inline: bytes | None = None) -> str:
     name = html.escape(p["id"])
     material = f'<p class="material">{html.escape(p["material"])}</p>' if p.get("material") else ""
     title = f'<a href="{root}p/{p["slug"]}.html">{name}</a>' if link else name
+    # The model in the page itself: decoded as the element is made, before the load event.
+    held = ("" if inline is None else
+            f'<script type="application/octet-stream">{base64.b64encode(inline).decode("ascii")}</script>')
     return (f'<article class="product">\n<tactile-surface model="{root}models/{p["slug"]}.tsf" '
-            f'image="{root}img/{p["slug"]}.jpg" label="{name}"></tactile-surface>\n'
+            f'image="{root}img/{p["slug"]}.jpg" label="{name}">{held}</tactile-surface>\n'
             f'<h2>{title}</h2>\n{material}\n<p class="size">{p["width_mm"]:.0f} x {p["height_mm"]:.0f} mm</p>\n'
             '</article>\n')
 
@@ -168,18 +174,22 @@ def _preload(products: list[dict[str, Any]], root: str) -> str:
 
 
 def _write_pages(out: Path, products: list[dict[str, Any]], title: str) -> None:
-    # The first screen's models load with the page, not after its first layout.
-    head = _PAGE_HEAD.format(title=html.escape(title), root="", preload=_preload(products[:4], ""))
-    cards = "".join(_card(p, "", True) for p in products)
+    # The first product's model is in the page (a phone's first screen shows one card); the
+    # next ones' load with the page, not after its first layout.
+    def held(p: dict[str, Any]) -> bytes:
+        return (out / "models" / f"{p['slug']}.tsf").read_bytes()
+
+    head = _PAGE_HEAD.format(title=html.escape(title), root="", preload=_preload(products[INLINE_MODELS:4], ""))
+    cards = "".join(_card(p, "", True, held(p) if i < INLINE_MODELS else None) for i, p in enumerate(products))
     (out / "index.html").write_text(
         head + f"<header><h1>{html.escape(title)}</h1><p>Press and drag on a photo to feel it.</p></header>\n"
         f'<main class="grid">\n{cards}</main>\n</body>\n</html>\n', encoding="utf-8")
     (out / "p").mkdir(exist_ok=True)
     for p in products:
-        page = _PAGE_HEAD.format(title=html.escape(p["id"]), root="../", preload=_preload([p], "../"))
+        page = _PAGE_HEAD.format(title=html.escape(p["id"]), root="../", preload="")
         (out / "p" / f"{p['slug']}.html").write_text(
             page + f'<header><a href="../index.html">All products</a></header>\n<main class="one">\n'
-            f'{_card(p, "../", False)}</main>\n</body>\n</html>\n', encoding="utf-8")
+            f'{_card(p, "../", False, held(p))}</main>\n</body>\n</html>\n', encoding="utf-8")
 
 
 def build_site(source: str, out: str | Path, *, title: str = "Products", model_px: int = MODEL_PX,
@@ -208,8 +218,12 @@ def build_site(source: str, out: str | Path, *, title: str = "Products", model_p
     CatalogError
         The source cannot be read, or the output is not a folder that can be written.
     """
-    items: list[CatalogItem] = discover(source)
-    materials = _materials(source)
+    return _build(discover(source), _materials(source), out, title=title, model_px=model_px, photo_px=photo_px,
+                  max_model_bytes=max_model_bytes, progress=progress)
+
+
+def _build(items: list[CatalogItem], materials: dict[str, str], out: str | Path, *, title: str, model_px: int,
+           photo_px: int, max_model_bytes: int, progress: Callable[[str], None] | None) -> SiteSummary:
     target = Path(out)
     if target.exists() and not target.is_dir():
         raise CatalogError(str(target), "exists and is not a folder")

@@ -17,43 +17,157 @@
 
 const MAGIC = 0x31465354; // "TSF1" read as a little-endian uint32
 
-/** Decode a model file (an ArrayBuffer): {header, cols, rows, field (Float32Array, padded by
- *  one edge pixel all round, as SurfaceModel.lookup_table)}. */
-export async function parseModel(buffer) {
+// Inflate (RFC 1950 / 1951), synchronous.  The browser's DecompressionStream does the same
+// natively but only through a stream, several tasks apart; on a slow phone's busy main
+// thread, while the page is still loading, each of those tasks waits its turn, and the
+// model was ready up to a few hundred ms after the page.  This decodes the heights (about
+// 60 KB) in one go, in a few ms.
+const LEN_BASE = [3, 4, 5, 6, 7, 8, 9, 10, 11, 13, 15, 17, 19, 23, 27, 31, 35, 43, 51, 59, 67, 83, 99, 115,
+  131, 163, 195, 227, 258];
+const LEN_EXTRA = [0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 0];
+const DIST_BASE = [1, 2, 3, 4, 5, 7, 9, 13, 17, 25, 33, 49, 65, 97, 129, 193, 257, 385, 513, 769, 1025, 1537,
+  2049, 3073, 4097, 6145, 8193, 12289, 16385, 24577];
+const DIST_EXTRA = [0, 0, 0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 5, 5, 6, 6, 7, 7, 8, 8, 9, 9, 10, 10, 11, 11, 12, 12, 13, 13];
+const CODE_LENGTH_ORDER = [16, 17, 18, 0, 8, 7, 9, 6, 10, 5, 11, 4, 12, 3, 13, 2, 14, 1, 15];
+
+/** A canonical Huffman code as a table indexed by the next `bits` input bits (least
+ *  significant first, as deflate packs them): entry = symbol << 4 | code length, 0 = no code. */
+function huffmanTable(lengths) {
+  let bits = 0;
+  const count = new Uint16Array(16);
+  for (const l of lengths) { count[l]++; if (l > bits) bits = l; }
+  count[0] = 0;
+  const next = new Uint16Array(16);
+  for (let b = 1, code = 0; b < 16; b++) { code = (code + count[b - 1]) << 1; next[b] = code; }
+  const table = new Uint32Array(1 << bits);
+  for (let sym = 0; sym < lengths.length; sym++) {
+    const len = lengths[sym];
+    if (!len) continue;
+    // Codes are sent first bit first, so the table is indexed by the code bit-reversed.
+    let c = next[len]++, rev = 0;
+    for (let k = 0; k < len; k++) { rev = (rev << 1) | (c & 1); c >>= 1; }
+    for (let i = rev; i < table.length; i += 1 << len) table[i] = (sym << 4) | len;
+  }
+  return { table, bits };
+}
+
+let fixedCodes = null;
+function fixedHuffman() {
+  if (!fixedCodes) {
+    const lit = new Uint8Array(288).fill(8, 0, 144).fill(9, 144, 256).fill(7, 256, 280).fill(8, 280, 288);
+    fixedCodes = [huffmanTable(lit), huffmanTable(new Uint8Array(30).fill(5))];
+  }
+  return fixedCodes;
+}
+
+/** The bytes of a zlib stream, which must be exactly `size` long (Uint8Array). */
+export function inflate(src, size) {
+  const bad = (why) => { throw new Error(`damaged surface model (${why})`); };
+  if (src.length < 6 || (src[0] & 0x0f) !== 8 || ((src[0] << 8) | src[1]) % 31 !== 0 || (src[1] & 0x20)) bad("zlib header");
+  const out = new Uint8Array(size);
+  let pos = 2, buf = 0, cnt = 0, o = 0;
+  // The bit reader: up to 24 bits at a time; past the end it reads zeros, caught below.
+  const need = (n) => { while (cnt < n) { buf |= (pos < src.length ? src[pos] : 0) << cnt; pos++; cnt += 8; } };
+  const take = (n) => { need(n); const v = buf & ((1 << n) - 1); buf >>>= n; cnt -= n; return v; };
+  const symbol = (code) => {
+    need(code.bits);
+    const e = code.table[buf & ((1 << code.bits) - 1)];
+    if (!(e & 15)) bad("code");
+    buf >>>= e & 15; cnt -= e & 15;
+    return e >>> 4;
+  };
+  let last = 0;
+  while (!last) {
+    last = take(1);
+    const type = take(2);
+    if (type === 0) {
+      // Stored: from the next byte boundary, LEN and its complement, then LEN bytes.
+      pos -= cnt >> 3; buf = 0; cnt = 0;
+      const len = src[pos] | (src[pos + 1] << 8), nlen = src[pos + 2] | (src[pos + 3] << 8);
+      if ((len ^ 0xffff) !== nlen || pos + 4 + len > src.length || o + len > size) bad("stored block");
+      out.set(src.subarray(pos + 4, pos + 4 + len), o);
+      pos += 4 + len; o += len;
+      continue;
+    }
+    let lit, dist;
+    if (type === 1) [lit, dist] = fixedHuffman();
+    else if (type === 2) {
+      const nlit = take(5) + 257, ndist = take(5) + 1, nclen = take(4) + 4;
+      const clen = new Uint8Array(19);
+      for (let i = 0; i < nclen; i++) clen[CODE_LENGTH_ORDER[i]] = take(3);
+      const cl = huffmanTable(clen);
+      const lengths = new Uint8Array(nlit + ndist);
+      for (let i = 0; i < lengths.length;) {
+        const sym = symbol(cl);
+        if (sym < 16) { lengths[i++] = sym; continue; }
+        let rep, val = 0;
+        if (sym === 16) { if (!i) bad("repeat"); val = lengths[i - 1]; rep = 3 + take(2); }
+        else rep = sym === 17 ? 3 + take(3) : 11 + take(7);
+        if (i + rep > lengths.length) bad("repeat");
+        lengths.fill(val, i, i + rep); i += rep;
+      }
+      lit = huffmanTable(lengths.subarray(0, nlit));
+      dist = huffmanTable(lengths.subarray(nlit));
+    } else bad("block type");
+    for (;;) {
+      const sym = symbol(lit);
+      if (sym < 256) { if (o >= size) bad("too long"); out[o++] = sym; continue; }
+      if (sym === 256) break;
+      const li = sym - 257;
+      if (li >= 29) bad("length");
+      const len = LEN_BASE[li] + take(LEN_EXTRA[li]);
+      const di = symbol(dist);
+      if (di >= 30) bad("distance");
+      const d = DIST_BASE[di] + take(DIST_EXTRA[di]);
+      if (d > o || o + len > size) bad("match");
+      for (let k = 0; k < len; k++, o++) out[o] = out[o - d];
+    }
+    if (pos - (cnt >> 3) > src.length) bad("truncated");
+  }
+  if (o !== size) bad(`${o} heights, not ${size}`);
+  return out;
+}
+
+/** Decode a model file (an ArrayBuffer), synchronously: {header, cols, rows, levels (Uint8Array,
+ *  padded by one edge pixel all round, as SurfaceModel.lookup_table), heightOf (Float32Array(256))}. */
+export function decodeModel(buffer) {
   const view = new DataView(buffer);
   if (buffer.byteLength < 8 || view.getUint32(0, true) !== MAGIC) throw new Error("not a tactilize surface model");
   const n = view.getUint32(4, true);
   const header = JSON.parse(new TextDecoder().decode(new Uint8Array(buffer, 8, n)));
-  // The heights are a zlib stream: the browser's own inflater, no library.
-  const stream = new Blob([new Uint8Array(buffer, 8 + n)]).stream().pipeThrough(new DecompressionStream("deflate"));
-  const r = new Uint8Array(await new Response(stream).arrayBuffer());
   const { cols, rows } = header;
-  if (r.length !== cols * rows) throw new Error("damaged surface model");
-  const q = new Uint8Array(cols * rows);
+  const r = inflate(new Uint8Array(buffer, 8 + n), cols * rows);
+  // Undo the predictor straight into the padded grid, a byte per pixel and no branch inside
+  // a row: the least work per pixel while the page loads.  The heights are looked up per
+  // level when read: offset + q * scale in float64, stored as float32, as Python's
+  // ModelFile.heights computes them.
+  const pc = cols + 2, q = new Uint8Array(pc * (rows + 2));
   const grad = header.predictor === "gradient";
   for (let y = 0; y < rows; y++) {
-    const o = y * cols;
-    for (let x = 0; x < cols; x++) {
-      let p = 0;
-      if (x > 0) p = grad && y > 0 ? q[o + x - 1] + q[o - cols + x] - q[o - cols + x - 1] : q[o + x - 1];
-      else if (grad && y > 0) p = q[o - cols];
-      q[o + x] = (p + r[o + x]) & 0xff;
+    const o = y * cols, f = (y + 1) * pc + 1;
+    let v = 0, x = 0;
+    if (grad && y > 0) {
+      v = q[f] = (q[f - pc] + r[o]) & 0xff;
+      for (x = 1; x < cols; x++) v = q[f + x] = (v + q[f - pc + x] - q[f - pc + x - 1] + r[o + x]) & 0xff;
+    } else {
+      for (; x < cols; x++) v = q[f + x] = (v + r[o + x]) & 0xff;
     }
+    q[f - 1] = q[f];
+    q[f + cols] = v;
   }
-  // Height = offset + q * scale in float64, then float32: what Python's ModelFile.heights does.
-  const pc = cols + 2, field = new Float32Array(pc * (rows + 2));
-  for (let y = -1; y <= rows; y++) {
-    const sy = Math.min(rows - 1, Math.max(0, y));
-    for (let x = -1; x <= cols; x++) {
-      const sx = Math.min(cols - 1, Math.max(0, x));
-      field[(y + 1) * pc + x + 1] = header.offset + q[sy * cols + sx] * header.scale;
-    }
-  }
-  return { header, cols, rows, field, levels: q };
+  q.copyWithin(0, pc, 2 * pc);
+  q.copyWithin((rows + 1) * pc, rows * pc, (rows + 1) * pc);
+  const heightOf = new Float32Array(256);
+  for (let k = 0; k < 256; k++) heightOf[k] = header.offset + k * header.scale;
+  return { header, cols, rows, levels: q, heightOf };
 }
 
-/** Map coordinates' bilinear lookup (order 1, mode "nearest") at row cy, column cx of the padded field. */
-function bilinear(field, R, C, cy, cx) {
+/** decodeModel, for callers holding a promise of the bytes. */
+export async function parseModel(buffer) { return decodeModel(buffer); }
+
+/** Map coordinates' bilinear lookup (order 1, mode "nearest") at row cy, column cx of the padded
+ *  levels q, each level's height h[level]. */
+function bilinear(q, h, R, C, cy, cx) {
   cy = cy < 0 ? 0 : (cy > R - 1 ? R - 1 : cy);
   cx = cx < 0 ? 0 : (cx > C - 1 ? C - 1 : cx);
   const fy = Math.floor(cy), fx = Math.floor(cx);
@@ -62,10 +176,10 @@ function bilinear(field, R, C, cy, cx) {
   const r1 = r0 + 1 < R ? r0 + 1 : Math.max(R - 2, 0);
   const c1 = c0 + 1 < C ? c0 + 1 : Math.max(C - 2, 0);
   let t = 0;
-  t += (field[r0 * C + c0] * wy0) * wx0;
-  t += (field[r0 * C + c1] * wy0) * wx1;
-  t += (field[r1 * C + c0] * wy1) * wx0;
-  t += (field[r1 * C + c1] * wy1) * wx1;
+  t += (h[q[r0 * C + c0]] * wy0) * wx0;
+  t += (h[q[r0 * C + c1]] * wy0) * wx1;
+  t += (h[q[r1 * C + c0]] * wy1) * wx0;
+  t += (h[q[r1 * C + c1]] * wy1) * wx1;
   return t;
 }
 
@@ -243,7 +357,7 @@ export class SurfaceStroke {
 
   _height(x, y) {
     const m = this.model, px = x * this.inv[0], py = y * this.inv[1];
-    if (px >= 0 && px < m.cols && py >= 0 && py < m.rows) return bilinear(m.field, m.rows + 2, m.cols + 2, py + 0.5, px + 0.5);
+    if (px >= 0 && px < m.cols && py >= 0 && py < m.rows) return bilinear(m.levels, m.heightOf, m.rows + 2, m.cols + 2, py + 0.5, px + 0.5);
     return NaN;
   }
 

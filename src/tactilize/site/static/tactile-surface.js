@@ -16,7 +16,7 @@
 // their own visible toggle (a tap is also the user activation browsers ask for), and
 // every element is independent, so a grid of products works.
 
-import { parseModel, SurfaceRenderer, waveletRows } from "./surface-rule.js";
+import { decodeModel, replayStroke, SurfaceRenderer, waveletRows } from "./surface-rule.js";
 import { attachPen } from "./pen-input.js";
 import { VibrationPulses, vibrationAvailable } from "./vibrate.js";
 
@@ -30,6 +30,30 @@ const CSS_PX_M = 0.0254 / 96;
 const LEAD_S = 0.010;
 // A ring is drawn this long after each bump [ms].
 const RING_MS = 140;
+
+/** The bytes of base64 text (an ArrayBuffer). */
+function bytesOfBase64(text) {
+  const clean = text.replace(/\s+/g, "");
+  if (typeof Uint8Array.fromBase64 === "function") return Uint8Array.fromBase64(clean).buffer;
+  const bin = atob(clean), out = new Uint8Array(bin.length);
+  for (let i = 0; i < bin.length; i++) out[i] = bin.charCodeAt(i);
+  return out.buffer;
+}
+
+let warmed = false;  // the rule has run once in this page
+
+/** Run the rule once on a short made-up stroke, in a task of its own once a model is there:
+ *  the engine compiles it then, not during the user's first stroke. */
+function warmUp(model) {
+  if (warmed) return;
+  warmed = true;
+  setTimeout(() => {
+    const w = model.cols * CSS_PX_M, h = model.rows * CSS_PX_M;
+    const samples = [];
+    for (let i = 0; i < 24; i++) samples.push({ t: i / 240, x: w * (0.3 + 0.01 * i), y: h * 0.5, p: null });
+    replayStroke(model, [CSS_PX_M, CSS_PX_M], samples);
+  }, 0);
+}
 
 let audioShared = null;  // one AudioContext for every element of a page (browsers limit them)
 
@@ -86,14 +110,20 @@ export class TactileSurface extends HTMLElement {
     this.rings = [];          // visual cue: {t_ms, x, y, s}
     this.vib = new VibrationPulses();
     this.audio = null;        // {ctx, node, offset, lastAt}
-    this.stats = { batches: 0, latencyMs: [], workMs: [], firstRenderMs: null, modelMs: null, events: 0 };
+    this.stats = { batches: 0, latencyMs: [], workMs: [], leadMs: [], firstRenderMs: null, modelMs: null, events: 0 };
+    this.handed = new Set();  // the stroke's events already handed to the outputs, by time [s]
     this._wire(root);
   }
 
   attributeChangedCallback(name, old, value) {
     if (name === "image") this.img.src = value || "";
     if (name === "label") this.img.alt = value || "";
-    if (name === "model" && old !== null && old !== value) { this.model = null; this.modelPromise = null; this._watch(); }
+    if (name === "model" && old !== null && old !== value) {
+      // A new model: the one inlined in the page was the old one's.
+      const inline = this.querySelector(':scope > script[type="application/octet-stream"]');
+      if (inline) inline.remove();
+      this.model = null; this.modelPromise = null; this._watch();
+    }
   }
 
   connectedCallback() { this._watch(); }
@@ -115,13 +145,31 @@ export class TactileSurface extends HTMLElement {
     this.observer.observe(this);
   }
 
-  /** The surface model, fetched once (a promise). */
+  /** The surface model, decoded once (a promise): from the page itself when it holds it (a child
+   *  <script type="application/octet-stream"> with the model file in base64), else fetched. */
   load() {
+    const inline = this.modelPromise ? null : this.querySelector(':scope > script[type="application/octet-stream"]');
+    if (inline) {
+      // Decoded now, as the element is made: no fetch and no task between the page and the
+      // heights, so the model is ready before the page's load event and a first stroke waits for nothing.
+      try {
+        this.model = decodeModel(bytesOfBase64(inline.textContent));
+        this.stats.modelMs = performance.now();
+        warmUp(this.model);
+        this.modelPromise = Promise.resolve(this.model);
+        return this.modelPromise;
+      } catch (e) {
+        this.hint.textContent = `Cannot feel this photo (${e.message})`;
+        this.modelPromise = Promise.reject(e);
+        this.modelPromise.catch(() => {});
+        return this.modelPromise;
+      }
+    }
     if (!this.modelPromise && this.getAttribute("model")) {
       this.modelPromise = fetch(new URL(this.getAttribute("model"), document.baseURI))
         .then((r) => { if (!r.ok) throw new Error(`model: HTTP ${r.status}`); return r.arrayBuffer(); })
-        .then(parseModel)
-        .then((m) => { this.model = m; this.stats.modelMs = performance.now(); this._drain(); return m; })
+        .then(decodeModel)
+        .then((m) => { this.model = m; this.stats.modelMs = performance.now(); warmUp(m); this._drain(); return m; })
         .catch((e) => { this.hint.textContent = `Cannot feel this photo (${e.message})`; throw e; });
       this.modelPromise.catch(() => {});
     }
@@ -168,6 +216,7 @@ export class TactileSurface extends HTMLElement {
     this.rect = r;
     this.renderer = null;  // made with the display pitch of this stroke, when the model is there
     this.queue = [];
+    this.handed.clear();
     if (this.audio) this.audio.offset = null;
     const dpr = window.devicePixelRatio || 1;
     this.canvas.width = Math.round(r.width * dpr);
@@ -205,7 +254,11 @@ export class TactileSurface extends HTMLElement {
     // From the newest sample's own timestamp (the browser's dispatch included), and this element's work alone.
     st.latencyMs.push(now - newest[0]);
     st.workMs.push(now - entry);
+    // What is felt: how long before its bump is crossed each event first reached the outputs
+    // (the rule looks ahead along the stroke, so a delivered event is usually still to come).
+    for (const e of events) if (!this.handed.has(e.t)) { this.handed.add(e.t); st.leadMs.push(e.t * 1000 - now); }
     if (st.latencyMs.length > 4000) { st.latencyMs.splice(0, 2000); st.workMs.splice(0, 2000); }
+    if (st.leadMs.length > 4000) st.leadMs.splice(0, 2000);
   }
 
   /** Hand the events not yet fired to every output that is on; they replace what was handed before. */
