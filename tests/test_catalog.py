@@ -9,7 +9,7 @@ like an image, a manifest row with a bad width.
 from __future__ import annotations
 
 from tactilize.mapping import DEFAULT_PRESET
-from tactilize.surface.straight import rendered_drive
+from tactilize.surface.rendering import rendered_drive
 
 import io
 import json

@@ -468,22 +468,3 @@ def test_lift_and_hover_rest_the_output_in_standby_where_it_has_one():
     assert out.calls[-1] == "apply"
     r.lift()
     assert out.calls[-1] == "standby" and "stop" not in out.calls
-
-
-@settings(max_examples=300, deadline=None)
-@given(
-    hs.lists(hs.tuples(hs.floats(0.0, 0.02), hs.floats(0.0, 1.0), hs.booleans()), max_size=8),
-    hs.lists(hs.tuples(hs.floats(-2e-4, 2e-4), hs.floats(-0.02, 0.02)), max_size=8),
-    hs.floats(0.0, 0.1),
-)
-def test_the_held_events_ahead_compare_as_the_listed_ones(held_items, moves, now_s):
-    # _same_ahead is the resend rule's comparison without building the list of held events ahead.
-    from tactilize.pen.renderer import _same_ahead, _same_events
-    from tactilize.surface import PulseEvent
-
-    held = [PulseEvent(t, s, ("late",) if late else ()) for t, s, late in held_items]
-    ahead = [e for e in held if e.t_s > now_s]
-    # the new batch: the held events ahead, moved (some within the rule, some not), a few cut or added
-    events = [e._replace(t_s=e.t_s + dt, strength=e.strength + ds) for e, (dt, ds) in zip(ahead, moves)]
-    for evs in (events, events[:-1], events + [PulseEvent(now_s + 0.01, 0.5)], ahead):
-        assert _same_ahead(evs, held, now_s) == _same_events(evs, ahead)

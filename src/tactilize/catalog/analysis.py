@@ -24,7 +24,7 @@ from .. import __version__
 from ..errors import CatalogError, ImageError, TactilizeError
 from ..image import DEFAULT_MAX_PIXELS, TextureImage, load_image
 from ..mapping import DEFAULT_PRESET, Profile
-from ..surface.straight import rendered_drive
+from ..surface.rendering import rendering_for
 from .sources import CatalogItem
 
 __all__ = [
@@ -171,14 +171,10 @@ def _row_from_image(img: TextureImage, settings: AnalysisSettings) -> dict[str, 
             row[key] = value
     for key, value in tmap.summary().items():
         row[f"map_{key}"] = value
-    surface = None
-    if settings.profile.rendering == "surface":
-        from ..surface.model import surface_model
-
-        surface = surface_model(img, tip_radius_m=settings.profile.tip_radius_m)
+    rendering = rendering_for(settings.profile, image=img)  # made once per picture
     for speed in settings.speeds_m_s:
         # What every command renders for this picture stroked steadily at this speed.
-        drv = rendered_drive(settings.profile, img, feat, speed, surface=surface)
+        drv = rendering.steady_drive(feat, speed)
         prefix = f"drive_{speed_label(speed)}_"
         row[prefix + "pulse_frequency_hz"] = drv.pulse_frequency_hz
         row[prefix + "pulse_width_s"] = drv.pulse_width_s

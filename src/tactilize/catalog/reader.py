@@ -235,14 +235,13 @@ class Catalog:
         the profile renders for the picture stroked steadily, as the batch stores it.  A surface
         rendering reads the picture again (its bumps are not in the row)."""
         prof = profile or self.profile
-        if prof.rendering != "surface":
-            return prof.drive(self.features_of(row), speed_m_s=speed_m_s)
         from ..image import METRES_PER_INCH, load_image
-        from ..surface.straight import rendered_drive
+        from ..surface.rendering import rendered_drive
 
         pitch = row.get("pitch_m")
-        img = load_image(row["path"], dpi=METRES_PER_INCH / float(pitch) if pitch else None)
-        return rendered_drive(prof, img, self.features_of(row), speed_m_s)
+        # Read only by a rendering that needs the picture itself (its bumps are not in the row).
+        picture = lambda: load_image(row["path"], dpi=METRES_PER_INCH / float(pitch) if pitch else None)  # noqa: E731
+        return rendered_drive(prof, picture, self.features_of(row), speed_m_s)
 
     def close(self) -> None:
         """Release the database connections (nothing to do for Parquet)."""

@@ -204,7 +204,7 @@ def drive(
     img = load_image(image, dpi=dpi, width_mm=width_mm)
     feat = extract_features(img)
     direction = math.radians(direction_deg) if direction_deg is not None else None
-    from ..surface.straight import rendered_drive
+    from ..surface.rendering import rendered_drive
 
     surface = None
     if material_name is not None:

@@ -8,10 +8,13 @@ envelope; the chosen format is rendered from the drive over time, or, for the
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 from ..errors import TactilizeError, check_finite, check_output_path
 from .materials import describe_relief, surface_only
+
+if TYPE_CHECKING:
+    from ..surface import SurfaceModel
 
 
 def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
@@ -20,6 +23,7 @@ def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     from ..image import load_image
     from ..mapping import Profile
     from ..maps.texturemap import texture_map
+    from ..surface.rendering import rendering_for
 
     check_output_path(opt["out_path"])  # before the rendering, which may take seconds
     fmt = opt["fmt"].lower()
@@ -35,11 +39,8 @@ def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     surface_only(opt.get("material_name"), profile.rendering)
     img = load_image(opt["image"], dpi=opt["dpi"], width_mm=opt["width_mm"])
     tmap = texture_map(img)
-    surface = None
-    if profile.rendering == "surface":
-        from ..surface import surface_model
-
-        surface = surface_model(img, tip_radius_m=profile.tip_radius_m, material=opt.get("material_name"))
+    # The picture's surface, made only by a rendering that reads it.
+    surface = cast("SurfaceModel | None", rendering_for(profile, image=img, material=opt.get("material_name")).surface)
     extra: dict[str, Any] = {"image": opt["image"], "profile": profile.name, "rendering": profile.rendering}
     if opt.get("material_name") is not None:
         extra.update(describe_relief(surface))

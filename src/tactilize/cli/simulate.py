@@ -65,7 +65,7 @@ def simulate_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     surface_only(material_name, profile.rendering)
     feat = extract_features(img)
     direction = None if opt["direction_deg"] is None else math.radians(opt["direction_deg"])
-    from ..surface.straight import rendered_drive
+    from ..surface.rendering import rendered_drive
 
     surface = None
     if material_name is not None:

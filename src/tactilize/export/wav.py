@@ -81,14 +81,14 @@ def stroke_wav_source(timeline: Any, stroke: Any, surface: Any, drive: str = "pr
     stroke : Stroke
         The pen samples (SI) the timeline was run from.
     surface : SurfaceModel or None
-        The picture's surface when the profile's rendering is ``surface``.
+        The picture's surface; read when the timeline carries the surface rendering's events.
     drive : {"profile", "wire"}
         The timeline's drive asked for; the wire's drive stays a pulse train.
     synthetic : bool
         A synthetic stroke (timeline from stroke time 0, the picture mirrored
         beyond its edges); a recorded one starts at its first sample.
     """
-    if surface is None or drive != "profile":
+    if surface is None or not timeline.plays_events(drive):
         return timeline
     origin = 0.0 if synthetic else float(stroke.t_s[0])  # the timeline's t = 0 on the stroke's clock [s]
     return StrokeAcceleration(stroke, surface, origin, origin + float(timeline.end_s), mirror=synthetic)

@@ -11,12 +11,13 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable, Protocol, Sequence, cast
+from typing import Any, Callable, Iterable, NamedTuple, Protocol, Sequence, cast
 
 from ..actuators.base import EventOutput, Output
 from ..drive import Drive
 from ..mapping import FeaturesForDrive, Profile
 from ..surface.clock import StrokeClock
+from ..surface.rendering import Frame, Rendering, rendering_for
 from ..synthesis import pen_channels
 from ..synthesis.wavelets import wavelet_rows
 from .samples import PenSample
@@ -162,9 +163,11 @@ class PenRenderer:
         ...but the output gets the current drive at least this often [s], so a
         safety envelope that depends on the wire's state is asked again.
     surface : SurfaceModel or CompositeSurface, optional
-        The picture as a surface; a profile whose ``rendering`` is ``surface``
-        then fires a pulse per bump crossed (docs/surfaces.md): an output that
-        plays events gets them, any other the equivalent drive of the window.
+        The picture as a surface; the profile's rendering (:func:`~tactilize.surface.rendering.rendering_for`)
+        makes each batch's frame of events and their operating point: an output that
+        schedules events gets a frame's irregular events (the surface rendering's
+        bumps), any other the operating point, and a regular train (a steady
+        rendering's) is played as its Drive.
     clock : callable, optional
         ``clock() -> seconds``, monotonic, for ``refresh_s`` (:func:`time.monotonic`
         by default; tests inject one so the resend rule is deterministic).
@@ -193,8 +196,9 @@ class PenRenderer:
         self.texture_map = texture_map
         self._clock = clock or time.monotonic
         self._stroke_clock = StrokeClock()
-        self._surface = _SurfacePath(surface)
         self.profile = profile or Profile.preset("paper")
+        self.rendering: Rendering = rendering_for(self.profile, surface)
+        self._handed: _Handed | None = None  # the events the output holds
         self.output = output
         self.tracker = tracker or StrokeTracker()
         self.channels = channels if output is None else int(output.channels)
@@ -216,17 +220,18 @@ class PenRenderer:
         """Show another picture (and its surface, for the surface rendering): the
         stroke restarts and the output stops."""
         self.texture_map = texture_map
-        self._surface = _SurfacePath(surface)
+        self.rendering = rendering_for(self.profile, surface)
         return self.lift()
 
     @property
     def surface(self) -> Any:
         """The picture's surface model, or None."""
-        return self._surface.surface
+        return self.rendering.surface
 
     def set_profile(self, profile: Profile) -> None:
         """Use other laws from the next sample on."""
         self.profile = profile
+        self.rendering = rendering_for(profile, self.rendering.surface, previous=self.rendering)
 
     def yield_output(self) -> None:
         """Another renderer drives the same output from now on (the experiments keep one per
@@ -238,18 +243,16 @@ class PenRenderer:
         """The pen left the surface: forget the stroke and rest the output at once
         (an SMA wire stays in standby for a while, ready for the next touch)."""
         self.tracker.reset()
-        self._surface.reset()
+        self.rendering.reset()
+        self._handed = None
         self._stop()
         self._last = RenderResult(False, False, None, None, self._off, self._off)
         return self._last
 
     def feed(self, samples: Iterable[PenSample]) -> RenderResult:
         """Add a batch of samples and drive the output for the newest one."""
-        if self._surface.on(self.profile):
-            batch = list(samples)
-            return self._render(self.tracker.extend(batch), batch)
-        state = self.tracker.extend(samples)
-        return self._render(state)
+        batch = samples if isinstance(samples, list) else list(samples)
+        return self._render(self.tracker.extend(batch), batch)
 
     def still(self) -> RenderResult:
         """No samples have arrived for a while although the pen is down.
@@ -262,7 +265,7 @@ class PenRenderer:
             return self._last
         self.tracker.reset()
         self.tracker.add(PenSample(st.t_s, st.x_m, st.y_m, st.pressure))
-        return self._render(self.tracker.state)
+        return self._render(self.tracker.state, [])
 
     def hover(self) -> None:
         """The pen hovers over the picture (or rests on it with nothing to render):
@@ -282,44 +285,47 @@ class PenRenderer:
             return
         self.output.standby()
 
-    def _render(self, state: StrokeState | None, batch: list[PenSample] | None = None) -> RenderResult:
+    def _render(self, state: StrokeState | None, batch: list[PenSample]) -> RenderResult:
         # No state: every sample so far was rejected, nothing is known about the pen.
         feat = None if state is None else self.texture_map.lookup(state.x_m, state.y_m)
         if state is None or feat is None:
-            self._surface.reset()
+            self.rendering.reset()
+            self._handed = None
             self._stop()
             self._last = RenderResult(True, False, state, None, self._off, self._off)
             return self._last
-        if self._surface.on(self.profile):
-            return self._render_surface(state, feat, batch or [])
-        drive = self.profile.drive(feat, state.speed_m_s, state.direction_rad, state.pressure)
-        requested = self.splitter(drive, self.channels, state)
-        applied = self._apply(requested)
-        self._last = RenderResult(True, True, state, feat, requested, applied)
+        # A batch held up arrives after the output played some of what the last one handed
+        # out: the rendering is told, so a bump found again a little elsewhere is not played twice.
+        played = self._stroke_clock.played_until_s(state.t_s, self._clock())
+        frame = self.rendering.frame(state, feat, batch, played)
+        requested = self.splitter(frame.drive, self.channels, state)
+        applied = self._play(frame, requested, state.t_s)
+        self._last = RenderResult(True, True, state, feat, requested, applied,
+                                  () if frame.regular else frame.events, self.rendering.newly_fired)
         return self._last
 
-    def _render_surface(self, state: StrokeState, feat: Any, batch: list[PenSample]) -> RenderResult:
-        """A pulse per bump crossed: events to an output that plays them, else their equivalent drive."""
-        sp = self._surface
-        # A batch held up arrives after the output played some of what the last one handed
-        # out: tell the stroke, so a bump found again a little elsewhere is not played twice.
-        played = self._stroke_clock.played_until_s(state.t_s, self._clock())
-        events, drive = sp.update(self.profile, state, batch, played)
-        requested = self.splitter(drive, self.channels, state)
+    def _play(self, frame: Frame, requested: list[Drive], now_s: float) -> list[Drive]:
+        """Hand ``frame`` to the output: its events to an output that schedules them (a
+        regular train is its Drive), else its operating point; returns what was applied."""
         out = self.output
-        if out is not None and getattr(out, "plays_events", False) and (events or not drive.is_off):
-            self._running = True
-            self._sent = None  # the steady resend rule does not apply to events
-            applied = sp.still_handed(events, requested, state.t_s)
-            if applied is None:
-                applied = list(cast(EventOutput, out).play_events([events] * self.channels, state.t_s, requested))
-                sp.handed(events, requested, applied, state.t_s)
-        else:
-            sp.handed_off()
-            applied = self._apply(requested)
-        pulses = sp.stroke.newly_fired if sp.stroke is not None else 0
-        self._last = RenderResult(True, True, state, feat, requested, applied, tuple(events), pulses)
-        return self._last
+        if frame.regular or out is None or not getattr(out, "plays_events", False) or (
+                not frame.events and frame.drive.is_off):
+            self._handed = None
+            return self._apply(requested)
+        self._running = True
+        self._sent = None  # the steady resend rule does not apply to events
+        last = self._handed
+        # The same rule as the steady drives' resend rule: events within SAME_EVENT_S of what
+        # the output already holds, with the very same drives, are not sent again (each pulse
+        # is still bounded by the wire's heat when it plays).
+        if (last is not None and 0.0 <= now_s - last.t_s < HAND_AGAIN_S
+                and len(requested) == len(last.requested) and all(a is b for a, b in zip(requested, last.requested))
+                and _same_ahead(frame.events, last.events, now_s)):
+            return last.applied
+        events = list(frame.events)
+        applied = list(cast(EventOutput, out).play_events([events] * self.channels, now_s, requested))
+        self._handed = _Handed(frame.events, requested, applied, now_s)
+        return applied
 
     def _apply(self, requested: list[Drive]) -> list[Drive]:
         """Play ``requested`` on the output; returns what it applied."""
@@ -349,73 +355,13 @@ class PenRenderer:
         self.lift()
 
 
-class _SurfacePath:
-    """The surface rendering's state: the picture's surface and the stroke's events over it."""
+class _Handed(NamedTuple):
+    """Events an output was handed, with the drives requested and applied, at a stroke time."""
 
-    def __init__(self, surface: Any) -> None:
-        self.surface = surface
-        self.stroke = None
-        self._drive_key: tuple[Any, tuple] | None = None  # (profile, window statistics)
-        self._drive = Drive.off()
-        self._handed: tuple[list, list, list, float] | None = None  # (events, requested, applied, t_s)
-        if surface is not None:
-            from ..surface import equivalent
-            from ..surface.stroke import SurfaceStroke
-
-            self.stroke = SurfaceStroke(surface)
-            self._equivalent = equivalent
-
-    def on(self, profile: Any) -> bool:
-        return self.stroke is not None and getattr(profile, "rendering", "steady") == "surface"
-
-    def reset(self) -> None:
-        if self.stroke is not None:
-            self.stroke.reset()
-        self._handed = None
-
-    def update(self, profile: Any, state: StrokeState, batch: list[PenSample],
-               played_until_s: float | None = None) -> tuple[list, Drive]:
-        stroke = self.stroke
-        assert stroke is not None, "on() makes the stroke before the first update"
-        if state.direction_rad is None or state.speed_m_s <= 0:
-            # A resting pen adds no path and fires nothing (what was pending is withdrawn).
-            stroke.update(batch, 0.0, None, state.pressure, played_until_s)
-            stroke.rest()
-            return [], Drive.off()
-        events = stroke.update(batch, state.speed_m_s, state.direction_rad, state.pressure, played_until_s)
-        # The drive depends only on the window's statistics and the profile: most batches
-        # bring the same events, their predicted times moved by microseconds (a Drive and its
-        # limits cost more than comparing five numbers).  Kept, the same Drive object also
-        # spares the output its plan.
-        eq = self._equivalent
-        stats = stroke.window_statistics(eq.WINDOW_S)
-        key = self._drive_key
-        if key is None or profile is not key[0] or not _same_statistics(stats, key[1]):
-            self._drive = eq.drive_of_statistics(stats, profile)
-            self._drive_key = (profile, stats)
-        return events, self._drive
-
-    def still_handed(self, events: list, requested: list[Drive], now_s: float) -> list[Drive] | None:
-        """What the output applied when it was last handed these events (those of them not yet due)
-        and these very drives, within :data:`HAND_AGAIN_S`; None: hand them over.
-
-        The same rule as the steady drives' resend rule: events within :data:`SAME_EVENT_S` of
-        what the output already holds are not sent again (each pulse is still bounded by the
-        wire's heat when it plays)."""
-        last = self._handed
-        if last is None or not 0.0 <= now_s - last[3] < HAND_AGAIN_S:
-            return None
-        if len(requested) != len(last[1]) or any(a is not b for a, b in zip(requested, last[1])):
-            return None
-        return last[2] if _same_ahead(events, last[0], now_s) else None
-
-    def handed(self, events: list, requested: list[Drive], applied: list[Drive], now_s: float) -> None:
-        """The output was handed ``events`` and ``requested`` at ``now_s`` [s] and applied ``applied``."""
-        self._handed = (events, requested, applied, now_s)
-
-    def handed_off(self) -> None:
-        """The output was given a steady drive (or stopped): the next events are handed over."""
-        self._handed = None
+    events: tuple
+    requested: list[Drive]
+    applied: list[Drive]
+    t_s: float
 
 
 #: Events the output already holds are handed over again at least this often [s] all the same,
@@ -426,54 +372,17 @@ HAND_AGAIN_S = 0.1
 #: (over a window's events, typically 50 ms or more apart end to end, it moves the rate by under
 #: the 0.5 % resend rule of steady drives); the events themselves are handed over exact.
 SAME_EVENT_S = 1e-4
-#: ...and strengths within this (a hundredth of the felt band); the equivalent Drive's mean strength too.
+#: ...and strengths within this (a hundredth of the felt band).
 SAME_STRENGTH = 0.01
 
 
-#: The equivalent Drive is made again when its window's rate moves by more than this share (the
-#: 0.5 % resend rule of steady drives), ...
-SAME_RATE_REL = 0.005
-#: ...or the intervals' coefficient of variation by more than this (its regularity by 0.02).
-SAME_CV = 0.005
-
-
-def _same_statistics(a: tuple, b: tuple) -> bool:
-    """Two windows' :func:`~tactilize.surface.equivalent.window_statistics` make the same Drive:
-    the same count and names, rate within :data:`SAME_RATE_REL`, CV within :data:`SAME_CV`,
-    mean strength within :data:`SAME_STRENGTH`."""
-    n, rate, cv, strength, names = a
-    return (n == b[0] and names == b[4] and abs(rate - b[1]) <= SAME_RATE_REL * b[1]
-            and -SAME_CV <= cv - b[2] <= SAME_CV and -SAME_STRENGTH <= strength - b[3] <= SAME_STRENGTH)
-
-
-def _same_events(a: Sequence[Any], b: Sequence[Any]) -> bool:
-    """The same events, times within :data:`SAME_EVENT_S` and strengths within :data:`SAME_STRENGTH`."""
-    if len(a) != len(b):
-        return False
-    for x, y in zip(a, b):  # a plain loop: every batch compares a window's events
-        d = x.t_s - y.t_s
-        e = x.strength - y.strength
-        if not (-SAME_EVENT_S <= d <= SAME_EVENT_S and -SAME_STRENGTH <= e <= SAME_STRENGTH and x.clamped == y.clamped):
-            return False
-    return True
-
-
 def _same_ahead(events: Sequence[Any], held: Sequence[Any], now_s: float) -> bool:
-    """``_same_events(events, [e for e in held if e.t_s > now_s])`` in one pass, without the
-    list: every surface batch asks it."""
-    j, n = 0, len(events)
-    for y in held:
-        if y.t_s <= now_s:
-            continue
-        if j == n:
-            return False
-        x = events[j]
-        d = x.t_s - y.t_s
-        e = x.strength - y.strength
-        if not (-SAME_EVENT_S <= d <= SAME_EVENT_S and -SAME_STRENGTH <= e <= SAME_STRENGTH and x.clamped == y.clamped):
-            return False
-        j += 1
-    return j == n
+    """``events`` are those of ``held`` not yet due at ``now_s`` [s]: times within
+    :data:`SAME_EVENT_S`, strengths within :data:`SAME_STRENGTH`, the same clamps."""
+    ahead = [y for y in held if y.t_s > now_s]
+    return len(ahead) == len(events) and all(
+        abs(x.t_s - y.t_s) <= SAME_EVENT_S and abs(x.strength - y.strength) <= SAME_STRENGTH and x.clamped == y.clamped
+        for x, y in zip(events, ahead))
 
 
 def _close(a: Sequence[Drive], b: Sequence[Drive], rel: float) -> bool:

@@ -4,8 +4,7 @@ The commands that take a picture and a speed (``drive``, ``simulate``,
 ``profile report``) stroke the picture through its centre at that speed, for up
 to :data:`STROKE_S`, back and forth where the picture is shorter, and summarise
 the events by rate, interval CV and strength (docs/surfaces.md, "Where it is
-measured").  :func:`rendered_drive` is the one place that chooses between that
-and a steady profile's own drive.
+measured"); :meth:`tactilize.surface.rendering.SurfaceRendering.steady_drive` reads it.
 
 Units: SI (m, s, Hz).
 """
@@ -22,7 +21,7 @@ from .equivalent import drive_of_statistics
 from .events import EventStatistics, PulseEvent, event_statistics, stroke_events
 from .model import SurfaceLike
 
-__all__ = ["straight_stroke", "surface_stroke_drive", "rendered_drive", "STROKE_S", "STROKE_RATE_HZ"]
+__all__ = ["straight_stroke", "surface_stroke_drive", "STROKE_S", "STROKE_RATE_HZ"]
 
 #: Length of the steady stroke [s].
 STROKE_S = 2.0
@@ -59,16 +58,3 @@ def surface_stroke_drive(surface: SurfaceLike, profile: Any, speed_m_s: float, d
     events = stroke_events(surface, t, x, y, pressure)
     stats = event_statistics(events, float(t[-1]))
     return drive_of_statistics(stats, profile), events, stats
-
-
-def rendered_drive(profile: Any, image: Any, features: Any, speed_m_s: float,
-                   direction_rad: float | None = None, *, surface: Any = None) -> Drive:
-    """The drive a profile renders for a picture stroked steadily: its laws for a steady
-    profile, the equivalent Drive of the surface's events for a surface one."""
-    if getattr(profile, "rendering", "steady") != "surface":
-        return profile.drive(features, speed_m_s, direction_rad)
-    if surface is None:
-        from .model import surface_model
-
-        surface = surface_model(image, tip_radius_m=profile.tip_radius_m)
-    return surface_stroke_drive(surface, profile, speed_m_s, direction_rad)[0]

@@ -59,7 +59,7 @@ def _export(state: ServerState, body: dict[str, Any]) -> tuple[bytes, Any, str]:
     stroke = parse_stroke(rows, "stroke", tmap.width_m, tmap.height_m)
     meta: dict[str, Any] = {"image": entry.name, "profile": profile.name}
     # The surface rendering's bumps go into the parametric formats (docs/surfaces.md, "Exports").
-    surface = entry.surface if getattr(profile, "rendering", "steady") == "surface" else None
+    surface = entry.surface  # the profile's rendering decides whether it is read
     tl = run_stroke(stroke, tmap, profile, meta=meta, surface=surface)
     source: Any = tl
     if spec.name == "wav":  # the tip's acceleration for a surface profile, as `export --stroke` writes it

@@ -1,0 +1,255 @@
+"""The rendering interface: what every rendering implements and every consumer calls.
+
+A :class:`Rendering` is made once per picture and profile (:func:`rendering_for`, the one place
+that reads a profile's ``rendering``).  Per pen batch, :meth:`Rendering.frame` takes the tracked
+pen and returns a :class:`Frame`: the pulse events from the newest sample on and the operating
+point (a :class:`~tactilize.drive.Drive`) they imply.  A steady rendering's frame is a regular
+train (one event per period of its Drive, ``regular`` True: an output that synthesises trains may
+play the Drive, which describes them exactly); the surface rendering's are the bumps the tip
+crosses (docs/surfaces.md).  :meth:`Rendering.steady_drive` is what the rendering gives a picture
+stroked steadily (the commands, the report and the catalogue's rows).
+
+Switching renderings changes the frames, not the code that plays them: the pen's renderer, the
+exports, the reports and the catalogue call these methods alone.
+
+Units: SI (s, m, Hz).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, NamedTuple, Protocol, Sequence
+
+from ..drive import Drive
+from .events import PulseEvent
+from .model import SurfaceLike
+from .straight import surface_stroke_drive
+
+__all__ = ["Frame", "Rendering", "SteadyRendering", "SurfaceRendering", "rendering_for", "rendered_drive",
+           "train_events", "HORIZON_S"]
+
+#: How far ahead a frame's events reach [s]: the surface stroke's prediction horizon.
+HORIZON_S = 0.025
+
+
+class Frame(NamedTuple):
+    """One pen batch rendered.
+
+    Attributes
+    ----------
+    events : tuple of PulseEvent
+        Pulses from the newest sample on [s, the stroke's clock], those not yet fired.
+    drive : Drive
+        The operating point they imply (one per rendering; the pen's renderer splits it per channel).
+    regular : bool
+        The events are the drive's own regular train, so the drive describes them exactly.
+    """
+
+    events: tuple[PulseEvent, ...]
+    drive: Drive
+    regular: bool
+
+
+class TrackedPen(Protocol):
+    """What a rendering reads of the tracked pen (:class:`tactilize.pen.tracker.StrokeState` is one)."""
+
+    @property
+    def t_s(self) -> float: ...
+
+    @property
+    def speed_m_s(self) -> float: ...
+
+    @property
+    def direction_rad(self) -> float | None: ...
+
+    @property
+    def pressure(self) -> float | None: ...
+
+
+class Rendering(Protocol):
+    """A rendering: made once per picture and profile, fed pen batches (see the module docstring)."""
+
+    @property
+    def name(self) -> str:
+        """``"steady"`` or ``"surface"``."""
+        ...
+
+    @property
+    def newly_fired(self) -> int:
+        """Pulses that became due with the latest frame."""
+        ...
+
+    @property
+    def surface(self) -> SurfaceLike | None:
+        """The picture as a surface, or None."""
+        ...
+
+    profile: Any
+
+    def frame(self, state: TrackedPen, features: Any, batch: Sequence[Any],
+              played_until_s: float | None = None) -> Frame:
+        """The batch ``batch`` (pen samples, SI) with the tracker's estimate ``state`` and the
+        ``features`` under the pen; ``played_until_s`` [s], the stroke time the output has reached."""
+        ...
+
+    def reset(self) -> None:
+        """Forget the stroke (a lift, a new picture)."""
+        ...
+
+    def steady_drive(self, features: Any, speed_m_s: float, direction_rad: float | None = None) -> Drive:
+        """The drive of the picture stroked steadily at ``speed_m_s`` [m/s]."""
+        ...
+
+
+def train_events(drive: Drive, anchor_s: float, from_s: float, span_s: float = HORIZON_S) -> tuple[PulseEvent, ...]:
+    """The regular train of ``drive`` in [``from_s``, ``from_s + span_s``) [s], one event per
+    period from ``anchor_s`` [s] on (the phase stays where the train started)."""
+    if drive.is_off or drive.pulse_frequency_hz <= 0:
+        return ()
+    period = 1.0 / drive.pulse_frequency_hz
+    k = max(0, math.ceil((from_s - anchor_s) / period - 1e-9))
+    strength = 1.0 if drive.strength is None else float(drive.strength)
+    out = []
+    t = anchor_s + k * period
+    while t < from_s + span_s:
+        out.append(PulseEvent(t, strength, drive.clamped))
+        k += 1
+        t = anchor_s + k * period
+    return tuple(out)
+
+
+class SteadyRendering:
+    """The profile's laws: one Drive from the features under the pen and the stroke's speed."""
+
+    name = "steady"
+    newly_fired = 0
+
+    def __init__(self, profile: Any, surface: SurfaceLike | None = None) -> None:
+        self.profile = profile
+        #: The picture's surface, kept for a later profile that renders it (:func:`rendering_for`).
+        self.surface = surface
+        self._anchor_s: float | None = None  # when the train started (its phase)
+
+    def reset(self) -> None:
+        self._anchor_s = None
+
+    def frame(self, state: TrackedPen, features: Any, batch: Sequence[Any],
+              played_until_s: float | None = None) -> Frame:
+        drive = self.profile.drive(features, state.speed_m_s, state.direction_rad, state.pressure)
+        if drive.is_off:
+            self._anchor_s = None
+            return Frame((), drive, True)
+        if self._anchor_s is None:
+            self._anchor_s = state.t_s
+        return Frame(train_events(drive, self._anchor_s, state.t_s), drive, True)
+
+    def steady_drive(self, features: Any, speed_m_s: float, direction_rad: float | None = None) -> Drive:
+        return self.profile.drive(features, speed_m_s, direction_rad)
+
+
+#: The window's Drive is made again when its rate moves by more than this share (the 0.5 %
+#: resend rule of steady drives), ...
+SAME_RATE_REL = 0.005
+#: ...or the intervals' coefficient of variation by more than this (its regularity by 0.02), ...
+SAME_CV = 0.005
+#: ...or the mean strength by more than this (a hundredth of the felt band).
+SAME_STRENGTH = 0.01
+
+
+class SurfaceRendering:
+    """A pulse per bump the stylus tip crosses, predicted ahead (:class:`~.stroke.SurfaceStroke`);
+    the operating point is the equivalent Drive of the last :data:`~.equivalent.WINDOW_S`."""
+
+    name = "surface"
+
+    def __init__(self, profile: Any, surface: SurfaceLike) -> None:
+        from .stroke import SurfaceStroke
+
+        self.profile = profile
+        self.surface = surface
+        self.stroke = SurfaceStroke(surface)
+        self._stats: Any = None
+        self._drive_of: Any = None  # the profile self._drive was made with
+        self._drive = Drive.off()
+
+    @property
+    def newly_fired(self) -> int:
+        return self.stroke.newly_fired
+
+    def reset(self) -> None:
+        self.stroke.reset()
+
+    def frame(self, state: TrackedPen, features: Any, batch: Sequence[Any],
+              played_until_s: float | None = None) -> Frame:
+        from .equivalent import WINDOW_S, drive_of_statistics
+
+        stroke = self.stroke
+        if state.direction_rad is None or state.speed_m_s <= 0:
+            # A resting pen adds no path and fires nothing (what was pending is withdrawn).
+            stroke.update(batch, 0.0, None, state.pressure, played_until_s)
+            stroke.rest()
+            return Frame((), Drive.off(), False)
+        events = stroke.update(batch, state.speed_m_s, state.direction_rad, state.pressure, played_until_s)
+        # Most batches bring the same window, its predicted times moved by microseconds: the
+        # same Drive object is kept then (a Drive and its limits cost more than comparing five
+        # numbers, and the output keeps its plan of it).
+        stats = stroke.window_statistics(WINDOW_S)
+        if self._stats is None or self._drive_of is not self.profile or not _same_statistics(stats, self._stats):
+            self._drive = drive_of_statistics(stats, self.profile)
+            self._stats, self._drive_of = stats, self.profile
+        return Frame(tuple(events), self._drive, False)
+
+    def steady_drive(self, features: Any, speed_m_s: float, direction_rad: float | None = None) -> Drive:
+        return surface_stroke_drive(self.surface, self.profile, speed_m_s, direction_rad)[0]
+
+
+def _same_statistics(a: Any, b: Any) -> bool:
+    """Two windows' statistics make the same Drive: the same count and names, rate within
+    :data:`SAME_RATE_REL`, CV within :data:`SAME_CV`, mean strength within :data:`SAME_STRENGTH`."""
+    return (a.pulses == b.pulses and a.clamped == b.clamped and abs(a.rate_hz - b.rate_hz) <= SAME_RATE_REL * b.rate_hz
+            and abs(a.interval_cv - b.interval_cv) <= SAME_CV and abs(a.strength - b.strength) <= SAME_STRENGTH)
+
+
+def rendering_for(profile: Any, surface: SurfaceLike | None = None, *, image: Any = None,
+                  material: str | None = None, previous: Rendering | None = None) -> Rendering:
+    """The rendering ``profile`` names, for one picture.
+
+    Parameters
+    ----------
+    profile : Profile
+        Its ``rendering`` (``steady`` or ``surface``) picks the rendering: the one place it is read.
+    surface : SurfaceLike, optional
+        The picture as a surface, when the caller has it.
+    image : TextureImage or callable, optional
+        The picture (or a callable returning it, called only when needed): a surface rendering
+        without ``surface`` makes the surface from it (at the profile's tip radius, of
+        ``material`` when given).
+    previous : Rendering, optional
+        The rendering in use: kept, with ``profile``, when ``profile`` renders the same picture
+        the same way (a stroke under way keeps what it fired).
+
+    Returns
+    -------
+    Rendering
+        A surface profile given neither a surface nor an image renders steadily (its laws).
+    """
+    if getattr(profile, "rendering", "steady") == "surface":
+        if surface is None and image is not None:
+            from .model import surface_model
+
+            surface = surface_model(image() if callable(image) else image, tip_radius_m=profile.tip_radius_m, material=material)
+    kind: type[SteadyRendering] | type[SurfaceRendering] = SteadyRendering
+    if getattr(profile, "rendering", "steady") == "surface" and surface is not None:
+        kind = SurfaceRendering
+    if type(previous) is kind and previous.surface is surface:
+        previous.profile = profile
+        return previous
+    return kind(profile, surface)  # type: ignore[arg-type]
+
+
+def rendered_drive(profile: Any, image: Any, features: Any, speed_m_s: float,
+                   direction_rad: float | None = None, *, surface: Any = None) -> Drive:
+    """The drive ``profile`` renders for a picture stroked steadily at ``speed_m_s`` [m/s]:
+    :meth:`Rendering.steady_drive` of :func:`rendering_for` the picture (``image``, or its
+    ``surface`` when the caller has it)."""
+    return rendering_for(profile, surface, image=image).steady_drive(features, speed_m_s, direction_rad)
