@@ -165,7 +165,7 @@ class Page:
             t_ms = len(self.expected) * 7.5
             self.expected[t_ms] = (trial, image)
             rows.append([t_ms, 5.0 + (t_ms * 0.06) % 40, 20.0, 0.5])
-        text = json.dumps({"trial": trial, "image": image, "batch": batch, "samples": rows})
+        text = json.dumps({"type": "samples", "trial": trial, "image": image, "batch": batch, "samples": rows})
         self.pending[batch] = text
         if self.ws is not None:
             self.sent_at[batch] = time.perf_counter()

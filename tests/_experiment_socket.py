@@ -14,7 +14,7 @@ def open_session(client, code="S1"):
 
 def pen_batch(trial, image, batch, start=0, n=5):
     """The page's batch ``batch`` of ``n`` samples, 8 ms apart from sample ``start`` on."""
-    return {"trial": trial, "image": image, "batch": batch,
+    return {"type": "samples", "trial": trial, "image": image, "batch": batch,
             "samples": [[(start + k) * 8.0, 1.0 + (start + k) * 0.5, 3.0, 0.4] for k in range(n)]}
 
 

@@ -178,8 +178,8 @@ def test_closing_pen_pages_logs_nothing_and_prints_no_traceback():
             with connect(f"ws://127.0.0.1:{port}/ws", open_timeout=60) as ws:
                 ws.send(json.dumps({"type": "hello", "texture": "corduroy"}))
                 for j in range(200):  # drives and wire traces are on their way when the page goes
-                    rows = [[1000 + 100 * j + 5 * i, 20 + 2 * i, 30, 0.5] for i in range(20)]
-                    ws.send(json.dumps({"type": "samples", "seq": j, "samples": rows}))
+                    rows = [[1000 + 100 * j + 5 * i, 5 + 0.5 * i, 8, 0.5] for i in range(20)]
+                    ws.send(json.dumps({"type": "samples", "batch": str(j), "samples": rows}))
                 if k % 2:  # abrupt: the connection drops without a close frame
                     ws.socket.shutdown(socket.SHUT_RDWR)
         with connect(f"ws://127.0.0.1:{port}/ws", open_timeout=60) as ws:  # the server still answers

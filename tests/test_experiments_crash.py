@@ -72,7 +72,7 @@ def test_sigkill_mid_session_then_resume(tmp_path):
             assert r.status_code == 200 and r.json()["recorded"] == "recorded"
             given[i] = ratings
         with connect(f"ws://127.0.0.1:{port}/experiment/ws/{token}") as ws:
-            ws.send(json.dumps({"trial": 2, "image": "image3", "samples": [[k * 8.0, k * 0.5, 3.0, 0.4] for k in range(30)]}))
+            ws.send(json.dumps({"type": "samples", "trial": 2, "image": "image3", "samples": [[k * 8.0, k * 0.5, 3.0, 0.4] for k in range(30)]}))
             assert json.loads(ws.recv(timeout=10))["logged"] == 30
             # Written = acknowledged: the ack follows the commit (the drive goes back before it).
             assert json.loads(ws.recv(timeout=30))["type"] == "ack"

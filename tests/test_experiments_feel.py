@@ -130,6 +130,11 @@ def _recording():
             + [("samples", rows) for rows in _straight_px(1600.0, 16)] + [("lift",)])
 
 
+def _mm(rows):
+    """Rows in CSS px as both pages send them: millimetres on the picture, by the page's calibration."""
+    return [[t, x * MM_PER_PX, y * MM_PER_PX, p] for t, x, y, p in rows]
+
+
 def _next(ws, accept):
     for _ in range(100):
         m = ws.receive_json()
@@ -153,10 +158,10 @@ def _through_serve(profile, picture, surface, out, clock, monkeypatch):
             clock.t += 0.016
             before = len(out.log)
             if step[0] == "lift":
-                ws.send_text(json.dumps({"type": "lift", "seq": seq}))
-            else:
-                ws.send_text(json.dumps({"type": "samples", "seq": seq, "samples": step[1]}))
-            _next(ws, lambda m: m["type"] == "drive" and m["seq"] == seq)
+                ws.send_text(json.dumps({"type": "lift", "batch": str(seq)}))
+            else:  # the same message the trial's page sends (millimetres), but its trial and image
+                ws.send_text(json.dumps({"type": "samples", "batch": str(seq), "samples": _mm(step[1])}))
+            _next(ws, lambda m: m["type"] == "drive" and m["batch"] == str(seq))
             drives.append(out.log[before:])
     return drives
 
@@ -180,8 +185,8 @@ def _through_trial(flow, token, trial, image, out, clock, monkeypatch):
                 ws.send_text(json.dumps({"type": "lift"}))
                 _next(ws, lambda m: m["type"] == "lifted")
             else:
-                mm = [[t, x * MM_PER_PX, y * MM_PER_PX, p] for t, x, y, p in step[1]]
-                ws.send_text(json.dumps({"trial": trial, "image": image, "batch": f"b{k}", "samples": mm}))
+                ws.send_text(json.dumps({"type": "samples", "trial": trial, "image": image, "batch": f"b{k}",
+                                         "samples": _mm(step[1])}))
                 _next(ws, lambda m: m["type"] == "drive" and m["batch"] == f"b{k}")
             drives.append(out.log[before:])
     return drives

@@ -55,7 +55,7 @@ def test_scripted_participant_completes_the_assessment(tmp_path):
         with client.websocket_connect(f"ws://127.0.0.1/experiment/ws/{token}") as ws:
             for im in trial["images"]:
                 # 60 mm/s along x, 5 ms apart: the sigmoid's centre.
-                ws.send_text(json.dumps({"trial": 0, "image": im["id"],
+                ws.send_text(json.dumps({"type": "samples", "trial": 0, "image": im["id"],
                                          "samples": [[k * 5.0, k * 0.3, 10.0, 0.5] for k in range(20)]}))
                 msg = ws.receive_json()
                 while msg["type"] == "ack":  # the previous batch's, once committed
@@ -63,7 +63,7 @@ def test_scripted_participant_completes_the_assessment(tmp_path):
                 assert msg["type"] == "drive" and msg["logged"] == 20
                 assert msg["speed_mm_s"] == pytest.approx(60.0, rel=0.02)
                 drives[im["id"]] = msg["drive"]
-            ws.send_text(json.dumps({"trial": 5, "image": "image1", "samples": [[0, 0, 0]]}))
+            ws.send_text(json.dumps({"type": "samples", "trial": 5, "image": "image1", "samples": [[0, 0, 0]]}))
             msg = ws.receive_json()
             while msg["type"] == "ack":
                 msg = ws.receive_json()
@@ -142,7 +142,7 @@ def test_bad_input_is_refused_and_leaves_the_data_intact(tmp_path):
         # Strokes for a trial the session has not reached are refused (no page has shown it);
         # late ones for an answered trial are logged under it (tests/test_experiments_samples.py).
         with client.websocket_connect(f"ws://127.0.0.1/experiment/ws/{token}") as ws:
-            ws.send_json({"trial": 3, "image": "image1", "batch": "b1", "samples": [[0, 1, 1, None], [5, 2, 1, None]]})
+            ws.send_json({"type": "samples", "trial": 3, "image": "image1", "batch": "b1", "samples": [[0, 1, 1, None], [5, 2, 1, None]]})
             err = ws.receive_json()
             assert err["type"] == "error" and err["current_trial"] == 1 and err["batch"] == "b1"
             ws.send_bytes(b"\xff not json")

@@ -52,7 +52,7 @@ def _real_participant(flow, code, rating=5):
             state = flow.end_break(token, state["next_trial"])
             continue
         t = state["trial"]
-        handler.handle({"trial": t["index"], "image": t["images"][0]["id"], "samples": [[0, 1, 1, 0.5], [20, 3, 1, 0.5]]})
+        handler.handle({"type": "samples", "trial": t["index"], "image": t["images"][0]["id"], "samples": [[0, 1, 1, 0.5], [20, 3, 1, 0.5]]})
         state = flow.submit(token, t["index"], {q["id"]: rating for q in t["questions"]})
     return token
 
@@ -309,12 +309,12 @@ def test_assessment_rating_waits_until_every_image_is_stroked(tmp_path):
     handler = flow.stroke_handler(token)
     ratings = {q["id"]: 4 for q in t["questions"]}
     for im in t["images"][:5]:
-        handler.handle({"trial": 0, "image": im["id"], "samples": [[0, 1, 1, 0.5], [20, 3, 1, 0.5]]})
+        handler.handle({"type": "samples", "trial": 0, "image": im["id"], "samples": [[0, 1, 1, 0.5], [20, 3, 1, 0.5]]})
     with pytest.raises(FlowError, match="stroke every picture") as exc:
         flow.submit(token, 0, ratings)
     assert exc.value.detail["unstroked"] == [t["images"][5]["id"]]
     assert flow.store.answer_rows() == []
-    handler.handle({"trial": 0, "image": t["images"][5]["id"], "samples": [[0, 1, 1, 0.5]]})
+    handler.handle({"type": "samples", "trial": 0, "image": t["images"][5]["id"], "samples": [[0, 1, 1, 0.5]]})
     assert flow.submit(token, 0, ratings)["recorded"] == "recorded"
 
 
@@ -461,7 +461,7 @@ def test_one_visit_runs_several_protocols_with_one_calibration(tmp_path):
         handler = visit.stroke_handler(tok)
         for im in t["images"]:
             assert im["url"].endswith(f"?protocol={visit.flows[state['visit']['part'] - 1].design.name}")
-            handler.handle({"trial": t["index"], "image": im["id"], "samples": [[0, 1, 1, 0.5], [20, 3, 1, 0.5]]})
+            handler.handle({"type": "samples", "trial": t["index"], "image": im["id"], "samples": [[0, 1, 1, 0.5], [20, 3, 1, 0.5]]})
         state = visit.submit(tok, t["index"], {q["id"]: 4 for q in t["questions"]})
         assert state["recorded"] == "recorded"
     assert seen == {1, 2}

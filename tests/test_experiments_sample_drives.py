@@ -46,7 +46,7 @@ def test_logged_drives_are_exactly_one_per_sample_computed_on_arrival(tmp_path):
     handler = flow.stroke_handler(token)
     images = [im["id"] for im in trial["images"]]
     batches = [(images[k % len(images)], _curve(4, start=4 * (k // len(images)))) for k in range(12)]
-    replies = [handler.handle({"trial": 0, "image": image, "batch": f"b{k}", "samples": rows})
+    replies = [handler.handle({"type": "samples", "trial": 0, "image": image, "batch": f"b{k}", "samples": rows})
                for k, (image, rows) in enumerate(batches)]
     assert all(r["type"] == "drive" and r["stored"] == "stored" for r in replies)
 
@@ -85,7 +85,7 @@ def test_the_socket_computes_one_drive_per_message(tmp_path, monkeypatch):
         return original(self, *a, **kw)
 
     monkeypatch.setattr(Profile, "drive", counted)
-    reply = handler.handle({"trial": 0, "image": trial["images"][0]["id"], "batch": "b1", "samples": _curve(8)})
+    reply = handler.handle({"type": "samples", "trial": 0, "image": trial["images"][0]["id"], "batch": "b1", "samples": _curve(8)})
     assert reply["type"] == "drive" and reply["logged"] == 8 and reply["stored"] == "stored"
     assert len(on_socket) == 1
 
@@ -116,7 +116,7 @@ def test_an_expired_open_trial_is_read_after_the_reply_not_before(tmp_path, monk
 
     flow, token, trial = _flow(tmp_path)
     handler = flow.stroke_handler(token)
-    msg = {"trial": 0, "image": trial["images"][0]["id"], "batch": "b1", "samples": _curve(4)}
+    msg = {"type": "samples", "trial": 0, "image": trial["images"][0]["id"], "batch": "b1", "samples": _curve(4)}
     assert handler.handle(msg)["stored"] == "stored"
     queries = []
     original = flow_mod.Flow._first_open

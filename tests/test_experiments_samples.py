@@ -89,7 +89,7 @@ def test_a_batch_near_the_float_limit_is_refused_and_the_session_lives(tmp_path)
             for k, rows in enumerate([[[48.0, huge, 3.0, 0.4], [56.0, -huge, 3.0, 0.4]],
                                       [[huge, 4.0, 3.0, 0.4], [-huge, 4.5, 3.0, 0.4]],
                                       [[64.0, 4.0, huge, 0.4], [72.0, 4.5, 3.0, 0.4]]]):
-                ws.send_json({"trial": 0, "image": image, "batch": f"h-{k}", "samples": rows})
+                ws.send_json({"type": "samples", "trial": 0, "image": image, "batch": f"h-{k}", "samples": rows})
                 err = until(ws, "error")[-1]
                 assert err["status"] == 422 and "must be within" in err["error"], err
             ws.send_json(pen_batch(0, image, "p-2", start=10))

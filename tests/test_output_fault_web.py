@@ -19,8 +19,8 @@ def test_drive_messages_carry_the_outputs_fault():
         assert 'data-testid="output-fault"' in page
         with client.websocket_connect("ws://127.0.0.1/ws") as ws:
             hello(ws)
-            ws.send_text(json.dumps({"type": "samples", "seq": 0, "samples": stroke_rows(20.0)}))
+            ws.send_text(json.dumps({"type": "samples", "batch": "0", "samples": stroke_rows(20.0)}))
             assert recv_type(ws, "drive")["output_fault"] is None
             out.fault = "sense fault on channel 0: the controller limits it with the circuit's worst case"
-            ws.send_text(json.dumps({"type": "samples", "seq": 1, "samples": stroke_rows(20.0, t0=2000.0)}))
+            ws.send_text(json.dumps({"type": "samples", "batch": "1", "samples": stroke_rows(20.0, t0=2000.0)}))
             assert recv_type(ws, "drive")["output_fault"] == out.fault

@@ -145,10 +145,10 @@ def test_ws_composite_stroke_changes_the_spatial_frequency_at_the_boundary(clien
         seq = 0
         while x < cell_px + 40.0:
             rows = stroke_rows(20.0, n=5, x0=x, t0=t)
-            ws.send_text(json.dumps({"type": "samples", "seq": seq, "samples": rows}))
+            ws.send_text(json.dumps({"type": "samples", "batch": str(seq), "samples": rows}))
             d = recv_type(ws, "drive")
-            seen.append((rows[-1][1], d["spatial_frequency_per_m"], d["on"]))
-            t, x, seq = rows[-1][0] + 5.0, rows[-1][1] + (rows[1][1] - rows[0][1]), seq + 1
+            seen.append((rows[-1][1] / MM_PER_PX, d["spatial_frequency_per_m"], d["on"]))
+            t, x, seq = rows[-1][0] + 5.0, (rows[-1][1] + rows[1][1] - rows[0][1]) / MM_PER_PX, seq + 1
         # The tracker's position lags the newest sample by a little: leave 3 px either side.
         left = [f for xx, f, on in seen if xx < cell_px - 3 and on]
         right = [f for xx, f, on in seen if xx > cell_px + 3 and on]

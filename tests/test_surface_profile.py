@@ -157,18 +157,17 @@ def test_page_session_sends_events_and_their_drive():
     from tactilize.web import create_app
 
     out = SimulatedOutput(start=False)
-    mm_per_px = 25.4 / 96
     with TestClient(create_app(out, "surface", output_name="simulated", warm=False, close_output=True), base_url="http://127.0.0.1") as client:
         with client.websocket_connect("ws://127.0.0.1/ws") as ws:
             ws.send_text(json.dumps({"type": "hello", "texture": "sandpaper"}))
             ready = next(m for m in iter(ws.receive_json, None) if m["type"] == "ready")
             assert ready["profile"] == "surface" and ready["rendering"] == "surface"
-            v_px_ms = 40.0 / mm_per_px / 1e3
+            v_mm_ms = 40.0 / 1e3
             events, on = 0, 0
             for k in range(150):  # 0.6 s in 4 ms batches
                 t = 1000.0 + 4.0 * k
-                rows = [[t, 20.0 + v_px_ms * (t - 1000.0), 60.0, 0.5]]
-                ws.send_text(json.dumps({"type": "samples", "seq": k, "samples": rows}))
+                rows = [[t, 5.0 + v_mm_ms * (t - 1000.0), 16.0, 0.5]]
+                ws.send_text(json.dumps({"type": "samples", "batch": str(k), "samples": rows}))
                 d = next(m for m in iter(ws.receive_json, None) if m["type"] == "drive")
                 assert d["rendering"] == "surface"
                 events += d["pulses"]

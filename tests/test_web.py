@@ -62,8 +62,9 @@ def client(output):
 
 
 def stroke_rows(v_mm_s, n=20, dt_ms=5.0, x0=20.0, y0=30.0, t0=1000.0, mm_per_px=DEFAULT_M_PER_CSS_PX * 1e3):
+    """A horizontal stroke from (x0, y0) [CSS px] as the pages send it: millimetres by the page's scale."""
     v_px_ms = v_mm_s / mm_per_px / 1e3
-    return [[t0 + i * dt_ms, x0 + v_px_ms * i * dt_ms, y0, 0.5, 0.0, 0.0] for i in range(n)]
+    return [[t0 + i * dt_ms, (x0 + v_px_ms * i * dt_ms) * mm_per_px, y0 * mm_per_px, 0.5, 0.0, 0.0] for i in range(n)]
 
 
 def recv_type(ws, kind, limit=50):
@@ -261,13 +262,13 @@ def test_ws_stroke_speeds_and_lift(client, output):
         assert ready["profile"] == "paper" and ready["limits"]["max_frequency_hz"] == 300.0
         freqs, speeds = [], []
         for i, v in enumerate((10.0, 40.0)):
-            ws.send_text(json.dumps({"type": "samples", "seq": 2 * i, "samples": stroke_rows(v)}))
+            ws.send_text(json.dumps({"type": "samples", "batch": str(2 * i), "samples": stroke_rows(v)}))
             d = recv_type(ws, "drive")
-            assert d["seq"] == 2 * i and d["on"] and d["inside"]
+            assert d["batch"] == str(2 * i) and d["on"] and d["inside"]
             freqs.append(d["channels"][0]["pulse_frequency_hz"])
             speeds.append(d["speed_mm_s"])
             stops = output.stops
-            ws.send_text(json.dumps({"type": "lift", "seq": 2 * i + 1}))
+            ws.send_text(json.dumps({"type": "lift", "batch": str(2 * i + 1)}))
             off = recv_type(ws, "drive")
             assert not off["on"] and not off["down"] and off["channels"][0]["pulse_frequency_hz"] == 0
             assert output.stops == stops + 1
@@ -276,18 +277,21 @@ def test_ws_stroke_speeds_and_lift(client, output):
         assert len(output.applied[-1]) == 2
 
 
-def test_ws_calibration_changes_speed(client):
+def test_ws_calibration_is_the_pages_and_restarts_the_stroke(client):
+    """Positions arrive in mm: the page converts with its calibration; the server only
+    records the scale and starts a new stroke."""
     with client.websocket_connect("ws://127.0.0.1/ws") as ws:
         hello(ws)
-        rows = stroke_rows(20.0)
-        ws.send_text(json.dumps({"type": "samples", "samples": rows}))
+        ws.send_text(json.dumps({"type": "samples", "samples": stroke_rows(20.0)}))
         a = recv_type(ws, "drive")["speed_mm_s"]
         ws.send_text(json.dumps({"type": "calibrate", "mm_per_px": 2 * 25.4 / 96}))
         st = recv_type(ws, "state")
         assert st["mm_per_px"] == pytest.approx(2 * 25.4 / 96)
-        ws.send_text(json.dumps({"type": "samples", "samples": [[r[0] + 1000, *r[1:]] for r in rows]}))
+        # The page measures the same hand movement in px; at twice the mm per px it sends twice the mm.
+        rows = stroke_rows(20.0, t0=1100.0, mm_per_px=25.4 / 96)
+        ws.send_text(json.dumps({"type": "samples", "samples": [[r[0], 2 * r[1], 2 * r[2], *r[3:]] for r in rows]}))
         b = recv_type(ws, "drive")["speed_mm_s"]
-        assert b == pytest.approx(2 * a, rel=1e-6)
+        assert a == pytest.approx(20.0, rel=1e-3) and b == pytest.approx(2 * a, rel=1e-6)
 
 
 def test_ws_profile_switch(client):
@@ -373,7 +377,7 @@ def test_ws_batches_near_the_float_limit_are_refused_and_the_session_lives(clien
     with client.websocket_connect("ws://127.0.0.1/ws") as ws:
         hello(ws, profile=profile)
         for k, rows in enumerate(HUGE_BATCHES):
-            ws.send_text(json.dumps({"type": "samples", "seq": k, "samples": rows}))
+            ws.send_text(json.dumps({"type": "samples", "batch": str(k), "samples": rows}))
             m = recv_type(ws, "error")
             assert "must be within" in m["message"], m
         # The session is the same one, still stroking.
@@ -400,9 +404,9 @@ def test_ws_flood_is_bounded_and_latest_wins(client):
             rows = []
             for _ in range(per):
                 t += 1.0
-                x = 10.0 + (t - 1000.0) * 0.0075  # 2 mm/s in px/ms at 96 dpi
+                x = 10.0 + (t - 1000.0) * 0.002  # 2 mm/s in mm/ms
                 rows.append([t, x, 30.0, 0.5])
-            ws.send_text(json.dumps({"type": "samples", "seq": k, "samples": rows}))
+            ws.send_text(json.dumps({"type": "samples", "batch": str(k), "samples": rows}))
         ws.send_text(json.dumps({"type": "ping", "id": "end"}))
         drives = []
         while True:
@@ -413,12 +417,12 @@ def test_ws_flood_is_bounded_and_latest_wins(client):
                 break
         # The renderer may lag the pong by one batch; collect what is left.
         deadline = time.time() + 2
-        while (not drives or drives[-1]["seq"] != n_msgs - 1) and time.time() < deadline:
+        while (not drives or drives[-1]["batch"] != str(n_msgs - 1)) and time.time() < deadline:
             m = ws.receive_json()
             if m["type"] == "drive":
                 drives.append(m)
-    assert drives and drives[-1]["seq"] == n_msgs - 1  # the newest batch was rendered
-    assert drives[-1]["x_m"] == pytest.approx(x * DEFAULT_M_PER_CSS_PX)
+    assert drives and drives[-1]["batch"] == str(n_msgs - 1)  # the newest batch was rendered
+    assert drives[-1]["x_m"] == pytest.approx(x * 1e-3)
     assert len(drives) <= n_msgs  # never more drives than batches
     # 20,000 samples went in; whatever was dropped on the way was counted, not queued.
     received = state.counters["samples_received"]
@@ -431,9 +435,10 @@ def test_pending_queue_bound_directly(client):
     s.handle(json.dumps({"type": "texture", "id": "corduroy"}))
     for k in range(100):
         rows = [[k * 100.0 + i, 10.0 + i * 0.01, 30.0] for i in range(100)]
-        s.handle(json.dumps({"type": "samples", "seq": k, "samples": rows}))
+        s.handle(json.dumps({"type": "samples", "batch": str(k), "samples": rows}))
         assert len(s.pending) <= session_mod.MAX_PENDING
-    assert list(s.pending)[-1] == [9999.0, 10.0 + 99 * 0.01, 30.0]  # newest kept
+    newest = list(s.pending)[-1]  # newest kept, in SI
+    assert (newest.t_s, newest.x_m, newest.y_m) == pytest.approx((9.999, (10.0 + 99 * 0.01) * 1e-3, 0.03))
     s.handle(json.dumps({"type": "lift"}))
     assert not s.pending and s.pending_lift
     msg = s.render_pending()
@@ -524,12 +529,12 @@ def test_ws_hover_and_lift_hold_the_simulated_wire_in_standby():
         recv_type(ws, "pong")
         out.advance(0.1)
         assert states() == ["standby", "standby"]
-        ws.send_text(json.dumps({"type": "samples", "seq": 1, "samples": stroke_rows(40.0)}))
+        ws.send_text(json.dumps({"type": "samples", "batch": "1", "samples": stroke_rows(40.0)}))
         d = recv_type(ws, "drive")
         assert d["on"]
         out.advance(0.05)
         assert states() == ["vibrating", "vibrating"]
-        ws.send_text(json.dumps({"type": "lift", "seq": 2}))
+        ws.send_text(json.dumps({"type": "lift", "batch": "2"}))
         assert not recv_type(ws, "drive")["on"]
         out.advance(0.05)
         # lifted: texture off, wire still ready (not cold and off)

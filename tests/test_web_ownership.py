@@ -11,7 +11,6 @@ from fastapi.testclient import TestClient
 from tactilize.actuators.recording import RecordingOutput
 from tactilize.web import create_app
 from tactilize.web.ownership import PEN, TRIAL, LeasedOutput, OutputLease
-from tactilize.web.rows import DEFAULT_M_PER_CSS_PX
 
 LOCAL = "http://127.0.0.1"
 WS = "ws://127.0.0.1/ws"
@@ -26,8 +25,8 @@ class Clock:
 
 
 def rows(v_mm_s=20.0, t0=1000.0, n=20, dt_ms=5.0):
-    v_px_ms = v_mm_s / (DEFAULT_M_PER_CSS_PX * 1e3) / 1e3
-    return [[t0 + i * dt_ms, 20.0 + v_px_ms * i * dt_ms, 30.0, 0.5] for i in range(n)]
+    v_mm_ms = v_mm_s / 1e3
+    return [[t0 + i * dt_ms, 5.0 + v_mm_ms * i * dt_ms, 8.0, 0.5] for i in range(n)]
 
 
 def recv(ws, kind, limit=50):
@@ -48,10 +47,10 @@ def standing(ws, state, limit=50):
 
 
 def stroke(ws, seq, t0=1000.0, v_mm_s=20.0):
-    ws.send_text(json.dumps({"type": "samples", "seq": seq, "samples": rows(v_mm_s, t0=t0)}))
+    ws.send_text(json.dumps({"type": "samples", "batch": str(seq), "samples": rows(v_mm_s, t0=t0)}))
     for _ in range(50):  # resting drives of the earlier batch may come first
         d = recv(ws, "drive")
-        if d["seq"] == seq and not d["resting"]:
+        if d["batch"] == str(seq) and not d["resting"]:
             return d
     raise AssertionError(f"no drive for batch {seq}")
 
@@ -128,12 +127,12 @@ def test_a_second_page_neither_rests_nor_replaces_the_first_pages_drive(shared):
         # A second page that strokes is told the output is in use; its drive never reaches it.
         with c.websocket_connect(WS) as second:
             hello(second)
-            second.send_text(json.dumps({"type": "samples", "seq": 1, "samples": rows(v_mm_s=80.0)}))
+            second.send_text(json.dumps({"type": "samples", "batch": "1", "samples": rows(v_mm_s=80.0)}))
             status = recv(second, "output")
             assert status["state"] == "in_use" and status["take_over"] is True
             d2 = recv(second, "drive")
             assert not d2["on"] and abs(freq(d2) - freq(d1)) > 1.0 and not played(out, freq(d2))
-            second.send_text(json.dumps({"type": "lift", "seq": 2}))
+            second.send_text(json.dumps({"type": "lift", "batch": "2"}))
             recv(second, "drive")
             assert out.stops == 0
             # ...and may take it over: the first page is told.
@@ -163,7 +162,7 @@ def test_a_trial_holds_the_device_before_the_pen_page(tmp_path):
         assert played(out, freq(stroke(pen, 1)))
         with c.websocket_connect(f"ws://127.0.0.1/experiment/ws/{token}") as part:
             samples = [[1000 + 10 * i, 10 + 0.5 * i, 10, 0.5] for i in range(10)]
-            part.send_text(json.dumps({"trial": trial, "image": image, "samples": samples}))
+            part.send_text(json.dumps({"type": "samples", "trial": trial, "image": image, "samples": samples}))
             reply = part.receive_json()
             assert reply["type"] == "drive" and played(out, reply["drive"]["pulse_frequency_hz"])
             assert standing(pen, "in_use") == {"type": "output", "state": "in_use", "by": "experiment trial",

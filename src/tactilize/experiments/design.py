@@ -48,6 +48,7 @@ from pathlib import Path
 from typing import Any
 
 from ..mapping import Profile
+from ..pen.display import CARD_MM
 from .errors import DesignError
 
 __all__ = [
@@ -237,7 +238,7 @@ class Design:
     seed: int = 0
     shuffle_images: bool = True
     participants_planned: int = 0
-    calibration_card_mm: float = 85.60
+    calibration_card_mm: float = CARD_MM[0]
     require_every_image: bool = False  # the rating opens only once every picture of the trial was stroked
     consent: str = ""  # the information a participant consents to (``consent`` or ``consent_file``)
     demographics: tuple[DemographicItem, ...] = ()  # optional questions a participant may decline

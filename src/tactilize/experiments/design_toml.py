@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ProfileError, check_finite
+from ..pen.display import CARD_MM
 from .checks import check_condition
 from .design import (
     PROFILE_ROLES,
@@ -201,7 +202,7 @@ def design_from_toml(text: str, source: str = "<toml>") -> Design:
         seed=_int(source, "[order].seed", order.get("seed", 0), 0),
         shuffle_images=bool(order.get("shuffle_images", True)),
         participants_planned=_int(source, "participants_planned", data.get("participants_planned", 0), 0),
-        calibration_card_mm=_num(source, "[calibration].card_width_mm", calib.get("card_width_mm", 85.60), 10, 500),
+        calibration_card_mm=_num(source, "[calibration].card_width_mm", calib.get("card_width_mm", CARD_MM[0]), 10, 500),
         require_every_image=_bool(source, "require_every_image", data.get("require_every_image", False)),
         consent=_consent(source, data),
         demographics=parse_demographics(source, data.get("demographics")),

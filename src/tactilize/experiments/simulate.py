@@ -161,7 +161,7 @@ def simulate(protocol, participants: int, seed: int, db_url: str | None = None, 
             for im in trial["images"]:
                 v_mm_s = float(trng.uniform(30, 120))
                 samples = [[k * 5.0, 5.0 + k * 5.0 * v_mm_s / 1e3, 20.0, 0.5] for k in range(12)]
-                reply = handler.handle({"trial": idx, "image": im["id"], "samples": samples})
+                reply = handler.handle({"type": "samples", "trial": idx, "image": im["id"], "samples": samples})
                 if reply.get("type") != "drive":
                     raise TactilizeError(code, f"stroke refused: {reply.get('error')}")
             handler.handle({"type": "lift"})

@@ -3,10 +3,12 @@
 :class:`StrokeHandler` handles one page's messages (the socket that carries
 them is :mod:`.pen_socket`).
 
-Messages from the page (JSON)::
+Messages from the page (JSON); the samples are the pen socket's one sample
+message (:func:`tactilize.web.rows.pen_batch`, the pen page's too), with the
+trial and image the samples were taken in::
 
-    {"trial": 3, "image": "image2", "batch": "<page id>-17",
-     "samples": [[t_ms, x_mm, y_mm, pressure or null], ...]}
+    {"type": "samples", "batch": "<page id>-17", "samples": [[t_ms, x_mm, y_mm, pressure?, tilt_x_deg?, tilt_y_deg?], ...],
+     "trial": 3, "image": "image2"}
     {"type": "lift"}
     {"type": "reconnected", "trial": 3, "gap_s": 2.5, "queued": 120}
     {"type": "ping"}
@@ -40,28 +42,14 @@ from typing import Any, Callable
 
 from ..actuators.base import Output
 from ..drive import Drive
-from ..web.rows import sample_error, samples_from_css
+from ..web.rows import PenMessageError, pen_batch
 from .errors import FlowError
 from .feel import TrialPen
 from .labdata import record_event
 from .samples import writer_for
 from .tables import ExperimentSession
 
-__all__ = ["StrokeHandler", "M_PER_MM", "MAX_BATCH_ID"]
-
-#: Metres per millimetre: the page sends positions in millimetres on the displayed picture.
-M_PER_MM = 1e-3
-
-#: Longest batch id the page may choose (the column's width).
-MAX_BATCH_ID = 64
-
-
-def _batch_id(value: Any) -> str:
-    if value is None:  # a client without ids (an old page): stored, but a resend would be stored again
-        return "server-" + uuid.uuid4().hex
-    if not isinstance(value, str) or not 1 <= len(value) <= MAX_BATCH_ID:
-        raise FlowError("stroke", f"batch must be an id of 1 .. {MAX_BATCH_ID} characters", 422)
-    return value
+__all__ = ["StrokeHandler"]
 
 
 @dataclass
@@ -153,22 +141,24 @@ class StrokeHandler:
             return self._reconnected(msg), None
         if kind == "ping":
             return {"type": "pong"}, None
+        if kind != "samples":
+            raise FlowError("stroke", f"unknown message type {kind!r} (known: samples, lift, reconnected, ping)", 422)
+        try:
+            batch_given, batch_samples = pen_batch(msg)
+        except PenMessageError as exc:
+            raise FlowError("stroke", str(exc), 422) from None
+        if not batch_samples:
+            raise FlowError("stroke", "a batch carries at least one sample", 422)
+        # A client without ids: stored, but a resend would be stored again.
+        batch = batch_given or "server-" + uuid.uuid4().hex
         idx = msg.get("trial")
         image_id = msg.get("image")
-        samples = msg.get("samples")
         trials = self._trials()
         if isinstance(idx, bool) or not isinstance(idx, int) or idx not in trials:
             raise FlowError("stroke", "unknown trial", 422)
         trial = trials[idx]
         if not isinstance(image_id, str) or image_id not in trial.image_ids:
             raise FlowError("stroke", f"image {image_id!r} is not part of trial {idx + 1}", 422)
-        if not isinstance(samples, list) or not samples or len(samples) > 1000:
-            raise FlowError("stroke", "samples must be a list of 1 .. 1000 [t_ms, x_mm, y_mm, pressure]", 422)
-        for row in samples:
-            err = sample_error(row)
-            if err:
-                raise FlowError("stroke", err, 422)
-        batch = _batch_id(msg.get("batch"))
         # An expired value is used once more rather than querying on the drive's
         # path; pump() refreshes it right after the reply (refresh_open_trial).
         current = self.flow.open_trial(self.session, stale_ok=True)
@@ -180,8 +170,6 @@ class StrokeHandler:
         feats = self.flow.image_features(image_id)
         if len(self.pen.renderers) > 16:  # strokes of trials long answered
             self.pen.keep(lambda k: current is None or k[0] >= current - 1)
-        # Millimetres on the displayed picture, to metres.
-        batch_samples = samples_from_css(samples, M_PER_MM)
         key = (idx, image_id)
         if idx != current:  # logged under its own trial, not felt: the page has moved on
             taken = self.pen.track(key, feats, profile, batch_samples)

@@ -5,6 +5,7 @@
 :func:`create_experiment_app`).  Participant routes (``/experiment/api/...``)::
 
     GET  api/protocol                         title, description, questions (no conditions: blind)
+    GET  api/constants                        the pen page's constants (web/constants.py) and the pictures' pitch
     POST api/sessions        {participant_id, consent, demographics} -> state   (409: ID taken)
     POST api/resume          {participant_id, token?}          -> state   (404: unknown ID;
                              only with the experimenter token: an ID is guessable,
@@ -54,6 +55,7 @@ from fastapi.responses import (
 from ..encode import jsonable
 from ..http import ErrorAnsweringRoute, is_loopback, settle_heap
 from ..redact import redact_url
+from ..web.constants import page_constants
 from ..web.guard import accepted_hosts, install
 from ..web.limits import read_body
 from ..web.ownership import TRIAL, page_output
@@ -63,6 +65,7 @@ from .design_toml import load_design
 from .errors import FlowError
 from .flow import Flow
 from .pen_socket import in_store_thread, pump
+from .stimuli import PITCH_M
 from .store import Store
 from .visit import Visit
 
@@ -70,6 +73,8 @@ __all__ = ["experiment_router", "create_experiment_app", "serve_flow", "is_loopb
 
 PREFIX = "/experiment"
 _STATIC_FILES = {"index.html", "experiment.js", "experiment.css", "admin.html", "admin.js"}
+#: The pen page's modules the participant's page uses as they are (one pointer handling, one calibration).
+_PEN_PAGE_FILES = {"pen-input.js", "calibrate.js", "constants.js"}
 _TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8", ".css": "text/css; charset=utf-8"}
 
 
@@ -124,11 +129,16 @@ def experiment_router(flow: Flow | Visit) -> APIRouter:
 
     @router.get("/static/{name}", include_in_schema=False)
     def static(name: str) -> Response:
-        if name not in _STATIC_FILES:  # a whitelist: no path tricks possible
+        if name not in _STATIC_FILES and name not in _PEN_PAGE_FILES:  # a whitelist: no path tricks possible
             return PlainTextResponse("not found", status_code=404)
         ext = name[name.rindex("."):]
-        return FileResponse(str(_static_dir().joinpath(name)), media_type=_TYPES[ext],
-                            headers={"Cache-Control": "no-cache"})
+        folder = _static_dir() if name in _STATIC_FILES else resources.files("tactilize.web").joinpath("static")
+        return FileResponse(str(folder.joinpath(name)), media_type=_TYPES[ext], headers={"Cache-Control": "no-cache"})
+
+    @router.get("/api/constants")
+    def constants() -> dict:
+        # The pen page's, and the pitch the stand-in pictures are drawn at (the page shows them at true size).
+        return {**page_constants(), "picture_mm_per_px": PITCH_M * 1e3}
 
     # ------------------------------------------------------------ participant API
 

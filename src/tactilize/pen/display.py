@@ -11,7 +11,11 @@ from __future__ import annotations
 import math
 from typing import Any
 
-__all__ = ["MM_PER_PX_RANGE", "display_scale_error"]
+__all__ = ["CARD_MM", "MM_PER_PX_RANGE", "display_scale_error"]
+
+#: An ID-1 card (a bank card), width and height [mm] (ISO/IEC 7810): what both pages'
+#: calibration matches on the screen.
+CARD_MM = (85.60, 53.98)
 
 #: Bounds on the display scale [mm per CSS px]: a CSS pixel is 0.26 mm by definition
 #: (CSS Values 4, the reference pixel); outside 0.01 .. 5 mm it is a typo, not a screen.

@@ -42,6 +42,7 @@ from ..surface import stroke as _stroke
 from ..surface.model import SurfaceModel
 from ..surface.path import HISTORY_M
 from ..synthesis.acceleration import VOICE_COIL_BAND_HZ
+from ..web.constants import page_constants
 
 __all__ = ["MAGIC", "FORMAT_VERSION", "ModelFile", "rule_parameters", "encode_model", "decode_model",
            "read_model", "write_model"]
@@ -69,6 +70,8 @@ def rule_parameters() -> dict[str, Any]:
         "cluster_interval_s": _events.CLUSTER_INTERVAL_S,
         "reference_pressure": _events.REFERENCE_PRESSURE,
         "wavelet_band_hz": list(VOICE_COIL_BAND_HZ),
+        # the audio worklet's rule for the wavelets, as the pen page is served it
+        "wavelet": page_constants()["wavelet"],
         "tracker": {
             "window_s": tr.window_s, "min_samples": tr.min_samples, "min_travel_m": tr.min_travel_m,
             "max_window_s": tr.max_window_s, "max_gap_s": tr.max_gap_s, "max_speed_m_s": tr.max_speed_m_s,

@@ -20,6 +20,8 @@ from ..errors import ImageError, RequestError
 from ..encode import jsonable
 from ..http import ErrorAnsweringRoute
 
+from ..pen.display import CARD_MM
+from .constants import page_constants
 from .limits import MAX_UPLOAD_BYTES, MAX_UPLOAD_PIXELS, read_body
 from .state import ServerState, TextureEntry
 
@@ -53,8 +55,13 @@ def api_router() -> APIRouter:
             "output": s.output_name,
             "channels": int(s.output.channels),
             "max_upload_bytes": MAX_UPLOAD_BYTES,
-            "card_mm": [85.60, 53.98],
+            "card_mm": list(CARD_MM),
         }
+
+    @r.get("/constants")
+    async def constants() -> dict[str, Any]:
+        """The numbers of the server's rules the page needs (:func:`.constants.page_constants`)."""
+        return page_constants()
 
     @r.get("/textures")
     async def textures(request: Request) -> list[dict[str, Any]]:

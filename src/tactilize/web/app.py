@@ -5,6 +5,7 @@ Routes
 ``GET /``                              the page
 ``GET /static/...``                    its ES modules and stylesheet (no build step)
 ``GET /api/config``                    defaults: mm per CSS px, profile, output, channels
+``GET /api/constants``                 the numbers of the server's rules the page needs (web/constants.py)
 ``GET /api/textures``                  the gallery: built-ins and uploads, with features
 ``GET /api/textures/{id}.png``         a picture (grey PNG carrying its DPI)
 ``GET /api/textures/{id}/features``    whole-picture features and the tile map

@@ -18,14 +18,17 @@ Page to server
     positions are then from the surface's top-left corner.  The state message
     says ``"composite": {"ids", "cols", "cell_mm"}`` and ``"texture": null``.
 ``{"type": "calibrate", "mm_per_px": F}``
-    The calibrated size of a CSS pixel [mm], 0.01 .. 5.
+    The page's calibrated size of a CSS pixel [mm], 0.01 .. 5: the page
+    converts its samples with it; the stroke restarts.
 ``{"type": "profile", "name": NAME}``
     Another profile: a preset or the server's default.
-``{"type": "samples", "seq": N, "samples": [[t_ms, x_px, y_px, pressure, tilt_x_deg, tilt_y_deg], ...]}``
-    Pen samples in CSS px from the picture's top-left corner (y down), each with
-    its own event timestamp [ms]; pressure may be null; the last three values
-    may be left out.  At most :data:`MAX_BATCH` samples.
-``{"type": "lift", "seq": N}``
+``{"type": "samples", "batch": ID, "samples": [[t_ms, x_mm, y_mm, pressure, tilt_x_deg, tilt_y_deg], ...]}``
+    The pen socket's one sample message, the experiment's too (:mod:`.rows`,
+    parsed by :func:`.rows.pen_batch`): millimetres on the picture as shown,
+    from its top-left corner (y down), each sample with its own event
+    timestamp [ms].  At most :data:`MAX_BATCH` samples.  Nothing is acknowledged:
+    nothing is stored.
+``{"type": "lift", "batch": ID}``
     The pen left the surface (pointerup, pointercancel): stop at once.
 ``{"type": "hover"}``
     The pen (or mouse) is over the picture but not touching: the output holds
@@ -41,7 +44,7 @@ Server to page
 --------------
 ``{"type": "ready", ...}`` and ``{"type": "state", ...}``
     The session's settings after a change (texture, profile, mm_per_px, limits).
-``{"type": "drive", "seq": N, ...}``
+``{"type": "drive", "batch": ID, ...}``
     After each batch (or lift): ``rendering`` (``steady`` or ``surface``) and,
     for the surface rendering, ``events``, the pulses this batch scheduled
     ahead, and ``pulses``, those that became due since the previous batch
@@ -50,7 +53,7 @@ Server to page
     speed [m/s] and [mm/s], direction [deg, y up], whether the pen is down and
     over the picture; ``output_fault``: one line when the output cannot be
     trusted now (a faulty sense path, a stopped simulation), else null.
-    ``seq`` echoes the newest batch it covers; ``resting`` is true for the
+    ``batch`` echoes the newest batch it covers; ``resting`` is true for the
     drive the server sends by itself when the pen is down but no samples came
     for :data:`IDLE_S` (a resting pen: speed 0).
 ``{"type": "wire", "t_s": [...], "displacement_um": [[...], [...]], "state": [...]}``
@@ -93,17 +96,16 @@ from ..actuators.base import Output
 from ..errors import TactilizeError
 from ..pen import PenRenderer
 from ..encode import dumps
+from ..pen.samples import PenSample
 from ..pen.display import MM_PER_PX_RANGE  # the one display-scale rule, shared with the experiments
 from .limits import MessageRate
-from .rows import sample_error, samples_from_css
+from .rows import MAX_BATCH, PenMessageError, batch_id, pen_batch
 from .state import ServerState
 
 __all__ = ["websocket_endpoint", "PenSession", "MAX_BATCH", "MAX_PENDING", "MAX_MESSAGE_CHARS", "IDLE_S", "MAX_COMPOSITE"]
 
 log = logging.getLogger("tactilize.web")
 
-#: Samples allowed in one message: a 1 kHz device coalesced at 4 Hz would fit.
-MAX_BATCH = 256
 #: Samples waiting to be rendered, at most; older ones are dropped first.
 MAX_PENDING = 512
 #: Longest message accepted [characters].
@@ -119,8 +121,8 @@ MAX_REPEAT = 64
 WIRE_PERIOD_S = 0.05
 
 
-class _Bad(Exception):
-    """A malformed message: reported to the page, connection kept."""
+#: A malformed message: reported to the page, connection kept.
+_Bad = PenMessageError
 
 
 class PenSession:
@@ -144,9 +146,9 @@ class PenSession:
         #: (cols, rows) of a repeated picture, or None
         self.repeat: tuple[int, int] | None = None
         self.renderer = PenRenderer(_NoPicture(), state.profile, self.output)
-        self.pending: deque[tuple] = deque()
+        self.pending: deque[PenSample] = deque()
         self.pending_lift = False
-        self.seq: Any = None
+        self.batch: str | None = None
         #: perf_counter_ns when the message being handled arrived (set by the reader)
         self.msg_ns = 0
         #: arrival of the newest message the waiting samples came in (for the latency record)
@@ -182,7 +184,7 @@ class PenSession:
         if kind == "lift":
             self.pending.clear()
             self.pending_lift = True
-            self.seq = msg.get("seq", self.seq)
+            self.batch = batch_id(msg.get("batch")) or self.batch
             self._wake()
             return None
         if kind == "hover":
@@ -221,15 +223,7 @@ class PenSession:
         return self.describe("state")
 
     def _samples(self, msg: dict[str, Any]) -> None:
-        rows = msg.get("samples")
-        if not isinstance(rows, list):
-            raise _Bad("'samples' must be an array of [t_ms, x_px, y_px, pressure?, tilt_x_deg?, tilt_y_deg?]")
-        if len(rows) > MAX_BATCH:
-            raise _Bad(f"too many samples in one message ({len(rows)}, limit {MAX_BATCH})")
-        for i, row in enumerate(rows):
-            err = sample_error(row)
-            if err is not None:
-                raise _Bad(f"sample {i}: {err}")
+        batch, rows = pen_batch(msg)
         if self.texture_id is None and self.composite is None:
             raise _Bad("no texture selected: send {'type': 'texture', 'id': ...} first")
         if not rows:
@@ -244,7 +238,7 @@ class PenSession:
                 pending.popleft()
             self.state.counters["samples_dropped"] += over
         self.state.counters["samples_received"] += len(rows)
-        self.seq = msg.get("seq", self.seq)
+        self.batch = batch or self.batch
         self._wake()
 
     def _settings(self, kind: str, msg: dict[str, Any]) -> dict[str, Any]:
@@ -355,16 +349,16 @@ class PenSession:
             self.pending_lift = False
             res = self.renderer.lift()
         if self.pending:
-            rows = list(self.pending)
+            samples = list(self.pending)
             self.pending.clear()
-            res = self.renderer.feed(samples_from_css(rows, self.m_per_px))
+            res = self.renderer.feed(samples)
         return self._drive_msg(res)
 
     def _drive_msg(self, res: Any) -> dict[str, Any]:
         d = res.to_dict()
         d["type"] = "drive"
         d["rendering"] = self.renderer.profile.rendering
-        d["seq"] = self.seq
+        d["batch"] = self.batch
         d["resting"] = False
         # Why the output cannot be trusted now (a faulty sense path, a stopped
         # simulation): the page shows it beside the wire's state.

@@ -3,6 +3,10 @@
 // never decides on its own where the session stands, so a reload, a second tab
 // or a restarted server all land on the same, stored state.
 
+import { attachPen, rowsInMm, samplesMessage } from "./pen-input.js";
+import * as calibration from "./calibrate.js";
+import { constants } from "./constants.js";
+
 const api = new URL("api/", document.baseURI);
 const $ = (id) => document.getElementById(id);
 const views = ["welcome", "calibration", "trial", "break", "done"];
@@ -97,6 +101,10 @@ async function welcome() {
   if (info.consent) $("consent-text").textContent = info.consent;  // the protocol's own information sheet
   buildDemographics(info.demographics || []);
   $("card-mm").textContent = info.calibration_card_mm;
+  cardMm = info.calibration_card_mm;
+  // The pen page's screen calibration, when this browser has one, pre-sets the card box.
+  if (calibration.isCalibrated()) $("scale").value = String(Math.round(cardMm / calibration.mmPerPx()));
+  $("scale").dispatchEvent(new Event("input"));
   if (session) {
     try { render(await call("GET", `sessions/${session}`)); return; } catch { localStorage.removeItem("tactilize.session"); session = null; }
   }
@@ -163,6 +171,7 @@ $("resume").addEventListener("click", () => guarded(async () => {
 // ---------------------------------------------------------------- calibration
 
 let mmPerPx = null;
+let cardMm = calibration.CARD_MM[0];  // the protocol's card width [mm] once loaded
 
 function renderCalibration(state) {
   const updateCard = () => ($("card").style.width = `${$("scale").value}px`);
@@ -185,7 +194,7 @@ let points = [], stroked = new Set();
 function renderTrial(t) {
   const fresh = !trial || trial.index !== t.index;
   trial = t;
-  mmPerPx = current.calibration ? current.calibration.mm_per_px : 0.2646;
+  mmPerPx = current.calibration ? current.calibration.mm_per_px : calibration.DEFAULT_MM_PER_PX;
   $("trial-title").textContent = t.practice ? `Practice trial ${t.number} (not counted)`
     : `Trial ${t.number} of ${current.progress.total}`;
   $("min-stroke").textContent = t.min_stroke_s;
@@ -209,8 +218,9 @@ function selectImage(im) {
   document.querySelectorAll("#tabs button").forEach((b) => b.setAttribute("aria-selected", String(b.dataset.image === im.id)));
   const img = $("texture");
   img.onload = () => {
-    // Show the picture at true size: the rendering's 0.1 mm/px over the calibrated mm per CSS px.
-    const w = img.naturalWidth * 0.1 / mmPerPx, h = img.naturalHeight * 0.1 / mmPerPx;
+    // Show the picture at true size: the pitch it is drawn at over the calibrated mm per CSS px.
+    const pitch = constants.picture_mm_per_px;
+    const w = img.naturalWidth * pitch / mmPerPx, h = img.naturalHeight * pitch / mmPerPx;
     img.style.width = `${w}px`; img.style.height = `${h}px`;
     const c = $("surface");
     c.width = Math.round(w); c.height = Math.round(h);
@@ -382,17 +392,18 @@ class PenChannel {
 
   pendingSamples() { let n = 0; for (const b of this.pending.values()) n += b.n; return n; }
 
-  // Batch what was queued (consecutive samples of one trial and image, at most 500
-  // each), then send what is due: every pending batch after a reconnect (all), else
+  // Batch what was queued (consecutive samples of one trial and image, at most the
+  // server's max_batch each), then send what is due: every pending batch after a reconnect (all), else
   // the new ones and those left unacknowledged for RESEND_MS.
   flush(all = false) {
     while (this.queue.length) {
       const head = this.queue[0];
       let n = 0;
-      while (n < this.queue.length && n < 500 && this.queue[n].trial === head.trial && this.queue[n].image === head.image) n++;
+      while (n < this.queue.length && n < constants.max_batch && this.queue[n].trial === head.trial
+             && this.queue[n].image === head.image) n++;
       const id = `${pageId}-${++batchSeq}`;
-      const text = JSON.stringify({ trial: head.trial, image: head.image, batch: id,
-                                    samples: this.queue.slice(0, n).map((q) => q.s) });
+      const text = JSON.stringify(samplesMessage(id, this.queue.slice(0, n).map((q) => q.s),
+                                                 { trial: head.trial, image: head.image }));
       this.pending.set(id, { text, n, sentAt: null });
       this.queue = this.queue.slice(n);
     }
@@ -458,37 +469,32 @@ function flush() {
 }
 setInterval(flush, FLUSH_MS);
 
+// The pen page's pointer handling (raw updates or coalesced samples, each sample once,
+// with its own timestamp), stamped here with the trial and image it was taken in.
 const surface = $("surface");
-surface.addEventListener("pointerdown", (ev) => { surface.setPointerCapture(ev.pointerId); lastT = ev.timeStamp; points = []; onMove(ev); });
-surface.addEventListener("pointermove", (ev) => { if (ev.buttons || ev.pointerType === "touch") onMove(ev); });
 const up = () => {
   lastT = null; audio.set(null);
   flush();
   // The actuator stops the moment the pen leaves the surface.
   if (pen) pen.send({ type: "lift" });
 };
-surface.addEventListener("pointerup", up);
-surface.addEventListener("pointercancel", up);
-
-function onMove(ev) {
-  if (!pen) return;
-  // Coalesced events carry every tablet sample with its own timestamp:
-  // docs/references.md, section 5 (Pointer Events).
-  const evs = ev.getCoalescedEvents ? ev.getCoalescedEvents() : [];
-  const list = evs.length ? evs : [ev];
-  const rect = surface.getBoundingClientRect();
-  for (const e of list) {
-    const xPx = e.clientX - rect.left, yPx = e.clientY - rect.top;
-    pen.queue.push({ trial: trial.index, image: image.id,
-                     s: [e.timeStamp, xPx * mmPerPx, yPx * mmPerPx, e.pointerType === "mouse" ? null : e.pressure] });
-    points.push([xPx, yPx]);
+attachPen(surface, surface, {
+  onDown: (ev) => { lastT = ev.timeStamp; points = []; },
+  onBatch: (rows) => {
+    if (!pen || !trial || !image) return;
+    const mm = rowsInMm(rows, mmPerPx);
+    rows.forEach((r, k) => {
+      pen.queue.push({ trial: trial.index, image: image.id, s: mm[k] });
+      points.push([r[1], r[2]]);
+      if (lastT !== null && r[0] - lastT < 200) strokeMs += r[0] - lastT;
+      lastT = r[0];
+    });
     stroked.add(image.id);
-    if (lastT !== null && e.timeStamp - lastT < 200) strokeMs += e.timeStamp - lastT;
-    lastT = e.timeStamp;
-  }
-  draw();
-  updateSubmit();
-}
+    draw();
+    updateSubmit();
+  },
+  onLift: up,
+});
 
 function draw() {
   const ctx = surface.getContext("2d");
@@ -506,11 +512,6 @@ function draw() {
 
 let pulses = null;
 import("/static/audio.js").then((m) => { pulses = new m.AudioPulses(); }).catch(() => { pulses = null; });
-// The pen page's screen calibration, when this browser has one, pre-sets the card box.
-import("/static/calibrate.js").then((m) => {
-  if (m.isCalibrated && m.isCalibrated()) $("scale").value = String(Math.round(85.6 / m.mmPerPx()));
-  $("scale").dispatchEvent(new Event("input"));
-}).catch(() => {});
 
 const OFF = { pulse_frequency_hz: 0, pulse_width_s: 0, amplitude: 0 };
 

@@ -194,7 +194,9 @@ export class TactileSurface extends HTMLElement {
       try {
         const ctx = await audioContext();
         if (!this.audio) {
-          const node = new AudioWorkletNode(ctx, "tactilize-pulse", { numberOfInputs: 0, outputChannelCount: [2] });
+          // The worklet's wavelet rule is the server's, written into the model file by Python.
+          const node = new AudioWorkletNode(ctx, "tactilize-pulse", { numberOfInputs: 0, outputChannelCount: [2],
+                                                                      processorOptions: { wavelet: this.model.header.rule.wavelet } });
           node.connect(ctx.destination);
           this.audio = { ctx, node, offset: null, lastAt: 0, on: true };
         }

@@ -2,7 +2,8 @@
 // Plain ES modules, no build step.  The server does the tracking and the laws;
 // this page only reports samples and shows (and plays) what comes back.
 
-import { attachPen, INPUT } from "./pen-input.js";
+import { attachPen, INPUT, rowsInMm, samplesMessage } from "./pen-input.js";
+import { constants } from "./constants.js";
 import { startDrawing } from "./drawing.js";
 import { LatencyMeter } from "./latency.js";
 import { showSpectrum, redrawSpectrum } from "./spectrum.js";
@@ -38,7 +39,7 @@ const meter = new LatencyMeter();
 // The plot's width over its height (style.css gives it the same aspect-ratio).
 const PLOT_ASPECT = 3;
 const SIX_COLS = 3;
-const MAX_REPEAT = 64;
+const MAX_REPEAT = constants.max_repeat;
 
 // ------------------------------------------------------------------ socket
 
@@ -285,6 +286,8 @@ function showDrive(msg) {
 }
 
 function onDrive(msg) {
+  // The batch ids this page chooses are its count of batches: `seq` is the newest one covered.
+  msg.seq = msg.batch === null || msg.batch === undefined ? null : Number(msg.batch);
   if (!msg.resting && typeof msg.seq === "number") meter.drive(msg.seq);
   msg.page_ms = performance.now();  // when it arrived, in the page's clock (outputs and tests line up on it)
   T.lastDrive = msg;
@@ -420,7 +423,7 @@ async function setup() {
       if (T.view !== "six") strokeExport.addSamples(rows);
       T.seq = ++seq;
       T.samplesSent += rows.length;
-      send({ type: "samples", seq, samples: toMap(rows) });
+      send(samplesMessage(seq, rowsInMm(toMap(rows), T.mmPerPx)));
       meter.sent(seq, rows[rows.length - 1][0]);
       draw.trailAdd(rows);
     },
@@ -428,7 +431,7 @@ async function setup() {
       audio.setDrives([{}, {}]);  // silence now, not after the round trip
       vibration.setDrives([{}, {}]);
       T.seq = ++seq;
-      send({ type: "lift", seq });
+      send({ type: "lift", batch: String(seq) });
     },
     onHover: () => { if (T.texture) send({ type: "hover" }); },
   });

@@ -4,6 +4,8 @@
 // the page's audio").  Off until the user turns it on (browsers only start audio
 // after a gesture, and an actuator on an amplifier should never start by surprise).
 
+import { constants } from "./constants.js";
+
 /** Can this page play pulses?  The AudioWorklet exists only in a secure context
  *  (HTTPS, or loopback): over plain HTTP from a phone it does not. */
 export function audioAvailable() {
@@ -21,7 +23,9 @@ export class AudioPulses {
     if (!this.ctx) {
       this.ctx = new AudioContext({ latencyHint: "interactive" });
       await this.ctx.audioWorklet.addModule("/static/pulse-worklet.js");
-      this.node = new AudioWorkletNode(this.ctx, "tactilize-pulse", { numberOfInputs: 0, outputChannelCount: [2] });
+      // The wavelet rule's numbers are the server's (tactilize.synthesis.wavelets): the worklet has no fetch.
+      this.node = new AudioWorkletNode(this.ctx, "tactilize-pulse", { numberOfInputs: 0, outputChannelCount: [2],
+                                                                      processorOptions: { wavelet: constants.wavelet } });
       this.node.port.onmessage = (e) => {
         // Wavelets started, and when each was asked for (context time [s]): the tests read them.
         if (!e.data || !e.data.played) return;

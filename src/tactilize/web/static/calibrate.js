@@ -5,8 +5,12 @@
 // What is stored is mm per *device* pixel, so that browser zoom (which changes
 // devicePixelRatio and the size of a CSS pixel together) keeps the calibration.
 
-export const CARD_MM = [85.60, 53.98];
-export const DEFAULT_MM_PER_PX = 25.4 / 96;
+import { constants } from "./constants.js";
+
+export const CARD_MM = constants.card_mm;
+export const DEFAULT_MM_PER_PX = constants.default_mm_per_px;
+// The believable display scales [mm per CSS px], the server's rule (tactilize.pen.display).
+const [MIN_MM_PER_PX, MAX_MM_PER_PX] = constants.mm_per_px_range;
 // A phone's CSS pixel is about 0.16 mm: docs/references.md, section 5 (CSS pixel on phones).
 // Only the calibration dialog's starting point on a phone, never a value used
 // uncalibrated: the page says it is not calibrated until the user saves.
@@ -41,8 +45,8 @@ function load() {
 
 /** Keep a calibration given in mm per CSS pixel at the current zoom. */
 export function save(mmPerCssPx) {
-  if (!(Number.isFinite(mmPerCssPx) && mmPerCssPx >= 0.01 && mmPerCssPx <= 5)) {
-    throw new RangeError(`mm per CSS px must be in [0.01, 5], got ${mmPerCssPx}`);
+  if (!(Number.isFinite(mmPerCssPx) && mmPerCssPx >= MIN_MM_PER_PX && mmPerCssPx <= MAX_MM_PER_PX)) {
+    throw new RangeError(`mm per CSS px must be in [${MIN_MM_PER_PX}, ${MAX_MM_PER_PX}], got ${mmPerCssPx}`);
   }
   const dpr = window.devicePixelRatio || 1;
   localStorage.setItem(KEY, JSON.stringify({ mm_per_device_px: mmPerCssPx / dpr, dpr, at: new Date().toISOString() }));

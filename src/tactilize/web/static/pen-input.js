@@ -13,7 +13,8 @@
 export const INPUT = typeof window !== "undefined" && "onpointerrawupdate" in window ? "pointerrawupdate" : "pointermove";
 
 /** Attach pen input to `surface`; positions are relative to `picture`.
- *  onBatch(rows) gets [[t_ms, x_px, y_px, pressure|null, tilt_x_deg, tilt_y_deg], ...];
+ *  onBatch(rows) gets [[t_ms, x_px, y_px, pressure|null, tilt_x_deg, tilt_y_deg], ...] in CSS px
+ *  (rowsInMm and samplesMessage below make the socket's message of them);
  *  onLift() is called when the pen leaves the surface; onHover() at most every
  *  HOVER_MS while a pen or mouse moves over it without touching (the server then
  *  holds the wire ready, so the first touch is felt at once). */
@@ -80,4 +81,20 @@ export function attachPen(surface, picture, { onBatch, onLift, onDown, onHover }
   surface.addEventListener("contextmenu", (ev) => ev.preventDefault());
   window.addEventListener("scroll", () => { if (active !== null) rect = picture.getBoundingClientRect(); }, { passive: true });
   return { input, reposition: () => { if (active !== null) rect = picture.getBoundingClientRect(); } };
+}
+
+// The pen socket's one sample message, the same from both pages (parsed on the
+// server by tactilize.web.rows.pen_batch; docs/serve.md, "The WebSocket protocol"):
+// positions in millimetres on the picture as shown, so the server needs no page's
+// scale, and a batch id the page chooses (the experiment stores each batch once by it).
+
+/** Rows [t_ms, x_px, y_px, ...] in CSS px to millimetres at `mmPerPx` (the page's calibration). */
+export function rowsInMm(rows, mmPerPx) {
+  return rows.map((r) => [r[0], r[1] * mmPerPx, r[2] * mmPerPx, ...r.slice(3)]);
+}
+
+/** The sample message: `batch` the page's id for it, `rowsMm` from rowsInMm, `fields` the page's own
+ *  (the experiment's trial and image). */
+export function samplesMessage(batch, rowsMm, fields = {}) {
+  return { type: "samples", batch: String(batch), ...fields, samples: rowsMm };
 }

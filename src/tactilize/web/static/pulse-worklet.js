@@ -8,15 +8,13 @@
 //   wavelet's amplitude and width (tactilize.synthesis.wavelets, docs/surfaces.md,
 //   "Voice coils and the page's audio"); this only draws them.
 
-const SPAN = 3;
-// A new wavelet asked for within this long [s] of one already kept is that one, re-sent:
-// half the least interval events keep (tactilize.synthesis.wavelets.SAME_S).
-const SAME_S = 0.5 / 300;
-// A kept wavelet re-sent with another strength glides to it over this long [s] (GLIDE_S).
-const GLIDE_S = 0.003;
-// A wavelet whose start has passed keeps its centre, its leading tail faded in over half
-// of what is left, while this many sigmas remain before the crest (LATE_SIGMAS).
-const LATE_SIGMAS = 1;
+// The rule's numbers are the server's (tactilize.synthesis.wavelets, served as the page's
+// constants and handed over in processorOptions), set when the processor is made:
+// SPAN the wavelet's half-width in sigmas (SPAN_SIGMAS); a new wavelet asked for within
+// SAME_S [s] of one already kept is that one, re-sent; a kept wavelet re-sent with another
+// strength glides to it over GLIDE_S [s]; a wavelet whose start has passed keeps its centre,
+// its leading tail faded in over half of what is left, while LATE_SIGMAS remain before the crest.
+let SPAN = 0, SAME_S = 0, GLIDE_S = 0, LATE_SIGMAS = 0;
 
 function ricker(tau) {
   const a = Math.abs(tau);
@@ -26,8 +24,10 @@ function ricker(tau) {
 }
 
 class PulseProcessor extends AudioWorkletProcessor {
-  constructor() {
+  constructor(options) {
     super();
+    const rule = options.processorOptions.wavelet;
+    SPAN = rule.span_sigmas; SAME_S = rule.same_s; GLIDE_S = rule.glide_s; LATE_SIGMAS = rule.late_sigmas;
     this.ch = [0, 1].map(() => ({ f: 0, w: 0, a: 0, gain: 0, phase: 0 }));
     this.wavelets = [];  // in frames, by start (see schedule)
     this.shares = [1, 1];  // each channel's share of a wavelet (the pen's two-channel split)
