@@ -366,3 +366,51 @@ def test_profile_report_renders_every_picture_as_the_material(tmp_path):
 def test_serve_refuses_an_unknown_material_before_it_binds():
     r = CliRunner().invoke(main, ["serve", "--no-open", "--port", "0", "--material", "graniet"])
     assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1 and "stone-granite" in r.output
+
+
+# ----------------------------------------------------------------- a catalogue manifest's material column
+
+
+def test_a_manifest_material_column_renders_each_row_as_its_material(tmp_path):
+    pytest.importorskip("pyarrow")
+    from tactilize.catalog import read_catalog
+
+    _save(tmp_path, "metal.png", _lit_flat_metal())
+    _save(tmp_path, "grain.png", _grains())
+    (tmp_path / "m.csv").write_text(
+        "id,path,width_mm,material\n"
+        "polished,metal.png,50,metal-polished\n"
+        "granite,metal.png,50,stone-granite\n"
+        "alone,metal.png,50,\n"
+        "p80,grain.png,50,sandpaper-p80\n"
+        "p240,grain.png,50,Sandpaper-P240\n"
+        "typo,metal.png,50,graniet\n")
+    out = tmp_path / "cat"
+    r = CliRunner().invoke(main, ["batch", str(tmp_path / "m.csv"), "--out", str(out), "--workers", "1", "--json"])
+    assert r.exit_code == 0, r.output
+    summary = json.loads(r.output)
+    assert (summary["ok"], summary["failed"]) == (5, 1)  # the unknown name is its row's error; the batch goes on
+    rows = {row["id"]: row for row in read_catalog(out).to_dict("records")}
+    assert [rows[k]["material"] for k in ("polished", "granite", "alone", "p80", "p240")] == \
+        ["metal-polished", "stone-granite", "", "sandpaper-p80", "sandpaper-p240"]
+    rate = "drive_60mm_s_pulse_frequency_hz"
+    # The same lit sheet: polished metal is under the least felt bump, granite is not, and the
+    # picture alone reads its lighting as relief.
+    assert rows["polished"][rate] == 0.0 and rows["granite"][rate] > 5.0 and rows["alone"][rate] > 5.0
+    # The same grain: the coarser paper plays stronger (a relief 3.4 times deeper).
+    assert rows["p80"]["drive_60mm_s_strength"] > rows["p240"]["drive_60mm_s_strength"]
+    typo = rows["typo"]
+    assert typo["status"] == "error" and "graniet" in typo["error"] and "stone-granite" in typo["error"]
+    assert typo["material"] == "graniet"
+
+
+def test_a_manifest_material_needs_a_surface_profile(tmp_path):
+    from tactilize.catalog import AnalysisSettings, analyse_item, discover
+    from tactilize.mapping import Profile
+
+    _save(tmp_path, "grain.png", _grains())
+    (tmp_path / "m.jsonl").write_text(json.dumps({"path": "grain.png", "material": "cork"}) + "\n")
+    (item,) = discover(tmp_path / "m.jsonl")
+    assert item.material == "cork" and item.problem is None
+    row = analyse_item(item, AnalysisSettings(Profile.preset("paper")))
+    assert row["status"] == "error" and "surface profile" in row["error"] and row["material"] == "cork"
