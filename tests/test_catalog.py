@@ -475,8 +475,8 @@ def test_every_row_and_the_fingerprint_carry_the_versions(shop, pooled):
     assert set(df["analysis_version"]) == {ANALYSIS_VERSION}
     assert df.loc[df["id"].isin(list(bad)), "analysis_version"].notna().all()  # error rows too
     settings = json.loads((pooled[0] / "_catalog.json").read_text())["settings"]
-    assert (settings["format"], settings["tactilize"], settings["analysis"]) == (3, tactilize.__version__, ANALYSIS_VERSION)
-    assert FORMAT_VERSION == 3  # fc1de98 changed mean_level and i_s; catalogs before it are format 2
+    assert (settings["format"], settings["tactilize"], settings["analysis"]) == (4, tactilize.__version__, ANALYSIS_VERSION)
+    assert FORMAT_VERSION == 4  # 4: every row has `material`; fc1de98 changed mean_level and i_s (format 2 before it)
 
 
 def _as_previous_version(settings: dict, **versions) -> dict:

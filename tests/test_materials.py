@@ -291,3 +291,126 @@ def test_export_with_a_material_writes_metres_and_without_stays_as_it_was(tmp_pa
                                   "--material", "metal-polished"])
     assert r.exit_code == 0, r.output
     assert json.loads(r.output)["strength"] in (None, 0.0)
+
+
+# ----------------------------------------------------------------- --relief-mm, profile report and serve
+
+
+def _save(tmp_path, name, pixels):
+    from PIL import Image
+
+    path = tmp_path / name
+    Image.fromarray((pixels * 255).astype(np.uint8)).save(path)
+    return path
+
+
+def _wav_rms_db(path) -> float:
+    import wave
+
+    with wave.open(str(path)) as w:
+        kind = {2: np.int16, 4: np.int32}[w.getsampwidth()]
+        x = np.frombuffer(w.readframes(w.getnframes()), dtype=kind).astype(np.float64)
+    return _rms_db(x)
+
+
+def test_doubling_relief_mm_raises_the_exported_acceleration_6_db(tmp_path):
+    path = _save(tmp_path, "grain.png", _grains())
+    base = ["export", str(path), "--speed", "100", "--width-mm", "50", "--format", "wav", "--json"]
+    docs, levels = [], []
+    for mm in ("0.005", "0.01"):
+        out = tmp_path / f"{mm}.wav"
+        r = CliRunner().invoke(main, [*base, "-o", str(out), "--relief-mm", mm])
+        assert r.exit_code == 0, r.output
+        docs.append(json.loads(r.output))
+        levels.append(_wav_rms_db(out))
+    assert docs[0]["relief_source"] == "given" and docs[0]["relief_rms_m"] == pytest.approx(5e-6)
+    assert docs[0]["material"] is None and docs[1]["clipped_samples"] == 0
+    assert levels[1] - levels[0] == pytest.approx(20 * math.log10(2), abs=0.1)
+
+
+def test_relief_mm_overrides_the_materials_relief_and_keeps_its_hardness():
+    img = _grains()
+    typical = surface_model(img, pitch_m=PITCH_M, material="sandpaper-p80")
+    given = surface_model(img, pitch_m=PITCH_M, material="sandpaper-p80", relief_rms_m=material("sandpaper-p80").relief_rms_m / 2)
+    assert given.relief.source == "given" and given.relief.material.name == "sandpaper-p80"
+    assert given.relief.scale_m == pytest.approx(typical.relief.scale_m / 2)
+    assert given.micro.rms_m == typical.micro.rms_m
+
+
+def test_a_bad_relief_mm_is_one_line():
+    for bad in ("0", "-1", "nan", "deep"):
+        r = CliRunner().invoke(main, ["drive", "x.png", "--speed", "100", "--relief-mm", bad])
+        assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1 and "--relief-mm" in r.output, r.output
+    with pytest.raises(MaterialError):
+        surface_model(_grains(), pitch_m=PITCH_M, relief_scale_m=1e-5, relief_rms_m=1e-6)
+
+
+def test_profile_report_renders_every_picture_as_the_material(tmp_path):
+    path = _save(tmp_path, "metal.png", _lit_flat_metal())
+    base = ["profile", "report", "--image", str(path), "--width-mm", "50", "--no-wire", "--json"]
+    r = CliRunner().invoke(main, base)
+    assert r.exit_code == 0, r.output
+    plain = json.loads(r.output)
+    assert "material" not in plain and sum(row["pulses"] for row in plain["rows"]) > 10
+    r = CliRunner().invoke(main, [*base, "--material", "metal-polished"])
+    assert r.exit_code == 0, r.output
+    doc = json.loads(r.output)
+    assert doc["material"] == "metal-polished" and doc["rendered_as"].startswith("metal-polished (relief 50 nm")
+    assert sum(row["pulses"] for row in doc["rows"]) == 0  # a polished sheet is silent however it is lit
+    r = CliRunner().invoke(main, [*base, "--material", "graniet"])
+    assert r.exit_code == 2 and "stone-granite" in r.output
+    r = CliRunner().invoke(main, [*base, "--profile", "paper", "--material", "glass"])
+    assert r.exit_code == 2 and "surface profile" in r.output
+
+
+def test_serve_refuses_an_unknown_material_before_it_binds():
+    r = CliRunner().invoke(main, ["serve", "--no-open", "--port", "0", "--material", "graniet"])
+    assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1 and "stone-granite" in r.output
+
+
+# ----------------------------------------------------------------- a catalogue manifest's material column
+
+
+def test_a_manifest_material_column_renders_each_row_as_its_material(tmp_path):
+    pytest.importorskip("pyarrow")
+    from tactilize.catalog import read_catalog
+
+    _save(tmp_path, "metal.png", _lit_flat_metal())
+    _save(tmp_path, "grain.png", _grains())
+    (tmp_path / "m.csv").write_text(
+        "id,path,width_mm,material\n"
+        "polished,metal.png,50,metal-polished\n"
+        "granite,metal.png,50,stone-granite\n"
+        "alone,metal.png,50,\n"
+        "p80,grain.png,50,sandpaper-p80\n"
+        "p240,grain.png,50,Sandpaper-P240\n"
+        "typo,metal.png,50,graniet\n")
+    out = tmp_path / "cat"
+    r = CliRunner().invoke(main, ["batch", str(tmp_path / "m.csv"), "--out", str(out), "--workers", "1", "--json"])
+    assert r.exit_code == 0, r.output
+    summary = json.loads(r.output)
+    assert (summary["ok"], summary["failed"]) == (5, 1)  # the unknown name is its row's error; the batch goes on
+    rows = {row["id"]: row for row in read_catalog(out).to_dict("records")}
+    assert [rows[k]["material"] for k in ("polished", "granite", "alone", "p80", "p240")] == \
+        ["metal-polished", "stone-granite", "", "sandpaper-p80", "sandpaper-p240"]
+    rate = "drive_60mm_s_pulse_frequency_hz"
+    # The same lit sheet: polished metal is under the least felt bump, granite is not, and the
+    # picture alone reads its lighting as relief.
+    assert rows["polished"][rate] == 0.0 and rows["granite"][rate] > 5.0 and rows["alone"][rate] > 5.0
+    # The same grain: the coarser paper plays stronger (a relief 3.4 times deeper).
+    assert rows["p80"]["drive_60mm_s_strength"] > rows["p240"]["drive_60mm_s_strength"]
+    typo = rows["typo"]
+    assert typo["status"] == "error" and "graniet" in typo["error"] and "stone-granite" in typo["error"]
+    assert typo["material"] == "graniet"
+
+
+def test_a_manifest_material_needs_a_surface_profile(tmp_path):
+    from tactilize.catalog import AnalysisSettings, analyse_item, discover
+    from tactilize.mapping import Profile
+
+    _save(tmp_path, "grain.png", _grains())
+    (tmp_path / "m.jsonl").write_text(json.dumps({"path": "grain.png", "material": "cork"}) + "\n")
+    (item,) = discover(tmp_path / "m.jsonl")
+    assert item.material == "cork" and item.problem is None
+    row = analyse_item(item, AnalysisSettings(Profile.preset("paper")))
+    assert row["status"] == "error" and "surface profile" in row["error"] and row["material"] == "cork"

@@ -123,6 +123,7 @@ def profile_report(
     wire: WireSpec | str | None = None,
     simulate_wire: bool = True,
     images: dict[str, Any] | None = None,
+    material: Any = None,
 ) -> ProfileReport:
     """Drives, wire response and JND pairs of a profile over textures and speeds.
 
@@ -140,10 +141,13 @@ def profile_report(
     images : dict of name -> TextureImage, optional
         The pictures of ``textures`` (a surface rendering strokes them); the
         built-in textures' by default.
+    material : MaterialChoice, optional
+        What a surface rendering renders every picture as (:class:`tactilize.materials.MaterialChoice`);
+        the picture alone by default.
     """
 
     if getattr(profile, "rendering", "steady") == "surface":
-        return _surface_report(profile, images, speeds_mm_s, wire, simulate_wire)
+        return _surface_report(profile, images, speeds_mm_s, wire, simulate_wire, material)
 
     if textures is None:
         from .data import get_texture, texture_ids
@@ -174,7 +178,7 @@ def profile_report(
 
 
 def _surface_report(profile: Profile, images: dict[str, Any] | None, speeds_mm_s: Sequence[float], wire: Any,
-                    simulate_wire: bool) -> ProfileReport:
+                    simulate_wire: bool, material: Any = None) -> ProfileReport:
     """The report of a surface rendering: what a straight stroke at each speed produces."""
     from .surface.model import surface_model
     from .surface.straight import surface_stroke_drive
@@ -183,7 +187,8 @@ def _surface_report(profile: Profile, images: dict[str, Any] | None, speeds_mm_s
         from .data import get_texture, texture_ids
 
         images = {tid: get_texture(tid).image for tid in texture_ids()}
-    surfaces = {name: surface_model(img, tip_radius_m=profile.tip_radius_m) for name, img in images.items()}
+    kw = {} if material is None else material.surface_kwargs()
+    surfaces = {name: surface_model(img, tip_radius_m=profile.tip_radius_m, **kw) for name, img in images.items()}
     report = ProfileReport(profile.name)
     for v in speeds_mm_s:
         measured: dict[str, tuple[float, float]] = {}
@@ -231,10 +236,11 @@ def _close_pair(speed_mm_s: float, a: str, b: str, fa_hz: float, fb_hz: float) -
 
 
 def audio_report(profile: Profile, images: dict[str, Any] | None = None,
-                 speeds_mm_s: Sequence[float] = SPEEDS_MM_S) -> list[dict[str, Any]]:
+                 speeds_mm_s: Sequence[float] = SPEEDS_MM_S, material: Any = None) -> list[dict[str, Any]]:
     """Per texture and speed, the spectrum of the tip's acceleration along a straight stroke
     (:func:`tactilize.synthesis.acceleration.audio_rows`): what a voice coil plays and the WAV
-    export carries.  The built-in textures when ``images`` is None."""
+    export carries.  The built-in textures when ``images`` is None; every picture rendered as
+    ``material`` (a :class:`tactilize.materials.MaterialChoice`) when given."""
     from .surface.model import TIP_RADIUS_M, surface_model
     from .synthesis.acceleration import audio_rows
 
@@ -245,6 +251,7 @@ def audio_report(profile: Profile, images: dict[str, Any] | None = None,
     tip = getattr(profile, "tip_radius_m", None) or TIP_RADIUS_M
     rows = []
     for name, img in images.items():
-        for r in audio_rows(surface_model(img, tip_radius_m=tip), speeds_mm_s):
+        kw = {} if material is None else material.surface_kwargs()
+        for r in audio_rows(surface_model(img, tip_radius_m=tip, **kw), speeds_mm_s):
             rows.append({"texture": name, **r})
     return rows

@@ -203,10 +203,11 @@ def _play_steady(board: Any, host: Any, profile: Any, features: Any, speed_m_s: 
 
 
 def serial_report(profile: Any, images: dict[str, Any] | None, speeds_mm_s: Sequence[float], *,
-                  circuit: str = "aa-resistor") -> list[dict[str, Any]]:
+                  circuit: str = "aa-resistor", material: Any = None) -> list[dict[str, Any]]:
     """:func:`board_stroke` per texture (the built-in ones when ``images`` is None) and speed
     [mm/s] (the report's :data:`~tactilize.report.SPEEDS_MM_S`); one dict a row, with
-    ``texture`` and ``speed_mm_s``."""
+    ``texture`` and ``speed_mm_s``.  A surface rendering renders every picture as ``material``
+    (a :class:`tactilize.materials.MaterialChoice`) when given."""
     if images is None:
         from .data import get_texture, texture_ids
 
@@ -217,7 +218,8 @@ def serial_report(profile: Any, images: dict[str, Any] | None, speeds_mm_s: Sequ
         if surface_rendering:
             from .surface.model import surface_model
 
-            kw: dict[str, Any] = {"surface": surface_model(img, tip_radius_m=profile.tip_radius_m)}
+            made = {} if material is None else material.surface_kwargs()
+            kw: dict[str, Any] = {"surface": surface_model(img, tip_radius_m=profile.tip_radius_m, **made)}
         else:
             from .features import extract_features
 

@@ -43,8 +43,9 @@ __all__ = [
 DEFAULT_SPEEDS_M_S: tuple[float, ...] = (0.030, 0.060, 0.120)
 
 #: Version of the on-disk layout, kept in the catalog's metadata.  3: every row
-#: and the fingerprint carry ``tactilize_version`` and ``analysis_version``.
-FORMAT_VERSION = 3
+#: and the fingerprint carry ``tactilize_version`` and ``analysis_version``; 4: every
+#: row has ``material`` (what its picture was rendered as; empty for the picture alone).
+FORMAT_VERSION = 4
 
 #: Version of the numbers in a row for a given image and settings.  Bump it with
 #: any change to the features, the texture map or the drives that moves a stored
@@ -136,6 +137,7 @@ def base_row(item: CatalogItem, settings: AnalysisSettings) -> dict[str, Any]:
         "status": "ok",
         "error": None,
         "profile": settings.profile.name,
+        "material": item.material or "",
         "tactilize_version": __version__,
         "analysis_version": ANALYSIS_VERSION,
     }
@@ -152,7 +154,7 @@ def _load(item: CatalogItem, settings: AnalysisSettings) -> TextureImage:
     )
 
 
-def _row_from_image(img: TextureImage, settings: AnalysisSettings) -> dict[str, Any]:
+def _row_from_image(img: TextureImage, settings: AnalysisSettings, material: str | None = None) -> dict[str, Any]:
     from ..maps.texturemap import texture_map
 
     tmap = texture_map(img, sample_px=None if settings.full_map else "auto")
@@ -171,7 +173,11 @@ def _row_from_image(img: TextureImage, settings: AnalysisSettings) -> dict[str, 
             row[key] = value
     for key, value in tmap.summary().items():
         row[f"map_{key}"] = value
-    rendering = rendering_for(settings.profile, image=img)  # made once per picture
+    if material is not None and settings.profile.rendering != "surface":
+        # A material changes the surface rendering only: a steady profile's drives would ignore it.
+        raise CatalogError(material, f"a material needs a surface profile (this one's rendering is "
+                                     f"{settings.profile.rendering!r})")
+    rendering = rendering_for(settings.profile, image=img, material=material)  # made once per picture
     for speed in settings.speeds_m_s:
         # What every command renders for this picture stroked steadily at this speed.
         drv = rendering.steady_drive(feat, speed)
@@ -194,7 +200,8 @@ def analyse_item(item: CatalogItem, settings: AnalysisSettings) -> dict[str, Any
     -------
     dict
         ``id``, ``path``, ``status`` (``"ok"`` or ``"error"``), ``error`` (the
-        reason, None when ok), ``profile``, ``tactilize_version``,
+        reason, None when ok), ``profile``, ``material`` (the manifest's, empty for the
+        picture alone), ``tactilize_version``,
         ``analysis_version``, ``seconds`` (analysis time [s]) and, when ok, the
         image, feature, ``map_*`` and ``drive_<speed>mm_s_*`` columns.
     """
@@ -203,7 +210,7 @@ def analyse_item(item: CatalogItem, settings: AnalysisSettings) -> dict[str, Any
     try:
         if item.problem:
             raise ImageError(item.path or item.id, item.problem)
-        row.update(_row_from_image(_load(item, settings), settings))
+        row.update(_row_from_image(_load(item, settings), settings, item.material))
     except TactilizeError as exc:
         row.update(status="error", error=exc.fault)
     except MemoryError:

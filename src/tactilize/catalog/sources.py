@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..errors import CatalogError, path_fault, special_file_fault
+from ..errors import CatalogError, MaterialError, path_fault, special_file_fault
 
 __all__ = ["IMAGE_SUFFIXES", "CatalogItem", "discover"]
 
@@ -47,7 +47,12 @@ class CatalogItem:
         Displayed pixels per inch, from a manifest.
     problem : str, optional
         Why the item cannot be analysed although it was listed (a manifest value
-        that is not a number...): it becomes an error row, not a stopped batch.
+        that is not a number, an unknown material...): it becomes an error row, not a
+        stopped batch.
+    material : str, optional
+        What the picture is of, from a manifest's ``material`` column: a library name
+        (:mod:`tactilize.materials`), or the cell as written when it names none (then
+        ``problem`` says so); None for the picture alone.
     """
 
     id: str
@@ -55,6 +60,7 @@ class CatalogItem:
     width_mm: float | None = None
     dpi: float | None = None
     problem: str | None = None
+    material: str | None = None
 
 
 def discover(source: str | os.PathLike) -> list[CatalogItem]:
@@ -70,8 +76,9 @@ def discover(source: str | os.PathLike) -> list[CatalogItem]:
           to the part of the pattern before its first wildcard;
         * a manifest, ``.csv`` or ``.jsonl``: one image per row with ``path``
           (or ``file``/``image``), and optionally ``id`` (default: the path as
-          written), ``width_mm`` and ``dpi``; relative paths are relative to the
-          manifest's folder;
+          written), ``width_mm``, ``dpi`` and ``material`` (a library name; empty
+          or ``picture only``: the picture alone); relative paths are relative to
+          the manifest's folder;
         * a single image file (its name is its id).
 
     Returns
@@ -187,6 +194,18 @@ def _number(value: Any) -> tuple[float | None, str | None]:
     return x, None
 
 
+def _material(value: Any) -> tuple[str | None, str | None]:
+    """Manifest cell -> (library name, the cell as written, or None; problem or None)."""
+    from ..materials import MaterialChoice
+
+    if value is None:
+        return None, None
+    try:
+        return MaterialChoice.of(str(value)).name, None
+    except MaterialError as exc:
+        return str(value).strip(), f"manifest {exc.source}: {exc.fault}"
+
+
 def _from_manifest_rows(manifest: Path, rows: Iterable[tuple[int, dict[str, Any]]]) -> list[CatalogItem]:
     base = manifest.parent
     items: dict[str, CatalogItem] = {}
@@ -216,7 +235,10 @@ def _from_manifest_rows(manifest: Path, rows: Iterable[tuple[int, dict[str, Any]
             problems.append(f"manifest dpi {bad_d}")
         if width_mm is not None and dpi is not None:
             problems.append("manifest gives both width_mm and dpi")
-        items[ident] = CatalogItem(ident, full, width_mm, dpi, "; ".join(problems) or None)
+        material, bad_m = _material(row.get("material"))
+        if bad_m:
+            problems.append(bad_m)
+        items[ident] = CatalogItem(ident, full, width_mm, dpi, "; ".join(problems) or None, material)
     if not items:
         raise CatalogError(str(manifest), "manifest lists no images")
     if not any(it.path for it in items.values()):

@@ -20,7 +20,7 @@ import click
 from ..errors import TactilizeError, check_finite
 from ..mapping.profile import DEFAULT_PRESET
 from ..encode import dumps
-from .materials import describe_relief, material_option, materials_cmd, surface_only
+from .materials import choice_of, describe_relief, material_option, materials_cmd, surface_only
 
 if TYPE_CHECKING:  # the wire model loads on the commands that use it
     from ..actuators.sma import Circuit, WireSpec
@@ -118,13 +118,14 @@ def main() -> None:
               help="Draw the paper's Fig. 5 (image, log spectrum with the peak, tile map) to this image file; "
                    "with several IMAGEs one file each, FILE's name plus the image's (fig.png: fig-cloth.png ...).")
 def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, as_json: bool,
-            material_name: str | None, plot_path: str | None) -> None:
-    """Measure the texture features of IMAGE(s); with --material, also its relief in metres."""
+            material_name: str | None, relief_mm: float | None, plot_path: str | None) -> None:
+    """Measure the texture features of IMAGE(s); with --material or --relief-mm, also its relief in metres."""
     from ..features import extract_features
     from ..image import load_image
 
     if dpi is not None and width_mm is not None:
         raise TactilizeError("--dpi/--width-mm", "give one of them, not both")
+    choice = choice_of(material_name, relief_mm)
     if plot_path is not None:
         from .plots import plot_option, plot_paths
 
@@ -135,10 +136,10 @@ def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, 
         img = load_image(path, dpi=dpi, width_mm=width_mm)
         feat = extract_features(img)
         rows.append({"image": path, **img.describe(), **feat.to_dict()})
-        if material_name is not None:
+        if not choice.picture_only:
             from ..surface import surface_model
 
-            rows[-1].update(describe_relief(surface_model(img, material=material_name)))
+            rows[-1].update(describe_relief(surface_model(img, **choice.surface_kwargs()), choice))
         if plot_path is not None:
             from ..maps.texturemap import texture_map
             from .plots import plot_spectrum
@@ -162,8 +163,8 @@ def analyze(images: tuple[str, ...], dpi: float | None, width_mm: float | None, 
             f"  orientation         {row['orientation_deg']:.1f} deg   anisotropy {row['anisotropy']:.3f}\n"
             f"  contrast            {row['contrast']:.3f}   roughness {row['roughness_per_mm']:.3f} /mm"
         )
-        if row.get("material") is not None:
-            click.echo(f"  material            {row['material']}: relief {row['relief_scale_m'] * 1e6:.4g} um per "
+        if row.get("relief_scale_m") is not None:
+            click.echo(f"  rendered as         {row['rendered_as']}: relief {row['relief_scale_m'] * 1e6:.4g} um per "
                        f"luminance range ({row['relief_source']})")
 
 
@@ -188,6 +189,7 @@ def drive(
     output_spec: str | None,
     hold_s: float | None,
     material_name: str | None,
+    relief_mm: float | None,
     as_json: bool,
 ) -> None:
     """The pulse drive for IMAGE stroked at a speed; with --output, also run it on
@@ -200,23 +202,24 @@ def drive(
     if hold_s is not None and (not math.isfinite(hold_s) or hold_s < 0 or output_spec is None):
         raise TactilizeError("--hold", "needs --output and a number of seconds >= 0")
     profile = Profile.resolve(profile_name)
-    surface_only(material_name, profile.rendering)
+    choice = choice_of(material_name, relief_mm)
+    surface_only(choice, profile.rendering)
     img = load_image(image, dpi=dpi, width_mm=width_mm)
     feat = extract_features(img)
     direction = math.radians(direction_deg) if direction_deg is not None else None
     from ..surface.rendering import rendered_drive
 
     surface = None
-    if material_name is not None:
+    if not choice.picture_only:
         from ..surface import surface_model
 
-        surface = surface_model(img, tip_radius_m=profile.tip_radius_m, material=material_name)
+        surface = surface_model(img, tip_radius_m=profile.tip_radius_m, **choice.surface_kwargs())
     drv = rendered_drive(profile, img, feat, speed_mm_s / 1e3, direction, surface=surface)
     doc = {
         "image": image,
         "profile": profile.name,
         "rendering": profile.rendering,
-        **({} if material_name is None else describe_relief(surface)),
+        **({} if choice.picture_only else describe_relief(surface, choice)),
         "speed_mm_s": speed_mm_s,
         "spatial_frequency_per_m": feat.spatial_frequency_per_m,
         "spectral_intensity": feat.spectral_intensity,
@@ -233,7 +236,7 @@ def drive(
     clamp = ", ".join(drv.clamped) if drv.clamped else "none"
     click.echo(
         f"{image} at {speed_mm_s:g} mm/s, profile {profile.name} ({profile.rendering} rendering"
-        f"{'' if material_name is None else ', material ' + material_name})\n"
+        f"{'' if choice.picture_only else ', rendered as ' + choice.label()})\n"
         f"  pulse frequency  {drv.pulse_frequency_hz:.1f} Hz\n"
         f"  pulse width      {drv.pulse_width_s * 1e3:.3f} ms\n"
         f"  duty ratio       {drv.duty_ratio * 100:.2f} %\n"
@@ -333,10 +336,17 @@ def batch(
               help="Pages (WebSockets) connected at once, at most; one more is refused with 503.")
 @click.option("--lan", is_flag=True, help="Serve on this machine's network address for a phone: prints the address and a QR code.")
 @click.option("--https", "use_https", is_flag=True, help="HTTPS with a self-signed certificate kept in the user data dir (audio and raw pen updates on a phone need it).")
+@material_option
 def serve(host: str, port: int, output_spec: str, profile_name: str | None, open_browser: bool | None, catalog_path: str | None,
-          site_dir: str | None, max_sockets: int, lan: bool, use_https: bool) -> None:
-    """Serve the tactile pen page: textures, pen stroke, live drive, simulated wire."""
+          site_dir: str | None, max_sockets: int, lan: bool, use_https: bool, material_name: str | None = None,
+          relief_mm: float | None = None) -> None:
+    """Serve the tactile pen page: textures, pen stroke, live drive, simulated wire.
+
+    --material and --relief-mm: what the built-in pictures and uploads are rendered as (the
+    page's picker may render a picture as another material)."""
     from ..web.serve import serve as run
+
+    choice = choice_of(material_name, relief_mm)
 
     routers = []
     if catalog_path is not None:
@@ -355,7 +365,7 @@ def serve(host: str, port: int, output_spec: str, profile_name: str | None, open
 
         routers.append(site_router(site_dir))
     run(host, port, output_spec, profile_name, open_browser, extra_routers=routers, echo=click.echo,
-        warn=lambda s: click.echo(s, err=True), max_sockets=max_sockets, lan=lan, https=use_https)
+        warn=lambda s: click.echo(s, err=True), max_sockets=max_sockets, lan=lan, https=use_https, material=choice)
 
 
 # ----------------------------------------------------------------- simulate / envelope / export

@@ -11,7 +11,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any, cast
 
 from ..errors import TactilizeError, check_finite, check_output_path
-from .materials import describe_relief, surface_only
+from .materials import choice_of, describe_relief, surface_only
 
 if TYPE_CHECKING:
     from ..surface import SurfaceModel
@@ -36,14 +36,15 @@ def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     duration = check_finite(opt["duration_s"], "--duration", above=0.0, maximum=600.0, unit="s")
     direction = check_finite(opt["direction_deg"], "--direction", unit="deg")
     profile = Profile.resolve(opt["profile_name"])
-    surface_only(opt.get("material_name"), profile.rendering)
+    choice = choice_of(opt.get("material_name"), opt.get("relief_mm"))
+    surface_only(choice, profile.rendering)
     img = load_image(opt["image"], dpi=opt["dpi"], width_mm=opt["width_mm"])
     tmap = texture_map(img)
     # The picture's surface, made only by a rendering that reads it.
-    surface = cast("SurfaceModel | None", rendering_for(profile, image=img, material=opt.get("material_name")).surface)
+    surface = cast("SurfaceModel | None", rendering_for(profile, image=img, **choice.surface_kwargs()).surface)
     extra: dict[str, Any] = {"image": opt["image"], "profile": profile.name, "rendering": profile.rendering}
-    if opt.get("material_name") is not None:
-        extra.update(describe_relief(surface))
+    if not choice.picture_only:
+        extra.update(describe_relief(surface, choice))
     if opt["stroke_path"] is not None:
         stroke = read_stroke(opt["stroke_path"], tmap.width_m, tmap.height_m)
         extra["stroke"] = opt["stroke_path"]

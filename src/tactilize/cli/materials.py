@@ -12,7 +12,7 @@ import click
 
 from ..errors import TactilizeError
 
-__all__ = ["materials_cmd", "material_option", "check_material", "describe_relief"]
+__all__ = ["materials_cmd", "material_option", "check_material", "describe_relief", "choice_of", "surface_only"]
 
 
 def check_material(ctx: Any, param: Any, value: str | None) -> str | None:
@@ -24,27 +24,54 @@ def check_material(ctx: Any, param: Any, value: str | None) -> str | None:
     return material(value).name
 
 
+def check_relief_mm(ctx: Any, param: Any, value: float | None) -> float | None:
+    """The ``--relief-mm`` callback: a positive finite number of millimetres."""
+    if value is None:
+        return None
+    from ..errors import check_finite
+
+    return check_finite(value, "--relief-mm", above=0.0, maximum=10.0, unit="mm")
+
+
 def material_option(func: Any) -> Any:
-    """``--material NAME``: what the picture shows is made of (docs/surfaces.md, "Materials")."""
+    """``--material NAME`` and ``--relief-mm MM``: what the picture shows is made of, and how
+    deep its relief is (docs/surfaces.md, "Materials")."""
+    func = click.option(
+        "--relief-mm", "relief_mm", type=float, default=None, callback=check_relief_mm,
+        help="RMS height of the picture's visible relief [mm] (its luminance less what varies slower than "
+             "5 mm): heights in metres at this relief, overriding the material's typical one.")(func)
     return click.option(
         "--material", "material_name", default=None, callback=check_material,
         help="What the picture is of, from the material library (`tactilize materials`): heights in metres, "
              "its hardness and micro-roughness. Without it the picture alone renders.")(func)
 
 
-def describe_relief(surface: Any) -> dict[str, Any]:
+def choice_of(material_name: str | None, relief_mm: float | None) -> Any:
+    """The :class:`~tactilize.materials.MaterialChoice` of ``--material`` and ``--relief-mm`` [mm]."""
+    from ..materials import MaterialChoice
+
+    return MaterialChoice.of(material_name, None if relief_mm is None else relief_mm * 1e-3)
+
+
+def describe_relief(surface: Any, choice: Any = None) -> dict[str, Any]:
     """The ``material``, ``relief_scale_m`` and ``relief_source`` of a surface for a JSON
-    document (the picture alone: ``material`` None, ``relief_source`` "picture")."""
+    document (the picture alone: ``material`` None, ``relief_source`` "picture"); with the
+    :class:`~tactilize.materials.MaterialChoice` it was made with, also ``relief_rms_m``
+    (given, or None) and ``rendered_as`` (in words)."""
     relief = getattr(surface, "relief", None)
-    if relief is None:
-        return {"material": None, "relief_scale_m": None, "relief_source": "picture"}
-    return relief.describe()
+    doc = {"material": None, "relief_scale_m": None, "relief_source": "picture"} if relief is None \
+        else relief.describe()
+    if choice is not None:
+        doc.update(choice.to_dict())
+    return doc
 
 
-def surface_only(material_name: str | None, rendering: str) -> None:
-    """A material changes the surface rendering only; with a steady profile it would be ignored."""
-    if material_name is not None and rendering != "surface":
-        raise TactilizeError("--material", f"needs a surface profile (this one's rendering is {rendering!r})")
+def surface_only(choice: Any, rendering: str) -> None:
+    """A material or a relief changes the surface rendering only; with a steady profile it
+    would be ignored (``choice``: a :class:`~tactilize.materials.MaterialChoice`)."""
+    if not choice.picture_only and rendering != "surface":
+        which = "--material" if choice.material is not None else "--relief-mm"
+        raise TactilizeError(which, f"needs a surface profile (this one's rendering is {rendering!r})")
 
 
 @click.command("materials")

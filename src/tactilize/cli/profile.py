@@ -9,6 +9,7 @@ import click
 
 from ..errors import TactilizeError
 from ..mapping.profile import DEFAULT_PRESET
+from .materials import choice_of, material_option, surface_only
 
 __all__ = ["profile"]
 
@@ -31,10 +32,11 @@ def profile() -> None:
                    "simulated time (repeatable; about a second a texture and speed).")
 @click.option("--circuit", default="aa-resistor", show_default=True,
               help="The board's circuit for --serial (its stored limits and the host's envelope).")
+@material_option
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
 def report_cmd(profile_name: str, images: tuple[str, ...], dpi: float | None, width_mm: float | None,
                no_wire: bool, plot_path: str | None, as_json: bool, audio: bool = False, serial: bool = False,
-               circuit: str = "aa-resistor") -> None:
+               circuit: str = "aa-resistor", material_name: str | None = None, relief_mm: float | None = None) -> None:
     """The drive each texture gets at 10 .. 160 mm/s, whether the wire follows, and the pairs
     closer than one JND at equal speed.  A surface rendering (the default) is judged by what
     it produces for a straight stroke: pulse rate, interval CV and strength.
@@ -42,12 +44,18 @@ def report_cmd(profile_name: str, images: tuple[str, ...], dpi: float | None, wi
     --serial plays each stroke over the serial protocol to the controller firmware running on a
     virtual board in simulated time (not the real-time emulator: the figures are the same every
     run): pulses per second that reached the pin, timing error of the pin's pulses against the
-    rendered events, and pulses the board's heat estimate shortened or skipped."""
+    rendered events, and pulses the board's heat estimate shortened or skipped.
+
+    --material and --relief-mm render every picture (the built-in ones too) as that material
+    and relief: a surface rendering only."""
     from . import emit_json
     from ..mapping import Profile
     from ..report import FREQUENCY_JND, SPEEDS_MM_S, profile_report
 
     prof = Profile.resolve(profile_name)
+    choice = choice_of(material_name, relief_mm)
+    surface_only(choice, prof.rendering)
+    material = None if choice.picture_only else choice
     if plot_path:
         from .plots import plot_option
 
@@ -68,8 +76,10 @@ def report_cmd(profile_name: str, images: tuple[str, ...], dpi: float | None, wi
         for path in images:
             pictures[path] = load_image(path, dpi=dpi, width_mm=width_mm)
             textures[path] = extract_features(pictures[path])
-    rep = profile_report(prof, textures, simulate_wire=not no_wire, images=pictures)
+    rep = profile_report(prof, textures, simulate_wire=not no_wire, images=pictures, material=material)
     doc = rep.to_dict()
+    if material is not None:
+        doc.update(choice.to_dict())
     if plot_path:
         from .plots import plot_profile_report
 
@@ -78,16 +88,18 @@ def report_cmd(profile_name: str, images: tuple[str, ...], dpi: float | None, wi
     if audio:
         from ..report import audio_report
 
-        doc["audio"] = audio_report(prof, pictures)
+        doc["audio"] = audio_report(prof, pictures, material=material)
     if serial:
         from ..serial_report import serial_report
 
-        doc["serial"] = serial_report(prof, pictures, SPEEDS_MM_S, circuit=circuit)
+        doc["serial"] = serial_report(prof, pictures, SPEEDS_MM_S, circuit=circuit, material=material)
     if as_json:
         emit_json(doc)
         return
     if plot_path:
         click.echo(f"wrote {plot_path}")
+    if material is not None:
+        click.echo(f"rendered as {choice.label()}")
     click.echo(_table(rep, SPEEDS_MM_S))
     if audio:
         click.echo(_audio_table(doc["audio"], SPEEDS_MM_S))

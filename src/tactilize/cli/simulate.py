@@ -7,7 +7,7 @@ import math
 from typing import Any
 
 from ..errors import TactilizeError, check_finite
-from .materials import describe_relief, surface_only
+from .materials import choice_of, describe_relief, surface_only
 
 __all__ = ["simulate_stroke", "simulate_raw", "envelope_table"]
 
@@ -61,17 +61,17 @@ def simulate_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
         img = load_image(source, dpi=opt["dpi"], width_mm=opt["width_mm"])
     spec, circuit = _wire_and_circuit(opt)
     profile = Profile.resolve(opt["profile_name"])
-    material_name = opt.get("material_name")
-    surface_only(material_name, profile.rendering)
+    choice = choice_of(opt.get("material_name"), opt.get("relief_mm"))
+    surface_only(choice, profile.rendering)
     feat = extract_features(img)
     direction = None if opt["direction_deg"] is None else math.radians(opt["direction_deg"])
     from ..surface.rendering import rendered_drive
 
     surface = None
-    if material_name is not None:
+    if not choice.picture_only:
         from ..surface import surface_model
 
-        surface = surface_model(img, tip_radius_m=profile.tip_radius_m, material=material_name)
+        surface = surface_model(img, tip_radius_m=profile.tip_radius_m, **choice.surface_kwargs())
     drive = rendered_drive(profile, img, feat, opt["speed_mm_s"] / 1e3, direction, surface=surface)
     report = feel(drive, spec, circuit, standby=opt["standby"], duration_s=opt["duration_s"],
                   closed_loop=not opt["open_loop"])
@@ -79,7 +79,7 @@ def simulate_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
         "source": source,
         "profile": profile.name,
         "rendering": profile.rendering,
-        **({} if material_name is None else describe_relief(surface)),
+        **({} if choice.picture_only else describe_relief(surface, choice)),
         "speed_mm_s": opt["speed_mm_s"],
         "wire": spec.name,
         "circuit": circuit.name,

@@ -146,8 +146,8 @@ class Relief:
 
 
 def relief_for(raw: Any, surface_pitch_m: tuple[float, float], material_name: Any = None,
-               relief_scale_m: float | str | None = None) -> Relief | None:
-    """The relief of a picture: from a given scale, a material, or an estimate.
+               relief_scale_m: float | str | None = None, relief_rms_m: float | None = None) -> Relief | None:
+    """The relief of a picture: from a given scale, a given RMS relief, a material, or an estimate.
 
     Parameters
     ----------
@@ -161,6 +161,11 @@ def relief_for(raw: Any, surface_pitch_m: tuple[float, float], material_name: An
         Metres of relief per unit of luminance, given; ``"estimate"`` for this
         project's estimate (:data:`ESTIMATED_RELIEF_RMS_M`).  A given scale wins over
         the material's typical relief; the material's hardness and roughness stay.
+    relief_rms_m : float, optional
+        RMS height of the picture's visible relief [m], given: the scale that gives the
+        picture's visible structure this RMS, as a material's typical relief does (it
+        replaces the material's; its hardness and roughness stay).  Not with
+        ``relief_scale_m``.
 
     Returns
     -------
@@ -170,9 +175,15 @@ def relief_for(raw: Any, surface_pitch_m: tuple[float, float], material_name: An
     Raises
     ------
     MaterialError
-        An unknown material, or a scale that is not a positive finite number.
+        An unknown material, a scale or RMS that is not a positive finite number, or both
+        a scale and an RMS.
     """
     mat = None if material_name is None else material(material_name)
+    if relief_rms_m is not None:
+        if relief_scale_m is not None:
+            raise MaterialError("relief", "give a relief scale or a relief RMS, not both")
+        rms = check_finite(relief_rms_m, "relief RMS", error=MaterialError, above=0.0, unit="m")
+        return Relief(float(rms) / visible_relief_std(raw, surface_pitch_m), "given", mat)
     if relief_scale_m is None and mat is None:
         return None
     if isinstance(relief_scale_m, str):

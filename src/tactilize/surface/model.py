@@ -272,6 +272,7 @@ def surface_model(
     pitch_m: float | tuple[float, float] | None = None,
     material: Any = None,
     relief_scale_m: float | str | None = None,
+    relief_rms_m: float | None = None,
 ) -> SurfaceModel:
     """The surface model of a picture (or of a height array).
 
@@ -292,6 +293,10 @@ def surface_model(
     relief_scale_m : float or "estimate", optional
         Metres of relief per unit of luminance (given), or ``"estimate"``; with a material
         it replaces the material's typical relief.
+    relief_rms_m : float, optional
+        RMS height of the picture's visible relief [m] (its luminance less what varies
+        slower than 5 mm), given: with a material it replaces the material's typical
+        relief.  Not with ``relief_scale_m``.
 
     Returns
     -------
@@ -302,7 +307,7 @@ def surface_model(
     ImageError
         Not a 2-D array of finite heights, or a pitch or tip that is not positive.
     MaterialError
-        An unknown material or a relief scale that is not a positive number.
+        An unknown material, or a relief scale or RMS that is not a positive number.
     """
     check_finite(tip_radius_m, "<tip_radius_m>", what="tip radius", error=ImageError, above=0.0, unit="m")
     if hasattr(image, "pixels") and hasattr(image, "pitch_m"):
@@ -322,5 +327,5 @@ def surface_model(
     surface = display if surface_pitch_m is None else _pair(surface_pitch_m, "surface_pitch_m")
     if not math.isfinite(tip_radius_m):
         raise ImageError("<tip_radius_m>", "not finite")
-    relief = relief_for(raw, surface, material, relief_scale_m)
+    relief = relief_for(raw, surface, material, relief_scale_m, relief_rms_m)
     return _build(raw, display, surface, float(tip_radius_m), relief)

@@ -211,7 +211,8 @@ def _same_statistics(a: Any, b: Any) -> bool:
 
 
 def rendering_for(profile: Any, surface: SurfaceLike | None = None, *, image: Any = None,
-                  material: str | None = None, previous: Rendering | None = None) -> Rendering:
+                  material: Any = None, relief_rms_m: float | None = None,
+                  previous: Rendering | None = None) -> Rendering:
     """The rendering ``profile`` names, for one picture.
 
     Parameters
@@ -223,7 +224,8 @@ def rendering_for(profile: Any, surface: SurfaceLike | None = None, *, image: An
     image : TextureImage or callable, optional
         The picture (or a callable returning it, called only when needed): a surface rendering
         without ``surface`` makes the surface from it (at the profile's tip radius, of
-        ``material`` when given).
+        ``material`` and with the relief RMS ``relief_rms_m`` [m] when given:
+        :func:`~tactilize.surface.surface_model`).
     previous : Rendering, optional
         The rendering in use: kept, with ``profile``, when ``profile`` renders the same picture
         the same way (a stroke under way keeps what it fired).
@@ -237,7 +239,8 @@ def rendering_for(profile: Any, surface: SurfaceLike | None = None, *, image: An
         if surface is None and image is not None:
             from .model import surface_model
 
-            surface = surface_model(image() if callable(image) else image, tip_radius_m=profile.tip_radius_m, material=material)
+            surface = surface_model(image() if callable(image) else image, tip_radius_m=profile.tip_radius_m,
+                                    material=material, relief_rms_m=relief_rms_m)
     kind: type[SteadyRendering] | type[SurfaceRendering] = SteadyRendering
     if getattr(profile, "rendering", "steady") == "surface" and surface is not None:
         kind = SurfaceRendering

@@ -9,6 +9,7 @@ Every handler reads the shared :class:`~.state.ServerState` from
 from __future__ import annotations
 
 import asyncio
+import json
 import math
 from pathlib import Path
 from typing import Any
@@ -16,7 +17,7 @@ from typing import Any
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse, Response
 
-from ..errors import ImageError, RequestError
+from ..errors import ImageError, MaterialError, RequestError
 from ..encode import jsonable
 from ..http import ErrorAnsweringRoute
 
@@ -100,10 +101,49 @@ def api_router() -> APIRouter:
         doc = await asyncio.get_running_loop().run_in_executor(None, lambda: _spectrum_doc(e))
         return jsonable(doc)
 
+    @r.get("/materials")
+    async def materials(request: Request) -> dict[str, Any]:
+        """The page's picker: the library's materials, and what the server renders pictures as."""
+        from ..materials import PICTURE_ONLY, library
+
+        s = st(request)
+        return {
+            "default": s.material.name,
+            "default_rendered_as": s.material.label(),
+            "picture_only": PICTURE_ONLY,
+            "materials": [{"name": m.name, "description": m.description,
+                           "rendered_as": s.material_named(m.name).label()} for m in library().values()],
+        }
+
+    @r.post("/textures/{texture_id}/rendered")
+    async def rendered(texture_id: str, request: Request) -> Any:
+        """JSON ``{"material": NAME}`` (``""`` or null: picture only): the picture of
+        ``texture_id`` rendered as that material, as a gallery entry of its own id (its
+        ``base`` is the picture's); 404 an unknown texture, 422 an unknown material."""
+        s = st(request)
+        texture(request, texture_id)
+        body = await read_body(request, 4096, "material choice")
+        try:
+            doc = json.loads(body or b"{}")
+        except ValueError:
+            raise RequestError("material choice", "send JSON {\"material\": NAME}", 400) from None
+        name = doc.get("material") if isinstance(doc, dict) else None
+        if name is not None and not isinstance(name, str):
+            raise RequestError("material", "the material must be a name (a string) or null", 422)
+        try:
+            entry = await s.upload_gate.run(s.rendered, texture_id, name or "")
+        except MaterialError as exc:
+            raise RequestError("material", f"{exc.source}: {exc.fault}", 422) from None
+        except KeyError:
+            raise RequestError(texture_id, f"no texture {texture_id!r}", 404) from None
+        return entry.describe()
+
     @r.post("/textures")
     async def upload(request: Request) -> Any:
-        """Multipart form: ``file`` (the picture), optional ``width_mm`` or ``dpi``;
-        503 while :data:`.limits.UPLOADS_ADMITTED` others are inside (before the body is read)."""
+        """Multipart form: ``file`` (the picture), optional ``width_mm`` or ``dpi`` and
+        ``material`` (a library name, ``""`` for picture only; the server's choice when
+        absent); 503 while :data:`.limits.UPLOADS_ADMITTED` others are inside (before the
+        body is read)."""
         s = st(request)
         try:
             async with s.upload_gate.admit():
@@ -135,6 +175,13 @@ def api_router() -> APIRouter:
         w_mm, dpi = _number(form.get("width_mm"), "width_mm"), _number(form.get("dpi"), "dpi")
         if w_mm is not None and dpi is not None:
             raise RequestError("width_mm/dpi", "give width_mm or dpi, not both", 422)
+        material_field = form.get("material")
+        if material_field is not None and not isinstance(material_field, str):
+            raise RequestError("material", "material must be a name, got a file", 422)
+        try:
+            choice = s.material_named(material_field)
+        except MaterialError as exc:
+            raise RequestError("material", f"{exc.source}: {exc.fault}", 422) from None
         data = await file.read()
         # The messages name the file: the page shows them as they are.
         if len(data) > MAX_UPLOAD_BYTES:
@@ -143,7 +190,7 @@ def api_router() -> APIRouter:
         if not data:
             raise RequestError(src, f"{src}: empty file", 422)
         try:
-            entry = await s.upload_gate.run(s.add_upload, data, src, w_mm, dpi)
+            entry = await s.upload_gate.run(s.add_upload, data, src, w_mm, dpi, choice)
         except ImageError as exc:
             s.counters["uploads_refused"] += 1
             raise RequestError(src, f"{src}: {exc.fault}", 415 if "not an image" in exc.fault else 422) from None

@@ -10,8 +10,10 @@ Routes
 ``GET /api/textures/{id}.png``         a picture (grey PNG carrying its DPI)
 ``GET /api/textures/{id}/features``    whole-picture features and the tile map
 ``POST /api/textures``                 upload a picture (multipart ``file``, optional
-                                       ``width_mm`` or ``dpi``); size-limited, validated
+                                       ``width_mm`` or ``dpi``, ``material``); size-limited, validated
                                        by :func:`tactilize.image.load_image`
+``GET /api/materials``                 the page's material picker: the library, the server's choice
+``POST /api/textures/{id}/rendered``   a picture rendered as another material (JSON ``material``)
 ``GET /api/profiles``                  the profiles the page may pick
 ``GET /api/stats``                     server-side latency percentiles and counters
 ``GET /api/export/formats``            export formats; ``POST /api/export/stroke``: a stroke as a file
@@ -42,6 +44,7 @@ from fastapi.staticfiles import StaticFiles
 from ..actuators.base import Output
 from ..errors import TactilizeError
 from ..mapping import Profile
+from ..materials import MaterialChoice
 from .api import api_router
 from ..http import settle_heap
 from .limits import MAX_UPLOAD_BYTES, MAX_UPLOAD_PIXELS
@@ -87,6 +90,7 @@ def create_app(
     hosts: Iterable[str] | None = None,
     max_sockets: int | None = None,
     page_outputs: Callable[[], Output] | None = None,
+    material: MaterialChoice | str | None = None,
 ) -> FastAPI:
     """Build the tactile pen application.
 
@@ -119,6 +123,10 @@ def create_app(
         Without it ``output`` is one device the pages take turns on
         (:mod:`.ownership`).  By default per page when the app opens the
         simulated wire itself.
+    material : MaterialChoice or str, optional
+        What the built-in pictures and uploads are rendered as (a library name, or a
+        :class:`~tactilize.materials.MaterialChoice` with a given relief); the page's picker
+        may render a picture as another.  Picture only by default.
 
     Returns
     -------
@@ -133,7 +141,9 @@ def create_app(
         output_name = output_name or default_name
         if page_outputs is None and default_name == "simulated":
             page_outputs = _simulated
-    state = ServerState(output, profile, m_per_px, output_name or "")
+    if not isinstance(material, MaterialChoice):
+        material = MaterialChoice.of(material)  # an unknown name fails here, before anything is served
+    state = ServerState(output, profile, m_per_px, output_name or "", material)
     state.page_output_factory = page_outputs
     if close_output is None:
         close_output = owned

@@ -174,6 +174,7 @@ def serve(
     lan: bool = False,
     https: bool = False,
     open_path: str = "",
+    material: Any = None,
 ) -> None:
     """Serve the tactile pen page until interrupted.
 
@@ -206,6 +207,9 @@ def serve(
     https : bool
         Serve HTTPS with a self-signed certificate made and kept by :mod:`.tls`
         (the page's audio output and raw pointer updates need it off loopback).
+    material : MaterialChoice or str, optional
+        What the built-in pictures and uploads are rendered as (``--material``,
+        ``--relief-mm``); the page's picker may pick another.  Picture only by default.
     """
     import uvicorn
 
@@ -248,7 +252,8 @@ def serve(
         # A simulated wire is no device: every page gets its own (web/ownership.py).
         per_page = (lambda: open_output(output)) if output.strip().lower() == "simulated" else None
         app = create_app(out, prof, output_name=output, extra_routers=extra_routers, close_output=True,
-                         hosts=accepted_hosts(host, extra_hosts), max_sockets=max_sockets, page_outputs=per_page)
+                         hosts=accepted_hosts(host, extra_hosts), max_sockets=max_sockets, page_outputs=per_page,
+                         material=material)
         from .lan import context_notes, page_url, qr_text
 
         bound_host, bound_port = sock.getsockname()[:2]

@@ -23,18 +23,22 @@ from ..actuators.base import Output
 from ..encode import jsonable
 from ..errors import ProfileError
 from ..mapping import Profile, preset_names
+from ..materials import MaterialChoice
 from .limits import MAX_UPLOAD_PIXELS
 from .rows import DEFAULT_M_PER_CSS_PX
 
 if TYPE_CHECKING:  # the maps load the FFT stack: not at import
     from ..maps.texturemap import TextureMap
 
-__all__ = ["ServerState", "TextureEntry", "MAX_UPLOADS"]
+__all__ = ["ServerState", "TextureEntry", "MAX_UPLOADS", "MAX_RENDERINGS"]
 
 log = logging.getLogger("tactilize.web")
 
 #: Uploads kept in memory; the oldest is forgotten first.
 MAX_UPLOADS = 24
+#: Pictures kept rendered as another material than their own (the page's picker); the
+#: oldest is forgotten first (a surface model is a few MB).
+MAX_RENDERINGS = 24
 
 
 class TextureEntry:
@@ -50,6 +54,11 @@ class TextureEntry:
         Physical size it is shown at [m].
     width_px, height_px : int
     builtin : bool
+    material : MaterialChoice
+        What its surface is rendered as (picture only, or a material and its relief).
+    base : str
+        The id of the picture it renders (its own id, unless it is a picture rendered as
+        another material: :meth:`ServerState.rendered`).
     """
 
     def __init__(
@@ -65,8 +74,14 @@ class TextureEntry:
         make_png: Callable[[], bytes],
         make_map: Callable[[], TextureMap],
         make_surface: Callable[[], Any] | None = None,
+        material: MaterialChoice | None = None,
+        make_image: Callable[[], Any] | None = None,
+        base: str | None = None,
     ) -> None:
         self.id, self.name, self.description = id, name, description
+        self.material = MaterialChoice() if material is None else material
+        self.make_image = make_image
+        self.base = id if base is None else base
         self.width_m, self.height_m = float(width_m), float(height_m)
         self.width_px, self.height_px = int(width_px), int(height_px)
         self.builtin = builtin
@@ -117,6 +132,8 @@ class TextureEntry:
             "width_px": self.width_px,
             "height_px": self.height_px,
             "url": f"/api/textures/{self.id}.png",
+            "base": self.base,
+            **self.material.to_dict(),
         }
         if with_features:
             d["features"] = jsonable(self.map.whole.to_dict())
@@ -134,10 +151,16 @@ class ServerState:
         The default profile.
     m_per_px : float
         Default size of a CSS pixel [m] until the page sends its calibration.
+    material : MaterialChoice, optional
+        What the built-in pictures and uploads are rendered as unless the page picks another
+        material (``serve --material``, ``--relief-mm``); picture only by default.
     """
 
-    def __init__(self, output: Output, profile: Profile, m_per_px: float = DEFAULT_M_PER_CSS_PX, output_name: str = "") -> None:
+    def __init__(self, output: Output, profile: Profile, m_per_px: float = DEFAULT_M_PER_CSS_PX, output_name: str = "",
+                 material: MaterialChoice | None = None) -> None:
         self.output = output
+        self.material = MaterialChoice() if material is None else material
+        self.renderings: "collections.deque[str]" = collections.deque()
         self.output_name = output_name or type(output).__name__
         self.profile = profile
         self.m_per_px = float(m_per_px)
@@ -166,7 +189,7 @@ class ServerState:
         for t in builtin_textures():
             # The PNG and the map are built lazily (warm() does it at startup
             # off the event loop); only cheap metadata here.
-            self.textures[t.id] = _builtin_entry(t, self.tip_radius_m)
+            self.textures[t.id] = _builtin_entry(t, self.tip_radius_m, self.material)
             self._builtin_ids.append(t.id)
 
     @property
@@ -202,15 +225,33 @@ class ServerState:
         """A texture by id; KeyError when unknown."""
         return self.textures[texture_id]
 
-    def add_upload(self, data: bytes, filename: str, width_mm: float | None, dpi: float | None) -> TextureEntry:
-        """Validate, analyse and keep an uploaded picture (blocking: run in a thread)."""
+    def material_named(self, name: str | None) -> MaterialChoice:
+        """What the page's picker names: None the server's own choice, ``""`` or ``"picture
+        only"`` the picture alone, else a library material (at the server's given relief, if
+        one was given: ``serve --relief-mm`` is the pictures' relief whatever they are made of).
+
+        Raises
+        ------
+        MaterialError
+            An unknown material (the message names it).
+        """
+        if name is None:
+            return self.material
+        chosen = MaterialChoice.of(name)
+        return chosen if chosen.picture_only else MaterialChoice.of(chosen.material, self.material.relief_rms_m)
+
+    def add_upload(self, data: bytes, filename: str, width_mm: float | None, dpi: float | None,
+                   material: MaterialChoice | None = None) -> TextureEntry:
+        """Validate, analyse and keep an uploaded picture (blocking: run in a thread), its
+        surface rendered as ``material`` (the server's choice by default)."""
         from ..image import load_image
         from ..maps.texturemap import texture_map
         from ..data import png_bytes
 
+        choice = self.material if material is None else material
         name = Path(filename or "upload").name[:80] or "upload"
         img = load_image(data, dpi=dpi, width_mm=width_mm, max_pixels=MAX_UPLOAD_PIXELS)
-        digest = hashlib.sha256(data + repr((width_mm, dpi)).encode()).hexdigest()[:12]
+        digest = hashlib.sha256(data + repr((width_mm, dpi, choice.label())).encode()).hexdigest()[:12]
         tid = f"upload-{digest}"
         if tid in self.textures:
             return self.textures[tid]
@@ -219,16 +260,54 @@ class ServerState:
         tmap = texture_map(img)  # now, in the upload's thread: the first stroke must not wait
         from ..surface import surface_model
 
-        surface = surface_model(img, tip_radius_m=self.tip_radius_m)  # likewise (bench/bench_surfaces.py measures it)
+        # likewise (bench/bench_surfaces.py measures it)
+        surface = surface_model(img, tip_radius_m=self.tip_radius_m, **choice.surface_kwargs())
         entry = TextureEntry(
             tid, name, f"Uploaded picture {name}", img.width_m, img.height_m, img.shape[1], img.shape[0], False,
-            lambda: png, lambda: tmap, lambda: surface,
+            lambda: png, lambda: tmap, lambda: surface, choice, lambda: img,
         )
         self.textures[tid] = entry
         self.uploads.append(tid)
         while len(self.uploads) > MAX_UPLOADS:
             self.textures.pop(self.uploads.popleft(), None)
         return entry
+
+    def rendered(self, texture_id: str, name: str | None) -> TextureEntry:
+        """The picture of ``texture_id`` rendered as the material the page's picker names
+        (:meth:`material_named`): the entry itself when it already is, else an entry of the
+        same picture and map with its own surface (made now: blocking, run in a thread),
+        kept among the last :data:`MAX_RENDERINGS`.
+
+        Raises
+        ------
+        KeyError
+            No such texture.
+        MaterialError
+            An unknown material.
+        """
+        entry = self.textures[texture_id]
+        base = self.textures[entry.base]
+        choice = self.material_named(name)
+        if choice == base.material:
+            return base
+        rid = f"{base.id}~{choice.name or 'picture'}"
+        if rid in self.textures:
+            return self.textures[rid]
+        if base.make_image is None:
+            raise KeyError(texture_id)
+        img = base.make_image()
+        from ..surface import surface_model
+
+        surface = surface_model(img, tip_radius_m=self.tip_radius_m, **choice.surface_kwargs())
+        made = TextureEntry(
+            rid, base.name, base.description, base.width_m, base.height_m, base.width_px, base.height_px,
+            base.builtin, lambda: base.png, lambda: base.map, lambda: surface, choice, base.make_image, base.id,
+        )
+        self.textures[rid] = made
+        self.renderings.append(rid)
+        while len(self.renderings) > MAX_RENDERINGS:
+            self.textures.pop(self.renderings.popleft(), None)
+        return made
 
     def warm(self) -> None:
         """Generate every built-in picture, its map and its surface (about a second, once)."""
@@ -261,16 +340,17 @@ class ServerState:
         }
 
 
-def _builtin_entry(t: Any, tip_radius_m: float) -> TextureEntry:
+def _builtin_entry(t: Any, tip_radius_m: float, material: MaterialChoice) -> TextureEntry:
     from ..data import TEXTURE_SIZE_PX, builtin_map
 
     return TextureEntry(
         t.id, t.name, t.description, t.width_m, t.height_m, *TEXTURE_SIZE_PX, True,
-        lambda: t.png, lambda: builtin_map(t.id), lambda: _surface_of(t, tip_radius_m),
+        lambda: t.png, lambda: builtin_map(t.id), lambda: _surface_of(t, tip_radius_m, material), material,
+        lambda: t.image,
     )
 
 
-def _surface_of(t: Any, tip_radius_m: float) -> Any:
+def _surface_of(t: Any, tip_radius_m: float, material: MaterialChoice) -> Any:
     from ..surface import surface_model
 
-    return surface_model(t.image, tip_radius_m=tip_radius_m)
+    return surface_model(t.image, tip_radius_m=tip_radius_m, **material.surface_kwargs())

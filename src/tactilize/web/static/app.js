@@ -197,9 +197,11 @@ function layoutSurface() {
   s.dataset.texture = T.view === "six" ? "" : T.texture;
   s.dataset.mmPerPx = String(mm);
   T.cell = { w: cw, h: ch, cols, ids: cells.map((c) => c[0].id) };
+  const shown = T.view === "six" ? null : textures.get(T.texture);
   for (const b of document.querySelectorAll("#gallery button")) {
-    b.setAttribute("aria-pressed", String(T.view === "six" ? T.six.includes(b.dataset.id) : b.dataset.id === T.texture));
+    b.setAttribute("aria-pressed", String(T.view === "six" ? T.six.includes(b.dataset.id) : b.dataset.id === (shown ? shown.base || shown.id : T.texture)));
   }
+  showRenderedAs();
   return msg;
 }
 
@@ -222,11 +224,39 @@ function selectTexture(id) {
   if (T.view === "six") {
     // Put it in the next slot (cycling), so built-ins and uploads can be mixed.
     if (!T.six.includes(id)) { T.six[T.sixNext % T.six.length] = id; T.sixNext++; }
-  } else {
-    if (id !== T.texture) strokeExport.forget();  // the last stroke was on another picture
-    T.texture = id;
+    applySurface();
+    return Promise.resolve();
   }
-  applySurface();
+  // The picture as the picker's material: the server builds its surface with it.
+  return renderedAs(id, $("#material").value).then((rid) => {
+    if (rid !== T.texture) strokeExport.forget();  // the last stroke was on another picture
+    T.texture = rid;
+    applySurface();
+  }).catch((e) => showError(e.message));
+}
+
+/** The id of picture ``id`` rendered as material ``name`` ("" picture only): the entry
+ *  itself when it already is, else the server's rendering of it (made on first ask). */
+async function renderedAs(id, name) {
+  const t = textures.get(id);
+  if (!t || (t.material || "") === name) return id;
+  const base = textures.get(t.base) || t;
+  if ((base.material || "") === name) return base.id;
+  const r = await fetch(`/api/textures/${encodeURIComponent(base.id)}/rendered`, {
+    method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify({ material: name }) });
+  const body = await r.json();
+  if (!r.ok) throw new Error(body.error || `rendering failed (${r.status})`);
+  textures.set(body.id, body);
+  return body.id;
+}
+
+/** The line saying what the shown picture is rendered as. */
+function showRenderedAs() {
+  const t = T.view === "six" ? null : textures.get(T.texture);
+  const text = t ? `rendered as: ${t.rendered_as}` : "rendered as: each picture's own (six side by side)";
+  const el = $("#rendered-as");
+  setText(el, text);
+  el.dataset.material = t ? (t.material || "") : "";
 }
 
 function setView(view) {
@@ -390,8 +420,17 @@ function setupCalibrationPrompt() {
 }
 
 async function setup() {
-  const [config, profiles, list] = await Promise.all([loadJSON("/api/config"), loadJSON("/api/profiles"), loadJSON("/api/textures")]);
+  const [config, profiles, list, materials] = await Promise.all([loadJSON("/api/config"), loadJSON("/api/profiles"),
+    loadJSON("/api/textures"), loadJSON("/api/materials")]);
   T.config = config;
+  const picker = $("#material");
+  for (const m of materials.materials) {
+    const o = document.createElement("option"); o.value = m.name; o.textContent = m.name; o.title = `${m.description}: ${m.rendered_as}`;
+    picker.append(o);
+  }
+  picker.value = materials.default || "";
+  // A new material re-renders the shown picture (uploads and later choices take it too).
+  picker.addEventListener("change", () => { if (T.texture && T.view !== "six") selectTexture(T.texture); });
   const sel = $("#profile");
   for (const p of profiles.profiles) {
     const o = document.createElement("option"); o.value = p.name; o.textContent = p.name; o.title = p.description; sel.append(o);
@@ -455,6 +494,7 @@ async function setup() {
     status.className = "";
     if (!file) { status.textContent = "choose a picture first"; status.className = "bad"; return; }
     const fd = new FormData(); fd.append("file", file); fd.append("width_mm", $("#upload-width").value);
+    fd.append("material", $("#material").value);
     status.textContent = "analysing…";
     try {
       const r = await fetch("/api/textures", { method: "POST", body: fd });
@@ -462,7 +502,7 @@ async function setup() {
       if (!r.ok) { status.textContent = body.error || `upload failed (${r.status})`; status.className = "bad"; return; }
       addToGallery(body);
       status.textContent = `${body.name}: ${body.width_mm.toFixed(1)} × ${body.height_mm.toFixed(1)} mm`;
-      selectTexture(body.id);
+      await selectTexture(body.id);
     } catch (e) { status.textContent = `upload failed: ${e.message}`; status.className = "bad"; }
   });
 
