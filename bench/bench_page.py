@@ -70,7 +70,7 @@ INSTRUMENT = r"""
       try {
         const m = JSON.parse(data);
         if (m.type === "samples" && m.samples.length) {
-          lat.pending.push([m.seq, m.samples[m.samples.length - 1][0]]);
+          lat.pending.push([Number(m.batch), m.samples[m.samples.length - 1][0]]);
           lat.batches++; lat.rows += m.samples.length;
         }
       } catch (e) { /* not ours */ }
@@ -83,8 +83,8 @@ INSTRUMENT = r"""
       this.addEventListener("message", (ev) => {
         const now = performance.now();
         let m; try { m = JSON.parse(ev.data); } catch (e) { return; }
-        if (m.type !== "drive" || m.resting || typeof m.seq !== "number") return;
-        while (lat.pending.length && lat.pending[0][0] <= m.seq) {
+        if (m.type !== "drive" || m.resting || m.batch == null) return;
+        while (lat.pending.length && lat.pending[0][0] <= Number(m.batch)) {
           const t = lat.pending.shift()[1];
           lat.values.push(now - t); lat.times.push(t);
         }
@@ -98,7 +98,7 @@ ECHO_IN_PAGE = """async ([url, n]) => {
   const ws = new WebSocket(url);
   await new Promise((ok, bad) => { ws.onopen = ok; ws.onerror = bad; });
   const rtt = [];
-  const body = JSON.stringify({type: "samples", seq: 0, samples: [[0, 10, 10, 0.5, 0, 0]]});
+  const body = JSON.stringify({type: "samples", batch: "0", samples: [[0, 10, 10, 0.5, 0, 0]]});
   for (let i = 0; i < n; i++) {
     const t = performance.now();
     await new Promise((ok) => { ws.onmessage = ok; ws.send(body); });

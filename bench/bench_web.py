@@ -131,7 +131,9 @@ def serve_echo() -> None:
 # ----------------------------------------------------------------- phases
 
 
-def circle_sample(t_s, cx=128.0, cy=96.0, r=60.0, period_s=2.0, pressure=0.5):
+def circle_sample(t_s, cx=33.9, cy=25.4, r=15.9, period_s=2.0, pressure=0.5):
+    """A pen sample on a circle: time [ms], position [mm on the picture] (radius
+    15.9 mm in 2 s: 50 mm/s), pressure, tilt."""
     a = 2 * math.pi * t_s / period_s
     return [t_s * 1e3, cx + r * math.cos(a), cy + r * math.sin(a), pressure, 0.0, 0.0]
 
@@ -143,12 +145,12 @@ def round_trips(ws, n, batch=4, interval_s=0.004, is_reply=lambda m: m.get("type
     for k in range(n):
         t = time.perf_counter() - t0
         rows = [circle_sample(t - (batch - 1 - i) * 0.001) for i in range(batch)]
-        msg = json.dumps({"type": "samples", "seq": k, "samples": rows})
+        msg = json.dumps({"type": "samples", "batch": str(k), "samples": rows})
         s = time.perf_counter()
         ws.send(msg)
         while True:
             reply = json.loads(ws.recv(timeout=5))
-            if is_reply(reply) and reply.get("seq") == k:
+            if is_reply(reply) and reply.get("batch") == str(k):
                 break
         rtts.append(time.perf_counter() - s)
         # Pace like a pen (and leave the server idle between batches, as a page does).
@@ -166,7 +168,7 @@ def echo_round_trips(url, n, batch=4, interval_s=0.004):
         for k in range(n):
             t = time.perf_counter() - t0
             rows = [circle_sample(t - (batch - 1 - i) * 0.001) for i in range(batch)]
-            msg = json.dumps({"type": "samples", "seq": k, "samples": rows})
+            msg = json.dumps({"type": "samples", "batch": str(k), "samples": rows})
             s = time.perf_counter()
             ws.send(msg)
             ws.recv(timeout=5)
@@ -214,7 +216,7 @@ def sustained(url, pid, seconds, rate_hz=1000):
                 time.sleep(min(due - now, 0.001))
                 continue
             late_max = max(late_max, now - due)
-            ws.send(json.dumps({"type": "samples", "seq": sent, "samples": [circle_sample(now - t0)]}))
+            ws.send(json.dumps({"type": "samples", "batch": str(sent), "samples": [circle_sample(now - t0)]}))
             sent += 1
         elapsed = time.perf_counter() - t0
         time.sleep(0.2)
@@ -245,7 +247,7 @@ def pipeline_only(n, batch=4, interval_s=0.004):
         for k in range(n):
             t = time.perf_counter() - t0
             rows = [circle_sample(t - (batch - 1 - i) * 0.001) for i in range(batch)]
-            text = json.dumps({"type": "samples", "seq": k, "samples": rows})
+            text = json.dumps({"type": "samples", "batch": str(k), "samples": rows})
             s = time.perf_counter_ns()
             sess.handle(text)
             dumps(sess.render_pending(), compact=True)
@@ -271,7 +273,7 @@ def flood(url, pid, seconds):
             t0 = time.perf_counter()
             while time.perf_counter() - t0 < seconds:
                 rows = [[(n * 200 + i) * 0.05, 10 + (n * 200 + i) * 1e-4, 10.0, 0.5] for i in range(200)]
-                ws.send(json.dumps({"type": "samples", "seq": n, "samples": rows}))
+                ws.send(json.dumps({"type": "samples", "batch": str(n), "samples": rows}))
                 n += 1
             rss1 = proc.memory_info().rss
     except Exception:  # the server may give up on a client that never reads: that is allowed
