@@ -62,7 +62,7 @@ def test_build_from_a_manifest_passes_material_through(tmp_path):
     _photo(tmp_path / "ph" / "a.jpg")
     _photo(tmp_path / "ph" / "b.jpg", size=(300, 200), seed=2)
     (tmp_path / "ph" / "bad.jpg").write_bytes(b"not an image")
-    (tmp_path / "m.jsonl").write_text('{"id": "shirt/1", "path": "ph/a.jpg", "material": "linen", "width_mm": 300}\n'
+    (tmp_path / "m.jsonl").write_text('{"id": "shirt/1", "path": "ph/a.jpg", "material": "fabric-woven", "width_mm": 300}\n'
                                       '{"id": "b", "path": "ph/b.jpg"}\n{"id": "bad", "path": "ph/bad.jpg"}\n')
     s = build_site(str(tmp_path / "m.jsonl"), tmp_path / "out")
     assert [p["id"] for p in s.products] == ["b", "shirt/1"]
@@ -73,13 +73,13 @@ def test_build_from_a_manifest_passes_material_through(tmp_path):
         assert (out / name).is_file(), name
     shirt = next(p for p in s.products if p["id"] == "shirt/1")
     m = decode_model((out / "models" / f"{shirt['slug']}.tsf").read_bytes())
-    assert m.header["material"] == "linen" and m.header["id"] == "shirt/1"
+    assert m.header["material"] == "fabric-woven" and m.header["id"] == "shirt/1"
     assert abs(m.header["cols"] * m.header["display_pitch_m"][0] - 0.300) < 1e-9  # the real width kept
     assert shirt["model_bytes"] <= MAX_MODEL_BYTES
     assert decode_model((out / "models" / f"{s.products[0]['slug']}.tsf").read_bytes()).header["material"] is None
     page = (out / "p" / f"{shirt['slug']}.html").read_text()
     assert f'<tactile-surface model="../models/{shirt["slug"]}.tsf"' in page and "http" not in page
-    assert json.loads((out / "products.json").read_text())[1]["material"] == "linen"
+    assert json.loads((out / "products.json").read_text())[1]["material"] == "fabric-woven"
 
 
 def test_cli_site_builds_and_bad_input_is_one_line_and_exit_2(tmp_path):

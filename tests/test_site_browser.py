@@ -64,8 +64,8 @@ def site(tmp_path_factory):
     (root / "photos").mkdir()
     for name, period, seed in (("linen", 41, 1), ("corduroy", 23, 2), ("canvas", 60, 3)):
         photo(root / "photos" / f"{name}.jpg", period, seed)
-    (root / "shop.csv").write_text("id,path,width_mm,material\nlinen,photos/linen.jpg,200,linen\n"
-                                   "corduroy,photos/corduroy.jpg,150,cotton corduroy\ncanvas,photos/canvas.jpg,,\n")
+    (root / "shop.csv").write_text("id,path,width_mm,material\nlinen,photos/linen.jpg,200,fabric-woven\n"
+                                   "corduroy,photos/corduroy.jpg,150,fabric-corduroy\ncanvas,photos/canvas.jpg,,\n")
     summary = build_site(str(root / "shop.csv"), root / "site")
     return root / "site", summary
 
