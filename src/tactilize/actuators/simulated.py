@@ -17,8 +17,11 @@ finger gets can be read back (:meth:`SimulatedOutput.pulse_log`).
 The plant may differ from what the controller was told (``plant_wire``,
 ``plant_circuit``): cells that sag, air that is warmer than configured.
 
-Pulse events (the surface rendering, docs/surfaces.md): :meth:`SimulatedOutput.play_events`
-replaces each channel's events not yet fired; the controller holds the operating
+Frames (:meth:`SimulatedOutput.play`, the one entry point of every renderer): a steady
+rendering's frame is its Drive's regular train, which the phase-continuous scheduler plays
+exactly (:meth:`~SimulatedOutput.apply`, the same heat and pulses as ever, beyond the frame's
+25 ms); any other frame's pulse events (the surface rendering, docs/surfaces.md) replace each
+channel's events not yet fired; the controller holds the operating
 point on the equivalent drive, and each event becomes one pulse whose heat is its
 strength's place in the felt band at its own interval, bounded by the channel's
 running heat estimate (:class:`~tactilize.actuators.sma.heat.RunningHeat`).
@@ -126,9 +129,6 @@ class SimulatedOutput(OutputBase):
     #: turns it into a position in the felt band (module docstring of
     #: :mod:`tactilize.actuators.sma.controller`), so both pins can play it.
     amplitude_is_intensity = False
-    #: Plays pulse events (:meth:`play_events`).
-    plays_events = True
-
     def __init__(
         self,
         wire: WireSpec | str | None = None,
@@ -226,7 +226,16 @@ class SimulatedOutput(OutputBase):
         self._drives = applied
         return applied
 
-    def play_events(self, channels: Sequence[Sequence[Any]], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
+    def play(self, frame: Any, now_s: float, channels: Sequence[Drive]) -> list[Drive]:
+        """Play one rendered frame (the Output interface): a regular train (a steady rendering's)
+        from its Drive by the phase-continuous scheduler, which plays that very train (and keeps
+        it going between frames), any other frame's events one bounded pulse each, the
+        controller holding the operating point ``channels``."""
+        if frame.regular:
+            return self.apply(channels)
+        return self._play_events([frame.events] * self.channels, now_s, channels)
+
+    def _play_events(self, channels: Sequence[Sequence[Any]], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
         """Per channel, the pulse events to play from now on; replaces those not yet fired.
 
         Parameters
