@@ -4,7 +4,7 @@ Runs the controller firmware in a process of its own behind a pseudo-terminal
 (the emulator, reporting the instant of every pulse its channel-0 pin makes) and
 drives it through :class:`~tactilize.actuators.serial.SerialOutput`:
 
-- link: SerialOutput.play_events() with 9 pulses per channel (an EVENTS frame
+- link: SerialOutput.play() with 9 pulses per channel (an EVENTS frame
   each) against the reference measured in the same run, SerialOutput.apply()
   with the windowed drive (a SET per channel): calls and pulses per second;
 - board: minimum-jerk strokes over bump fields with known centres, rendered in
@@ -39,6 +39,7 @@ from tactilize.pen.tracker import StrokeTracker
 from tactilize.surface import surface_model
 from tactilize.surface.equivalent import equivalent_drive
 from tactilize.surface.events import PulseEvent
+from tactilize.surface.rendering import Frame
 from tactilize.surface.fields import bump_line_field, min_jerk_path
 from tactilize.surface.stroke import SurfaceStroke
 
@@ -135,7 +136,7 @@ def _stroke(out: SerialOutput, seed: int, events: bool) -> tuple[float, np.ndarr
             continue
         evs = stroke.update(batch, state.speed_m_s, state.direction_rad, state.pressure)
         if events:
-            out.play_events([evs], batch[-1].t_s, [OPERATING])
+            out.play(Frame(tuple(evs), OPERATING, False), batch[-1].t_s, [OPERATING])
         else:
             # The windowed drive, as a version 3 board gets it.
             d = equivalent_drive(stroke.recent(0.1), batch[-1].t_s)
@@ -173,7 +174,7 @@ def run(quick: bool = False) -> dict:
             evs = [PulseEvent(0.5 + 0.0034 * k, 0.5) for k in range(9)]  # half a second ahead: replaced, never fired
             t0 = time.perf_counter()
             for i in range(n):
-                out.play_events([evs, evs], 0.001 * (i % 3), [OPERATING, OPERATING])
+                out.play(Frame(tuple(evs), OPERATING, False), 0.001 * (i % 3), [OPERATING, OPERATING])
             ev_s = (time.perf_counter() - t0) / n
             out.stop()
             res["link"] = {"set_calls_per_s": 1 / set_s, "set_frames_per_s": 2 / set_s, "events_calls_per_s": 1 / ev_s,
@@ -195,7 +196,7 @@ def report(res: dict) -> None:
     link = res["link"]
     print("serial link to the emulator over a pty (both channels per call)")
     print(f"  reference: apply(), windowed SET drive   {link['set_calls_per_s']:8.0f} calls/s")
-    print(f"  play_events(), 9 pulses a channel        {link['events_calls_per_s']:8.0f} calls/s"
+    print(f"  play(), 9 pulses a channel        {link['events_calls_per_s']:8.0f} calls/s"
           f" = {link['events_per_s']:.0f} events/s  ({link['events_over_set_calls']:.2f}x the SET calls)")
     c = res["clock"]
     print(f"clock sync: residual {c['residual_us']:.0f} us, least round trip {c['rtt_us']:.0f} us, "

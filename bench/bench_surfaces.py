@@ -47,6 +47,7 @@ from tactilize.mapping import Profile
 from tactilize.surface import surface_model
 from tactilize.surface.events import event_statistics, stroke_events
 from tactilize.surface.fields import grain_field
+from tactilize.surface.rendering import Frame
 
 SPEED_MM_S = 40.0
 WIDTH_MM = 100.0
@@ -280,7 +281,7 @@ def wire_throughput(seconds: float) -> dict:
         # Every batch hands over what lies ahead (it replaces what is not yet fired).
         first, last = int(np.ceil(now * rate)), int(np.ceil((now + 0.025) * rate))
         evs = [PulseEvent(k / rate, 0.5) for k in range(first, last)]
-        out.play_events([evs, evs], now, [eq, eq])
+        out.play(Frame(tuple(evs), eq, False), now, [eq, eq])
         out.advance(batch)
         now += batch
     wall = time.perf_counter() - t0

@@ -186,14 +186,19 @@ def _grating_events(speed_m_s: float = 0.1, duration_s: float = 1.0):
     return stroke_events(surface, t, 5e-3 + speed_m_s * t, np.full(t.size, 10e-3))
 
 
+def _frame(events):
+    from tactilize.surface.rendering import Frame
+
+    return Frame(tuple(events), Drive.off(), False)
+
+
 def test_events_play_as_wavelets_at_the_crossing_rate(fake_sd):
     from tactilize.synthesis.acceleration import spectral_peak_hz, spectrum
 
     events = _grating_events(0.1)
     out = AudioOutput(sample_rate_hz=RATE, envelope=Identity())
-    assert out.plays_events
     eq = Drive(pulse_frequency_hz=100.0, pulse_width_s=0.001, amplitude=0.5)
-    applied = out.play_events([events, events], 0.0, [eq, eq])
+    applied = out.play(_frame(events), 0.0, [eq, eq])
     assert applied[0] == eq
     x = FakeStream.instances[-1].pull(RATE)
     assert np.isfinite(x).all()
@@ -214,9 +219,9 @@ def test_a_new_batch_replaces_what_has_not_started(fake_sd):
     from tactilize.surface.events import PulseEvent
 
     on = Drive(pulse_frequency_hz=50.0, pulse_width_s=0.001, amplitude=0.5)
-    out.play_events([[PulseEvent(0.005, 1.0), PulseEvent(0.200, 1.0)]] * 2, 0.0, [on, on])
+    out.play(_frame([PulseEvent(0.005, 1.0), PulseEvent(0.200, 1.0)]), 0.0, [on, on])
     first = stream.pull(1024)  # 21 ms: the first wavelet has started
-    out.play_events([[PulseEvent(0.200, 0.5)]] * 2, 1024 / RATE, [on, on])
+    out.play(_frame([PulseEvent(0.200, 0.5)]), 1024 / RATE, [on, on])
     rest = stream.pull(RATE // 2)
     x = np.concatenate([first, rest])[:, 0]
     assert x[:3400].min() < -0.99  # the started one played to its end (3 sigma = 34 ms)...
@@ -231,7 +236,7 @@ def test_a_steady_drive_after_events_drops_them(fake_sd):
 
     out = AudioOutput(sample_rate_hz=RATE, envelope=Identity())
     on = Drive(pulse_frequency_hz=50.0, pulse_width_s=0.001, amplitude=0.5)
-    out.play_events([[PulseEvent(0.05, 1.0)]] * 2, 0.0, [on, on])
+    out.play(_frame([PulseEvent(0.05, 1.0)]), 0.0, [on, on])
     out.apply([on, on])
     x = FakeStream.instances[-1].pull(RATE // 5)
     assert x.min() >= 0.0  # only the pulse train: no wavelet
@@ -245,9 +250,9 @@ def test_an_event_re_sent_after_its_wavelet_started_plays_once(fake_sd):
     stream = FakeStream.instances[-1]
     on = Drive(pulse_frequency_hz=50.0, pulse_width_s=0.001, amplitude=0.5)
     events = [PulseEvent(0.010, 1.0), PulseEvent(0.030, 1.0)]
-    out.play_events([events] * 2, 0.0, [on, on])
+    out.play(_frame(events), 0.0, [on, on])
     head = stream.pull(600)  # the first wavelet (centre 15.3 ms, 3 sigma = 13.5 ms) has started
-    out.play_events([events] * 2, 600 / RATE + 0.004, [on, on])  # a later batch, arriving late
+    out.play(_frame(events), 600 / RATE + 0.004, [on, on])  # a later batch, arriving late
     x = np.concatenate([head, stream.pull(4800)])[:, 0]
     troughs = np.flatnonzero((x[1:-1] < x[:-2]) & (x[1:-1] <= x[2:]) & (x[1:-1] < -0.9))
     assert len(troughs) == 2
@@ -263,9 +268,9 @@ def test_an_event_fired_on_the_stroke_clock_plays_though_the_device_is_behind(fa
     stream = FakeStream.instances[-1]
     on = Drive(pulse_frequency_hz=50.0, pulse_width_s=0.001, amplitude=0.5)
     events = [PulseEvent(0.010 + 0.020 * k, 1.0) for k in range(4)]  # 20 ms apart
-    out.play_events([events] * 2, 0.0, [on, on])
+    out.play(_frame(events), 0.0, [on, on])
     head = stream.pull(600)  # the device is 12.5 ms in: the 30 ms wavelet has not started
-    out.play_events([events[2:]] * 2, 0.035, [on, on])  # the stroke is at 35 ms: two have fired
+    out.play(_frame(events[2:]), 0.035, [on, on])  # the stroke is at 35 ms: two have fired
     x = np.concatenate([head, stream.pull(4800)])[:, 0]
     troughs = np.flatnonzero((x[1:-1] < x[:-2]) & (x[1:-1] <= x[2:]) & (x[1:-1] < -0.9))
     assert len(troughs) == 4

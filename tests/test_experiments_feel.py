@@ -84,9 +84,8 @@ class Recording(OutputBase):
                          tuple(d.pulse_width_s for d in channels), tuple(d.amplitude for d in channels)))
         return list(channels)
 
-    def play_events(self, channels, now_s, equivalent):
-        self.log.append(("events", now_s, tuple(tuple((e.t_s, e.strength) for e in ch) for ch in channels)))
-        return list(equivalent)
+    def play(self, frame, now_s, channels):
+        return self.apply(channels)
 
     def standby(self):
         self.log.append(("standby",))
@@ -100,7 +99,14 @@ class SMARecording(Recording):
 
 
 class EventRecording(Recording):
-    plays_events = True
+    """Schedules events (a steady rendering's regular train it plays as its drive)."""
+
+    def play(self, frame, now_s, channels):
+        if frame.regular:
+            return self.apply(channels)
+        self.log.append(("events", now_s, tuple(tuple((e.t_s, e.strength) for e in frame.events)
+                                                 for _ in channels)))
+        return list(channels)
 
 
 def _stroke_px(t0_ms: float, n_batches: int, per_batch: int = 4):

@@ -122,9 +122,15 @@ def test_android_low_frequency_pulses_in_whole_ms(tmp_path):
     assert sum(t) == 1000
     assert all(isinstance(x, int) and x > 0 for x in t)
     assert all(0 <= x <= 255 for x in a)
-    assert a.count(round(0.6 * 255)) == 40
-    assert t[:2] == [3, 22]
-    assert doc["envelope"][0]["frequency_hz"] == 40.0
+    # One document for every rendering: each pulse of the 40 Hz train (25 ms apart: a phone
+    # plays them apart) is a tap, at the drive's intensity (the rule of a continuous stretch
+    # too), TAP_MS on in the fallback; in the compositions one primitive each, 25 ms apart.
+    level = round(255 * intensity_from_drive(Drive(40.0, 3e-3, 0.6)))
+    assert a.count(level) == 40
+    assert t[:2] == [10, 15]
+    prims = [q for c in doc["compositions"] for q in c["primitives"]]
+    assert len(prims) == 40 and [q["t_ms"] for q in prims] == [25 * k for k in range(40)]
+    assert all(q["delay_ms"] == 25 for q in prims[1:])
 
 
 def test_android_drift_free_with_a_fractional_period():

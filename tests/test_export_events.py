@@ -239,7 +239,7 @@ def test_a_steady_stroke_that_starts_where_the_drive_is_off_exports_to_android()
     doc = json.loads(render(tl, "android"))
     freqs = [c["frequency_hz"] for w in doc["waveform_envelopes"] for c in w["control_points"]]
     assert min(freqs) == 120.0 and doc["waveform_envelopes"][0]["initial_frequency_hz"] == 120.0
-    assert doc["waveform_envelopes"][0]["control_points"][0]["amplitude"] == 0.0  # silent while the drive is off
+    assert doc["waveform_envelopes"][0]["start_ms"] == 200  # silent while the drive is off: it starts with the pulses
 
 
 def test_the_wire_drive_of_a_surface_stroke_stays_a_drive_over_time(synthetic):

@@ -167,15 +167,30 @@ def test_ahap_effective_sharpness_stays_below_one_on_the_stroke(timeline):
 # ----------------------------------------------------------------- round trips
 
 
-def _value_at(tl, t):
-    d = tl.at(min(t, tl.end_s - 1e-9))
-    return intensity_from_drive(d), d.pulse_frequency_hz
+def _events_curve(tl, min_interval_s=0.020):
+    """The stroke's one events timeline (what every parametric format plays) as curves:
+    (times, intensities, local rates), the rate of each run of events closer than
+    ``min_interval_s`` over that run, as the continuous stretches follow them."""
+    from tactilize.export.events import close_groups, event_intensity, timeline_events
+    from tactilize.surface.events import local_rate_hz
+
+    evs = timeline_events(tl)
+    t = np.array([e.t_s for e in evs])
+    rate = np.concatenate([local_rate_hz(np.array([e.t_s for e in g])) for g in close_groups(evs, min_interval_s)])
+    return t, np.array([event_intensity(e.strength) for e in evs]), rate
 
 
-def _close_to_drive(tl, p, *, fmin=0.0, fmax=np.inf):
-    """The point matches the drive at its time or 1 ms either side (timing within 1 ms)."""
+def _value_at(tl, t, min_interval_s=0.020):
+    """Intensity and rate of the events at ``t`` [s] (a steady stroke's: its pulses, at their
+    drive's intensity and their train's rate)."""
+    times, inten, rate = _events_curve(tl, min_interval_s)
+    return float(np.interp(t, times, inten)), float(np.interp(t, times, rate))
+
+
+def _close_to_drive(tl, p, *, fmin=0.0, fmax=np.inf, min_interval_s=0.020):
+    """The point matches the events at its time or 1 ms either side (timing within 1 ms)."""
     for t in (p.t_s, p.t_s - 1e-3, p.t_s + 1e-3):
-        a, f = _value_at(tl, t)
+        a, f = _value_at(tl, t, min_interval_s)
         f_ok = not (fmin <= f <= fmax) or abs(p.frequency_hz - f) <= 0.01 * f
         if abs(p.amplitude - a) <= 0.02 and f_ok:
             return True
@@ -183,28 +198,31 @@ def _close_to_drive(tl, p, *, fmin=0.0, fmax=np.inf):
 
 
 def _expected_taps(tl, min_interval_s):
-    """The pulses below 65 Hz at least ``min_interval_s`` from the slow pulse before and after:
-    those a player plays apart as taps (closer ones play continuously)."""
-    slow = [q for q in tl.pulses() if q.drive.pulse_frequency_hz < 65.0]
-    times = [-np.inf] + [q.t_s for q in slow] + [np.inf]
-    least = min_interval_s - 1e-9  # (float rounding of whole microseconds)
-    return [q for i, q in enumerate(slow) if q.t_s - times[i] >= least and times[i + 2] - q.t_s >= least]
+    """The events at least ``min_interval_s`` from the one before and after: those a player
+    plays apart as taps (closer ones play continuously)."""
+    from tactilize.export.events import plan_events, timeline_events
+
+    return list(plan_events(timeline_events(tl), min_interval_s, tl.end_s).transients)
 
 
 def _check_taps(tl, track, min_interval_s, with_frequency=True, fmin=0.0, fmax=np.inf):
-    """Taps where the rule puts them; frequencies as the format can say them (clipped to its
-    range, whole hertz in .hjif)."""
+    """Taps where the rule puts them, at the event's intensity (a steady pulse's: its drive's,
+    the same rule as a continuous stretch); frequencies as the format can say them (clipped
+    to its range, whole hertz in .hjif)."""
+    from tactilize.export.events import event_intensity, timeline_events
+
     taps, expected = track.taps, _expected_taps(tl, min_interval_s)
     assert len(taps) == len(expected)
-    for tap, pulse in zip(taps, expected):
-        assert abs(tap.t_s - pulse.t_s) <= 1e-3
-        assert tap.amplitude == pytest.approx(pulse.amplitude, abs=0.02)
+    for tap, ev in zip(taps, expected):
+        assert abs(tap.t_s - ev.t_s) <= 1e-3
+        assert tap.amplitude == pytest.approx(event_intensity(ev.strength), abs=0.02)
         if with_frequency:
-            f = min(max(pulse.drive.pulse_frequency_hz, fmin), fmax)
+            f = min(max(ev.frequency_hz, fmin), fmax)
             assert tap.frequency_hz == pytest.approx(f, rel=0.01, abs=0.5)
     gaps = np.diff([t.t_s for t in taps])
     assert np.all(gaps >= min_interval_s - 1e-3)  # (times in whole milliseconds)
-    close = [q.t_s for q in tl.pulses() if q.drive.pulse_frequency_hz < 65.0 and q not in expected]
+    slow = [e for e in timeline_events(tl) if e.frequency_hz < 65.0]
+    close = [e for e in slow if e not in expected]
     return len(expected), len(close)
 
 
@@ -233,7 +251,7 @@ def test_round_trip_hjif(which, request):
     for c in range(2):
         track = read_hjif(doc, channel=c)
         assert track.channels == 2 and len(track.points) > 20
-        assert all(_close_to_drive(tl, p) for p in track.points)
+        assert all(_close_to_drive(tl, p, min_interval_s=0.022) for p in track.points)
         taps, close = _check_taps(tl, track, 0.022)
         assert (taps > 5 and close > 5) if which == "tapping" else (taps == 0 and close > 0)
 

@@ -1,7 +1,7 @@
 """Pulse events through SerialOutput to the firmware over the emulator's pseudo-terminal.
 
 Minimum-jerk strokes on a bump field with known centres are played in real time
-through the surface's real-time path and :meth:`SerialOutput.play_events`; the
+through the surface's real-time path and :meth:`SerialOutput.play`; the
 pulses the emulated pins made are compared with the true crossings.  The clock
 sync and the frame ids are also checked on their own, with made-up exchanges.
 """
@@ -34,6 +34,7 @@ from tactilize.pen.samples import PenSample
 from tactilize.pen.tracker import StrokeTracker
 from tactilize.surface import surface_model
 from tactilize.surface.fields import bump_line_field, min_jerk_path, true_crossings
+from tactilize.surface.rendering import Frame
 from tactilize.surface.stroke import SurfaceStroke
 
 from _virtual_board import Board
@@ -145,7 +146,7 @@ def test_a_pulse_sent_again_keeps_its_id():
 
 def test_the_host_keeps_the_boards_clock_in_step(emu):
     with SerialOutput(emu.device, closed_loop=False) as out:
-        assert out.plays_events
+        assert out.schedules_pulses
         start = out.clock.count
         assert start >= 8  # the handshake's burst
         assert _wait(lambda: out.clock.count >= start + 20, 10.0)
@@ -306,7 +307,7 @@ def test_minimum_jerk_strokes_over_the_pseudo_terminal(emu_process, resends):
     device, edges = emu_process
     strokes = []
     with SerialOutput(device, closed_loop=False) as out:
-        assert out.plays_events
+        assert out.schedules_pulses
         if resends:
             _duplicate_event_frames(out)
         for seed in (101, 102):
@@ -343,8 +344,8 @@ def test_a_version_3_board_gets_the_windowed_drive(emu, monkeypatch):
     monkeypatch.setattr(fw, "VERSION", 3)
     monkeypatch.setattr(ctl.decoder, "on_frame", v3)
     with SerialOutput(emu.device, closed_loop=False) as out:
-        assert out.controller_status.version == 3 and not out.plays_events
-        sent = out.play_events([[]], 0.0, [Drive(80.0, 4e-4)])
+        assert out.controller_status.version == 3 and not out.schedules_pulses
+        sent = out.play(Frame((), Drive(80.0, 4e-4), False), 0.0, [Drive(80.0, 4e-4)])
         assert sent[0].pulse_frequency_hz == 80.0
         assert out.status().channels[0].on
         assert _wait(lambda: len(_rises(PIN0, 0.0)) + len(host_machine.pwm_pulses(PIN0)) > 3, 2.0)

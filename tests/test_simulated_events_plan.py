@@ -1,7 +1,7 @@
 """The plan of the operating point while the simulated wire plays events.
 
 Every pulse is planned when it plays; the plan of the window's equivalent drive is what
-``play_events`` reports (the page shows it; an export records it as the wire's drive).
+``play`` reports (the page shows it; an export records it as the wire's drive).
 Stepped by ``advance`` (offline: a stroke run for an export) each call gets its own plan.
 Running in real time (the pen server) the simulation thread makes it when it takes the
 events, so a pen batch does not plan it again: a batch gets the newest plan, the first
@@ -17,6 +17,7 @@ import time
 from tactilize.actuators.simulated import SimulatedOutput
 from tactilize.drive import Drive
 from tactilize.surface.events import PulseEvent
+from tactilize.surface.rendering import Frame
 
 
 def _eq(rate_hz: float, strength: float = 0.6) -> Drive:
@@ -52,7 +53,7 @@ def test_offline_every_hand_over_gets_the_plan_of_its_own_operating_point():
     out = SimulatedOutput(start=False)
     for k in range(6):
         d = _eq(60.0 + 10 * k)
-        shown = out.play_events([_events(1.0 + 0.004 * k)] * 2, 1.0 + 0.004 * k, [d, d])
+        shown = out.play(Frame(tuple(_events(1.0 + 0.004 * k)), d, False), 1.0 + 0.004 * k, [d, d])
         want = out._planned(out._chans[0], d)
         assert shown[0].pulse_frequency_hz == d.pulse_frequency_hz
         assert shown[0].pulse_width_s == want.pulse_width_s and shown[0].amplitude == want.amplitude
@@ -76,7 +77,7 @@ def test_in_real_time_the_pen_thread_plans_once_and_the_wire_thread_the_rest():
         me = threading.current_thread().name
         for k in range(20):
             d = _eq(60.0 + 5 * k)
-            out.play_events([_events(1.0 + 0.004 * k)] * 2, 1.0 + 0.004 * k, [d, d])
+            out.play(Frame(tuple(_events(1.0 + 0.004 * k)), d, False), 1.0 + 0.004 * k, [d, d])
         assert by_thread.get(me) == 1  # the first hand-over only
         last = _eq(60.0 + 5 * 19)
         # The wire's thread takes the newest events within a tick and plans their operating point.
@@ -98,18 +99,18 @@ def test_batches_get_the_plan_the_wire_made_and_do_not_plan_it_again():
     out = _live()
     calls = _counting(out)
     first = _eq(60.0)
-    shown = out.play_events([_events(1.0)] * 2, 1.0, [first, first])
+    shown = out.play(Frame(tuple(_events(1.0)), first, False), 1.0, [first, first])
     assert calls[0] == 1  # the first hand-over plans its own (both pins share one plan)
     assert shown[0].pulse_frequency_hz == 60.0
     for k in range(1, 6):  # new operating points, no simulation step in between
         d = _eq(60.0 + 10 * k)
-        again = out.play_events([_events(1.0 + 0.004 * k)] * 2, 1.0 + 0.004 * k, [d, d])
+        again = out.play(Frame(tuple(_events(1.0 + 0.004 * k)), d, False), 1.0 + 0.004 * k, [d, d])
         assert again is shown
     assert calls[0] == 1
     out.advance(0.004)  # the wire takes the newest events and plans their operating point
     assert calls[0] == 2
     later = _eq(130.0)
-    newest = out.play_events([_events(1.03)] * 2, 1.03, [later, later])
+    newest = out.play(Frame(tuple(_events(1.03)), later, False), 1.03, [later, later])
     assert newest is not shown
     # The plan of the operating point the wire took: the last handed over before the step (110 Hz).
     expected = out._planned(out._chans[0], _eq(110.0))
@@ -121,25 +122,25 @@ def test_batches_get_the_plan_the_wire_made_and_do_not_plan_it_again():
 def test_after_a_steady_drive_or_a_stop_the_next_events_are_planned_afresh():
     out = _live()
     a = _eq(50.0)
-    out.play_events([_events(1.0)] * 2, 1.0, [a, a])
+    out.play(Frame(tuple(_events(1.0)), a, False), 1.0, [a, a])
     out.advance(0.004)
     out.apply([_eq(200.0, 0.3)] * 2)
     b = _eq(150.0)
-    shown = out.play_events([_events(1.1)] * 2, 1.1, [b, b])
+    shown = out.play(Frame(tuple(_events(1.1)), b, False), 1.1, [b, b])
     assert shown[0].pulse_frequency_hz == 150.0  # not the 50 Hz plan from before the steady drive
     out.advance(0.004)
     out.stop()
     c = _eq(90.0)
-    assert out.play_events([_events(1.2)] * 2, 1.2, [c, c])[0].pulse_frequency_hz == 90.0
+    assert out.play(Frame(tuple(_events(1.2)), c, False), 1.2, [c, c])[0].pulse_frequency_hz == 90.0
 
 
 def test_a_plan_the_wire_made_before_a_stop_is_not_shown_after_it():
     """The stop lands between the wire taking events and storing their plan: the plan is dropped."""
     out = _live()
     a = _eq(50.0)
-    out.play_events([_events(1.0)] * 2, 1.0, [a, a])
+    out.play(Frame(tuple(_events(1.0)), a, False), 1.0, [a, a])
     b = _eq(70.0)
-    out.play_events([_events(1.004)] * 2, 1.004, [b, b])
+    out.play(Frame(tuple(_events(1.004)), b, False), 1.004, [b, b])
     planned = out._planned
 
     def stop_meanwhile(ch, d):
@@ -150,4 +151,4 @@ def test_a_plan_the_wire_made_before_a_stop_is_not_shown_after_it():
     out.advance(0.004)
     out._planned = planned  # type: ignore[method-assign]
     c = _eq(120.0)
-    assert out.play_events([_events(1.3)] * 2, 1.3, [c, c])[0].pulse_frequency_hz == 120.0
+    assert out.play(Frame(tuple(_events(1.3)), c, False), 1.3, [c, c])[0].pulse_frequency_hz == 120.0

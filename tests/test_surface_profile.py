@@ -119,11 +119,16 @@ def test_renderer_gives_the_equivalent_drive_to_outputs_without_events():
     rates = [d.pulse_frequency_hz for d in on[len(on) // 2 :]]
     # grains of 2 mm at 50 mm/s: about 25 bumps a second
     assert 25 / 1.5 <= np.median(rates) <= 25 * 1.5
-    # The same renderer on a steady profile ignores the surface.
+    # The same renderer on a steady profile ignores the surface: its frame's events are its
+    # drive's own regular train (the outputs play that from the drive).
+    from tactilize.surface.rendering import train_events
+
     r.set_profile(Profile.preset("paper"))
     r.lift()
     res = r.feed(samples[:40])
-    assert res.events == () and not all(d.is_off for d in res.applied)
+    assert res.regular and not all(d.is_off for d in res.applied)
+    drive = r.rendering.frame(res.state, res.features, []).drive
+    assert [e.t_s for e in res.events] == [e.t_s for e in train_events(drive, res.events[0].t_s, res.state.t_s)]
 
 
 def test_commands_default_to_the_surface_rendering(tmp_path):

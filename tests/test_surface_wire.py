@@ -15,6 +15,7 @@ from tactilize.actuators.sma import FOLLOW_THRESHOLD_M, circuit_names
 from tactilize.actuators.simulated import SimulatedOutput
 from tactilize.surface import place_events, stroke_events, surface_model
 from tactilize.surface.equivalent import equivalent_drive
+from tactilize.surface.rendering import Frame
 from tactilize.surface.events import MIN_INTERVAL_S
 from tactilize.surface.fields import grain_field
 
@@ -31,7 +32,7 @@ def _play(out: SimulatedOutput, events, duration_s: float) -> None:
     for now in np.arange(0.0, duration_s, BATCH_S):
         ahead = [e for e in events if now <= e.t_s < now + LOOKAHEAD_S]
         eq = equivalent_drive([e for e in events if now - 0.15 <= e.t_s < now + LOOKAHEAD_S], now)
-        out.play_events([ahead] * out.channels, float(now), [eq] * out.channels)
+        out.play(Frame(tuple(ahead), eq, False), float(now), [eq] * out.channels)
         out.advance(BATCH_S)
     out.advance(0.05)
 

@@ -9,6 +9,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 from tactilize.actuators.recording import RecordingOutput
+from tactilize.drive import Drive
+from tactilize.surface.rendering import Frame
 from tactilize.web import create_app
 from tactilize.web.ownership import PEN, TRIAL, LeasedOutput, OutputLease
 
@@ -204,19 +206,21 @@ def test_simulated_outputs_are_each_pages_own():
     assert create_app(None, "paper", warm=False).state.tactilize.page_output_factory is not None
 
 
+_NO_EVENTS = Frame((), Drive.off(), False)  # a frame of no events
+
+
 class _EventsOutput:
     """Plays pulse events; records each hand-over and each after_batch()."""
 
     channels = 2
-    plays_events = True
 
     def __init__(self) -> None:
         self.handed: list[float] = []
         self.quiet = 0
 
-    def play_events(self, channels, now_s, equivalent):
+    def play(self, frame, now_s, channels):
         self.handed.append(now_s)
-        return list(equivalent)
+        return list(channels)
 
     def after_batch(self) -> None:
         self.quiet += 1
@@ -230,14 +234,14 @@ def test_a_stroke_of_events_claims_the_lease_like_a_steady_drive():
     a = LeasedOutput(out, lease, PEN)
     b = LeasedOutput(out, lease, PEN, told_b.append)
     on = [d.replace(pulse_frequency_hz=20.0, pulse_width_s=0.004) for d in RecordingOutput().apply([])]
-    assert a.play_events([[], []], 1.0, on) == on
+    assert a.play(_NO_EVENTS, 1.0, on) == on
     assert lease.holds(a) and out.handed == [1.0]
     # The holder's batches let the output's background work run in the gap after them.
     a.after_batch()
     assert out.quiet == 1
     # Another page's events do not replace the holder's: refused, told once, not played.
-    refused = b.play_events([[], []], 2.0, on)
-    b.play_events([[], []], 2.1, on)
+    refused = b.play(_NO_EVENTS, 2.0, on)
+    b.play(_NO_EVENTS, 2.1, on)
     b.after_batch()
     assert out.handed == [1.0] and out.quiet == 1 and b.refused == 2
     assert all(d.is_off for d in refused) and len(refused) == 2

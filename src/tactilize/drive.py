@@ -11,11 +11,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 from .errors import DriveError, check_finite
 
-__all__ = ["Drive"]
+__all__ = ["Drive", "JITTER_MAX_PERIODS", "jitter_periods", "jitter_offset"]
 
 
 @dataclass(frozen=True)
@@ -130,3 +131,44 @@ class Drive:
             "strength": self.strength,
             "regularity": self.regularity,
         }
+
+
+#: Largest pulse-position jitter [periods], at regularity 0: each pulse moves up to
+#: 0.3 of a period either way, so the intervals' coefficient of variation is
+#: 0.6 / sqrt(6) = 0.245, above the fingertip's frequency Weber fraction (about 0.2,
+#: docs/references.md, section 3 (frequency discrimination)): successive intervals
+#: differ by more than a frequency JND.  No interval is shorter than 0.4 of a
+#: period, so the SMA wire still relaxes between pulses and follows every one
+#: (at 0.8 it missed some on the finest built-in textures at 160 mm/s).
+#: One rule for every train of a Drive: the synthesiser's (:mod:`tactilize.synthesis.trains`)
+#: and a steady rendering's events (:func:`tactilize.surface.rendering.train_events`).
+JITTER_MAX_PERIODS = 0.6
+JITTER_TABLE = 4096  # pulses before the pattern repeats: 13 s at 300 Hz
+
+
+@lru_cache(maxsize=16)
+def jitter_table(seed: int) -> Any:
+    """The seeded offsets u_k in [-1/2, 1/2) (a read-only numpy array)."""
+    import numpy as np
+
+    t = np.random.default_rng(seed).uniform(-0.5, 0.5, JITTER_TABLE)
+    t.flags.writeable = False
+    return t
+
+
+def jitter_offset(k: int, seed: int = 0) -> float:
+    """Pulse ``k``'s offset u_k in [-1/2, 1/2) (the same table as every train of that seed)."""
+    return float(jitter_table(seed)[k % JITTER_TABLE])
+
+
+def jitter_periods(drive: Drive, period_samples: float, width_samples: int) -> float:
+    """Depth ``j`` of a drive's pulse-position jitter [periods] (0 for a regular drive).
+
+    Two neighbours may move toward each other by ``j`` periods; ``j`` is capped so
+    that they still leave one sample between them.
+    """
+    regularity = drive.regularity
+    if regularity is None or regularity >= 1.0:
+        return 0.0
+    room = 1.0 - (width_samples + 1) / period_samples
+    return max(0.0, min(JITTER_MAX_PERIODS * (1.0 - regularity), room))

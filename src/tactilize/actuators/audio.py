@@ -13,8 +13,9 @@ the PortAudio library; both are imported only when an AudioOutput is made, and
 their absence is an :class:`~tactilize.errors.OutputError` saying how to
 install them.
 
-Pulse events (the surface rendering, docs/surfaces.md) play as acceleration
-wavelets (:mod:`tactilize.synthesis.wavelets`): each bump crossed is the
+Frames (:meth:`AudioOutput.play`): a steady rendering's regular train plays as the pulse
+train of its Drive (what it always sounded like); other pulse events (the surface rendering,
+docs/surfaces.md) play as acceleration wavelets (:mod:`tactilize.synthesis.wavelets`): each bump crossed is the
 second derivative of a Gaussian bump, as wide as the local interval, as strong
 as the event; the steady pulse train is silent meanwhile.
 """
@@ -69,9 +70,6 @@ class AudioOutput(OutputBase):
     """
 
     channels = 2
-    #: Plays the surface's pulse events as acceleration wavelets (:meth:`play_events`).
-    plays_events = True
-
     def __init__(
         self,
         device: int | str | None = None,
@@ -161,7 +159,14 @@ class AudioOutput(OutputBase):
         self._offset_frames = None
         return drives
 
-    def play_events(self, channels: Sequence[Sequence[Any]], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
+    def play(self, frame: Any, now_s: float, channels: Sequence[Drive]) -> list[Drive]:
+        """Play one rendered frame (the Output interface): a regular train (a steady rendering's)
+        as its Drive's pulse train, the synthesiser's exact train; other events as wavelets."""
+        if frame.regular:
+            return self.apply(channels)
+        return self._play_events([frame.events] * self.channels, now_s, channels)
+
+    def _play_events(self, channels: Sequence[Sequence[Any]], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
         """Per channel, pulse events (stroke clock [s]) as acceleration wavelets, replacing those
         not yet started; ``now_s`` [s] is the stroke time of the newest pen sample, played one
         block from the frame the device has reached.  Returns ``equivalent`` after the envelope

@@ -18,9 +18,9 @@ all declared here with what an output that lacks them answers
 ``traces(seconds)``        recent traces for the page, or None (no simulation)
 ``connected``              the device answers (True)
 ``events``                 what happened to the connection, as (time, kind, detail)
-``plays_events``           plays pulse events (``play_events(channels, now_s,
-                           equivalent)``, docs/surfaces.md); False: the
-                           default ``play_events`` applies the equivalent drives
+``play(frame, now_s, ch)`` plays one rendered frame (its pulse events and the
+                           operating point beside them, docs/surfaces.md); the
+                           default applies the operating point (``apply``)
 ``fault``                  why the output cannot be trusted now (a faulty sense
                            path, a stopped simulation), one line, or None
 =========================  ===================================================
@@ -32,8 +32,8 @@ from typing import TYPE_CHECKING, Any, Protocol, Sequence, runtime_checkable
 
 from ..drive import Drive
 
-if TYPE_CHECKING:  # the surface package loads scipy; outputs only pass its events on
-    from ..surface.events import PulseEvent
+if TYPE_CHECKING:  # the surface package loads scipy; outputs only pass its frames on
+    from ..surface.rendering import Frame
 
 
 @runtime_checkable
@@ -97,19 +97,13 @@ class Output(Protocol):
         """Recent traces for the page, or None."""
         ...
 
-
-class EventOutput(Output, Protocol):
-    """An output with the optional ``plays_events`` capability: what a caller may call
-    once ``plays_events`` is True (:meth:`OutputBase.play_events` documents it)."""
-
-    @property
-    def plays_events(self) -> bool:
-        """Pulse events are played as such (False: their equivalent drives are applied)."""
-        ...
-
-    def play_events(self, channels: Sequence[Sequence["PulseEvent"]], now_s: float,
-                    equivalent: Sequence[Drive]) -> list[Drive]:
-        """Replace each channel's events not yet fired; returns the drives applied."""
+    def play(self, frame: "Frame", now_s: float, channels: Sequence[Drive]) -> list[Drive]:
+        """Play one rendered frame: its pulse events (``frame.events``, times on the stroke's
+        clock, ``now_s`` [s] the stroke time that is now) replace those handed over before and
+        not yet fired, ``channels`` (the frame's Drive split per channel) is the operating point
+        beside them.  How is the output's choice: one that schedules events plays them, one that
+        cannot (a recording, an older board) plays the operating point.  Returns the drives
+        applied."""
         ...
 
 
@@ -130,14 +124,11 @@ class OutputBase:
 
     #: (time [s], kind, detail) of what happened to the connection
     events: Sequence[tuple[float, str, str]] = ()
-    #: Plays pulse events itself; outputs that cannot get the equivalent drives.
-    plays_events: bool = False
-
-    def play_events(self, channels: Sequence[Sequence[PulseEvent]], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
-        """Per channel, pulse events from ``now_s`` [s, the stroke's clock] on, replacing those
-        not yet fired; an output that cannot play events applies ``equivalent``, the steady
-        drive of the window (docs/surfaces.md)."""
-        return self.apply(equivalent)
+    def play(self, frame: "Frame", now_s: float, channels: Sequence[Drive]) -> list[Drive]:
+        """Play one rendered frame (:meth:`Output.play`); an output that cannot schedule events
+        plays the operating point beside them, ``channels``, the frame's Drive per channel
+        (for the surface rendering the steady drive of the window, docs/surfaces.md)."""
+        return self.apply(channels)
 
     @property
     def fault(self) -> str | None:

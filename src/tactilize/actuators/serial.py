@@ -18,11 +18,11 @@ answers, and then keeps it alive:
   polls the path until it can be reopened, and re-applies the current drives.
   It does the same when a heartbeat ACK says the watchdog fired anyway (a host
   stalled for more than 200 ms).
-- a version 4 board plays pulse events (:meth:`~SerialOutput.play_events`): each
+- a version 4 board plays pulse events (:meth:`~SerialOutput.play`): each
   one a scheduled pulse on the board's clock, which the host keeps in step
   (:attr:`~SerialOutput.clock`, PING/PONG with every heartbeat); the board counts
   what it did with them (:attr:`~SerialOutput.event_counts`).  An older board
-  gets the equivalent drives (``plays_events`` is False; docs/firmware.md);
+  gets the equivalent drives (:attr:`~SerialOutput.schedules_pulses` is False; docs/firmware.md);
 - a version 3 board flags a faulty sense path (its wire then limited with the
   circuit's worst case): :attr:`~SerialOutput.sense_faults` (None from version 2),
   :attr:`~SerialOutput.fault`, a ``sense-fault`` event; the loop skips the reading.
@@ -161,6 +161,9 @@ class SerialOutput(SerialLink, OutputBase):
         self._reapply = threading.Event()
         self._desired: list[Drive] = [Drive.off()] * self.channels
         self._events_mode = False
+        #: The operating point last played for a frame on a board without scheduled pulses:
+        #: (requested Drives, host time [s], as sent).
+        self._fallback: tuple[tuple[Drive, ...], float, list[Drive]] = ((), 0.0, [])
         self._sender = EventSender(self.channels)
         self._stroke_clock = StrokeClock()
         self._tokens = itertools.count(1)
@@ -188,7 +191,7 @@ class SerialOutput(SerialLink, OutputBase):
         return self._connected.is_set()
 
     @property
-    def plays_events(self) -> bool:  # type: ignore[override]
+    def schedules_pulses(self) -> bool:
         """The board plays scheduled pulses (protocol version 4 or later, read from STATUS)."""
         status = self.controller_status
         return status is not None and status.version >= 4
@@ -220,6 +223,7 @@ class SerialOutput(SerialLink, OutputBase):
             disconnected (the drives are kept and sent when it returns).
         """
         drives = [self._make_safe(d) for d in self._check(channels)]
+        self._fallback = ((), 0.0, [])
         with self._apply_lock:
             self._desired = drives
             self._events_mode = False
@@ -241,6 +245,7 @@ class SerialOutput(SerialLink, OutputBase):
         OutputError
             The controller is connected but did not acknowledge the stop.
         """
+        self._fallback = ((), 0.0, [])
         with self._apply_lock:
             self._desired = [Drive.off()] * self.channels
             self._events_mode = False
@@ -254,7 +259,15 @@ class SerialOutput(SerialLink, OutputBase):
             except _PortLost:
                 return
 
-    def play_events(self, channels: Sequence[Sequence[Any]], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
+    def play(self, frame: Any, now_s: float, channels: Sequence[Drive]) -> list[Drive]:
+        """Play one rendered frame (the Output interface): a regular train (a steady rendering's)
+        as its Drive, with SET (the board's own train); other events as scheduled pulses on a
+        board that schedules them (:attr:`schedules_pulses`), else their operating point."""
+        if frame.regular:
+            return self.apply(channels)
+        return self._play_events([frame.events] * self.channels, now_s, channels)
+
+    def _play_events(self, channels: Sequence[Sequence[Any]], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
         """Per channel, pulse events from now on, replacing those not yet fired (docs/surfaces.md).
 
         On a version 4 board each event becomes a scheduled pulse on the board's
@@ -281,8 +294,17 @@ class SerialOutput(SerialLink, OutputBase):
         OutputError
             The controller refused a frame, did not acknowledge it, or is disconnected.
         """
-        if not self.plays_events or not self.clock.ready:
-            return self.apply(equivalent)
+        if not self.schedules_pulses or not self.clock.ready:
+            # The operating point alone: the same Drives handed again with new events (the
+            # renderer hands a frame whenever its events change) are not sent again for 0.1 s.
+            held, at, sent = self._fallback
+            host = time.monotonic()
+            if (not self._events_mode and len(held) == len(equivalent) and host - at < 0.1
+                    and all(a is b for a, b in zip(held, equivalent))):
+                return sent
+            sent = self.apply(equivalent)
+            self._fallback = (tuple(equivalent), host, sent)
+            return sent
         drives = [self._make_safe(d) for d in self._check(equivalent)]
         status = self.controller_status
         assert status is not None

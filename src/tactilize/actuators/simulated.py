@@ -17,11 +17,10 @@ finger gets can be read back (:meth:`SimulatedOutput.pulse_log`).
 The plant may differ from what the controller was told (``plant_wire``,
 ``plant_circuit``): cells that sag, air that is warmer than configured.
 
-Pulse events (the surface rendering, docs/surfaces.md): :meth:`SimulatedOutput.play_events`
-replaces each channel's events not yet fired; the controller holds the operating
-point on the equivalent drive, and each event becomes one pulse whose heat is its
-strength's place in the felt band at its own interval, bounded by the channel's
-running heat estimate (:class:`~tactilize.actuators.sma.heat.RunningHeat`).
+Frames (:meth:`SimulatedOutput.play`): a regular train (a steady rendering's) plays from its Drive
+by the scheduler; other events (docs/surfaces.md) replace those not yet fired, the controller holds
+the operating point, each event one pulse, its heat its strength's place in the felt band at its
+own interval, bounded by the running heat estimate (:class:`~.sma.heat.RunningHeat`).
 
 Should the thread ever stop on an error, the output goes safe and says so: every
 controller stops, :attr:`~SimulatedOutput.connected` turns False,
@@ -126,9 +125,6 @@ class SimulatedOutput(OutputBase):
     #: turns it into a position in the felt band (module docstring of
     #: :mod:`tactilize.actuators.sma.controller`), so both pins can play it.
     amplitude_is_intensity = False
-    #: Plays pulse events (:meth:`play_events`).
-    plays_events = True
-
     def __init__(
         self,
         wire: WireSpec | str | None = None,
@@ -226,9 +222,14 @@ class SimulatedOutput(OutputBase):
         self._drives = applied
         return applied
 
-    def play_events(self, channels: Sequence[Sequence[Any]], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
-        """Per channel, the pulse events to play from now on; replaces those not yet fired.
+    def play(self, frame: Any, now_s: float, channels: Sequence[Drive]) -> list[Drive]:
+        """One frame (the Output interface): a regular train from its Drive, other events each a bounded pulse."""
+        if frame.regular:
+            return self.apply(channels)
+        return self._play_events([frame.events] * self.channels, now_s, channels)
 
+    def _play_events(self, channels: Sequence[Sequence[Any]], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
+        """Per channel, the pulse events to play from now on; replaces those not yet fired.
         Parameters
         ----------
         channels : sequence of sequence of PulseEvent

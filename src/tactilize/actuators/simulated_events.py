@@ -1,7 +1,7 @@
 """The simulated wire's pulse events: handed over, scheduled and played one bounded pulse each.
 
 Part of :mod:`tactilize.actuators.simulated` (kept apart to keep each module short):
-:func:`take_events` turns a :meth:`~tactilize.actuators.simulated.SimulatedOutput.play_events`
+:func:`take_events` turns a :meth:`~tactilize.actuators.simulated.SimulatedOutput.play`
 call into each channel's queue of starts at the simulated instant it is taken,
 replacing what is not yet due; :func:`event_starts` takes the events of one
 block; :func:`run_event_block` plays them, the controller's bias between pulses,

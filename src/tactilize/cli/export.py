@@ -92,8 +92,8 @@ def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
         doc.update(signal="tip_acceleration", peak_full_scale=float(abs(x).max(initial=0.0)), clipped_samples=clipped)
         text = (f"wrote {path} (wav, {tl.end_s:g} s): the tip's acceleration, peak {doc['peak_full_scale']:.3f} of "
                 f"full scale, {clipped} samples clipped")
-    elif tl.plays_events(opt["drive_kind"]):
-        doc.update(_event_summary(tl, fmt))
+    else:
+        doc.update(_event_summary(tl, fmt, opt["drive_kind"]))
         if "transients" in doc:
             n = doc["continuous_runs"]
             text += (f"; {doc['bumps']} bumps: {doc['transients']} transients, "
@@ -101,12 +101,14 @@ def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     return doc, text
 
 
-def _event_summary(tl: Any, fmt: str) -> dict[str, Any]:
-    """How a parametric format plays the stroke's bumps: transients and continuous stretches."""
-    from ..export.events import HJIF_TRANSIENT_S, PHONE_TRANSIENT_S, plan_events
+def _event_summary(tl: Any, fmt: str, kind: str) -> dict[str, Any]:
+    """How a parametric format plays the stroke's events (a stroke's bumps, a steady drive's
+    pulses): transients and continuous stretches."""
+    from ..export.events import HJIF_TRANSIENT_S, PHONE_TRANSIENT_S, plan_events, timeline_events
 
-    out: dict[str, Any] = {"bumps": len(tl.events)}
+    events = timeline_events(tl, kind)
+    out: dict[str, Any] = {"bumps": len(events)}
     if fmt in ("ahap", "android", "haptic", "hjif"):
-        plan = plan_events(tl.events, HJIF_TRANSIENT_S if fmt == "hjif" else PHONE_TRANSIENT_S, tl.end_s)
+        plan = plan_events(events, HJIF_TRANSIENT_S if fmt == "hjif" else PHONE_TRANSIENT_S, tl.end_s)
         out.update(transients=len(plan.transients), continuous_runs=len(plan.runs))
     return out

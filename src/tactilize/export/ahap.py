@@ -3,31 +3,23 @@
 Rules (docs/references.md, section 6 (AHAP document), (AHAP parameter curves)
 and (AHAP sharpness and frequency)):
 
-* Where the pulse frequency is 65 Hz or more, continuous events, none longer
-  than 30 s.  Each event's ``HapticIntensity`` is the largest intensity it
-  reaches and its ``HapticSharpness`` the sharpness at its start; the stroke's
-  changes ride on parameter curves: ``HapticIntensityControl`` = intensity /
-  event intensity (a dynamic intensity *multiplies*), ``HapticSharpnessControl``
-  = sharpness - event sharpness (a dynamic sharpness, -1..1 with 0 neutral, is
-  *added*).  A steady drive therefore has neutral curves (1.0 and 0.0).  No
-  curve has more than 16 control points: longer ones are split, each piece
-  starting where the last ended.  After a run of continuous events, neutral
-  curves put the dynamic parameters back, so later taps play as written.
-* Where it is below 65 Hz (a phone cannot vibrate there continuously), one
-  transient per pulse, at the pulse's own time: the taps of a rough texture.
-  Intensity is the pulse height; sharpness follows the pulse's bandwidth,
-  1 / width.  A pulse closer than 20 ms to the next or the one before (a train
-  from 50 to 65 Hz, an irregular train's close pairs: a phone's actuator does not
-  play them apart) is part of a continuous event instead (:func:`~.events.steady_plan`).
-* Intensity of a continuous event is the pulse train's fundamental relative to
-  a 10 % duty train (:func:`~.timeline.intensity_from_drive`); sharpness maps
-  the pulse frequency linearly onto 0..1 over 65..300 Hz.
-* A stroke over a surface (``tl.events``, the ``surface`` rendering) plays its
-  bumps instead (:mod:`.events`): one transient per bump at least 20 ms from its
-  neighbours (a phone's actuator plays them apart), intensity from the bump's
-  strength, sharpness from the bump's own frequency; closer bumps make one
-  continuous event per run, intensity and sharpness curves following the bumps'
-  intensity and rate.
+* One document for every rendering: the events of the stroke
+  (:func:`~.events.timeline_events`: the bumps a stroke over a surface crossed, or the
+  pulses of a steady drive's train).  An event at least 20 ms from its neighbours (a
+  phone's actuator plays them apart) is a ``HapticTransient``: intensity from its
+  strength (a steady pulse's: its drive's intensity), sharpness from its own frequency
+  (a bump's 1 / (2 x its half-prominence time), a pulse's 1 / its width).
+* Closer events (a steady train from 50 Hz up, a run of close bumps) make one
+  continuous event per run (:func:`~.events.plan_events`), none longer than 30 s:
+  ``HapticIntensity`` is the largest intensity it reaches and ``HapticSharpness`` the
+  sharpness of the events' rate at its start (linear over 65..300 Hz); the changes ride
+  on parameter curves: ``HapticIntensityControl`` = intensity / event intensity (a
+  dynamic intensity *multiplies*), ``HapticSharpnessControl`` = sharpness - event
+  sharpness (a dynamic sharpness, -1..1 with 0 neutral, is *added*).  A steady drive
+  therefore has neutral curves (1.0 and 0.0).  No curve has more than 16 control points:
+  longer ones are split, each piece starting where the last ended.  After a run of
+  continuous events, neutral curves put the dynamic parameters back, so later taps play
+  as written.
 
 References
 ----------
@@ -42,15 +34,8 @@ from functools import partial
 from typing import Any, Callable
 
 from ..drive import Drive
-from .events import PHONE_TRANSIENT_S, event_intensity, plan_events, run_points, steady_plan
-from .timeline import (
-    CONTROL_STEP_S,
-    ControlPoint,
-    DriveTimeline,
-    continuous_spans,
-    control_points,
-    sharpness_from_frequency,
-)
+from .events import PHONE_TRANSIENT_S, event_intensity, plan_events, run_points, timeline_events
+from .timeline import CONTROL_STEP_S, ControlPoint, DriveTimeline, continuous_spans, sharpness_from_frequency
 
 __all__ = ["ahap_document", "ahap_pattern", "AHAP_MAX_EVENT_S", "AHAP_MAX_CURVE_POINTS", "continuous_spans"]
 
@@ -106,34 +91,9 @@ def _continuous(events: list[dict[str, Any]], curves: list[dict[str, Any]], a: f
 
 
 def ahap_document(tl: DriveTimeline, kind: str = "profile", channel: int = 0, step_s: float = CONTROL_STEP_S) -> dict[str, Any]:
-    """The AHAP document (a dict) of one channel of a timeline (see the module docstring)."""
-    if tl.plays_events(kind):
-        return _surface_document(tl, step_s)
-    events: list[dict[str, Any]] = []
-    curves: list[dict[str, Any]] = []
-    spans, taps = steady_plan(tl, kind, channel, PHONE_TRANSIENT_S)
-    for a, b in spans:
-        _continuous(events, curves, a, b, tl.end_s,
-                    lambda t0, t1: control_points(tl, kind, channel, step_s, start_s=t0, end_s=t1))
-    for p in taps:
-        tap_sharpness = sharpness_from_frequency(1.0 / max(p.width_s, 1e-6))
-        events.append(_event(p.t_s, "HapticTransient", p.amplitude, tap_sharpness))
-    events.sort(key=lambda e: e["Event"]["Time"])
-    meta = tl.meta
-    first = tl.drives(kind, channel)[0]
-    if len(tl.t_s) == 1:
-        desc = (f"pulse train {first.pulse_frequency_hz:g} Hz, width {first.pulse_width_s * 1e3:g} ms, "
-                f"amplitude {first.amplitude:g}, {tl.end_s:g} s")
-    else:
-        desc = f"stroke of {tl.end_s:g} s, {len(tl.t_s)} frames, {kind} drive of channel {channel}"
-        if meta.get("image"):
-            desc += f", {meta['image']}"
-    return {"Version": 1.0, "Metadata": {"Project": "tactilize", "Description": desc}, "Pattern": events + curves}
-
-
-def _surface_document(tl: DriveTimeline, step_s: float) -> dict[str, Any]:
-    """A stroke's bumps: a transient per bump a phone plays apart, continuous events where they come faster."""
-    plan = plan_events(tl.events or (), PHONE_TRANSIENT_S, tl.end_s)
+    """The AHAP document (a dict) of one channel of a timeline: its events (:func:`~.events.timeline_events`),
+    a transient per event a phone plays apart, continuous events where they come faster."""
+    plan = plan_events(timeline_events(tl, kind, channel), PHONE_TRANSIENT_S, tl.end_s)
     events: list[dict[str, Any]] = []
     curves: list[dict[str, Any]] = []
     for run in plan.runs:
@@ -143,8 +103,14 @@ def _surface_document(tl: DriveTimeline, step_s: float) -> dict[str, Any]:
         events.append(_event(ev.t_s, "HapticTransient", event_intensity(ev.strength),
                              sharpness_from_frequency(ev.frequency_hz)))
     events.sort(key=lambda e: e["Event"]["Time"])
-    desc = (f"stroke of {tl.end_s:g} s over a surface: {len(plan.transients)} bumps as transients, "
-            f"{len(plan.runs)} continuous stretches where bumps come closer than {PHONE_TRANSIENT_S * 1e3:g} ms")
+    first = tl.drives(kind, channel)[0]
+    if len(tl.t_s) == 1 and tl.events is None:
+        desc = (f"pulse train {first.pulse_frequency_hz:g} Hz, width {first.pulse_width_s * 1e3:g} ms, "
+                f"amplitude {first.amplitude:g}, {tl.end_s:g} s")
+    else:
+        desc = f"stroke of {tl.end_s:g} s, {len(tl.t_s)} frames, {kind} of channel {channel}"
+    desc += (f": {len(plan.transients)} transients, {len(plan.runs)} continuous stretches where pulses come "
+             f"closer than {PHONE_TRANSIENT_S * 1e3:g} ms")
     if tl.meta.get("image"):
         desc += f", {tl.meta['image']}"
     return {"Version": 1.0, "Metadata": {"Project": "tactilize", "Description": desc}, "Pattern": events + curves}

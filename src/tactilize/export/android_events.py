@@ -1,7 +1,7 @@
-"""Android vibration of a stroke over a surface: a primitive per bump, an envelope where bumps come too fast.
+"""Android vibration of a stroke's events: a primitive per event, an envelope where they come too fast.
 
-The document (:func:`android_surface_document`) keeps the keys of the steady one
-(:mod:`.android`) and adds the bumps (docs/references.md, section 6 (Android
+The one Android document (:func:`android_events_document`, for every rendering: the events of
+:func:`~.events.timeline_events`, a stroke's bumps or a steady drive's pulses) (docs/references.md, section 6 (Android
 compositions), (Android envelopes) and (phone transients)):
 
 ``compositions``
@@ -40,10 +40,10 @@ from typing import Any
 import numpy as np
 
 from .android_envelopes import ANDROID_LIMITS, MAX_SEGMENT_MS, MIN_SEGMENT_MS, envelopes, run_lengths
-from .events import PHONE_TRANSIENT_S, BumpEvent, EventPlan, event_intensity, plan_events, run_points
+from .events import PHONE_TRANSIENT_S, BumpEvent, EventPlan, event_intensity, plan_events, run_points, timeline_events
 from .timeline import CONTROL_STEP_S, DriveTimeline
 
-__all__ = ["android_surface_document", "PRIMITIVES", "DELAY_TYPES", "MAX_DELAY_MS", "TAP_MS", "CLICK_INTENSITY"]
+__all__ = ["android_events_document", "PRIMITIVES", "DELAY_TYPES", "MAX_DELAY_MS", "TAP_MS", "CLICK_INTENSITY"]
 
 #: The primitives a composition here uses.
 PRIMITIVES = ("PRIMITIVE_CLICK", "PRIMITIVE_TICK")
@@ -92,9 +92,12 @@ def _starts(envs: list[dict[str, Any]], start_ms: int) -> list[dict[str, Any]]:
     return out
 
 
-def android_surface_document(tl: DriveTimeline, step_s: float = CONTROL_STEP_S) -> dict[str, Any]:
-    """The Android document of a stroke's bumps (see the module docstring)."""
-    plan = plan_events(tl.events or (), PHONE_TRANSIENT_S, tl.end_s)
+def android_events_document(tl: DriveTimeline, kind: str = "profile", channel: int = 0,
+                            step_s: float = CONTROL_STEP_S) -> dict[str, Any]:
+    """The Android document of one channel's events (:func:`~.events.timeline_events`: a stroke's
+    bumps or a steady drive's pulses; see the module docstring)."""
+    events = timeline_events(tl, kind, channel)
+    plan = plan_events(events, PHONE_TRANSIENT_S, tl.end_s)
     total_ms = max(int(round(tl.end_s * 1e3)), 1)
     level = np.zeros(total_ms, dtype=np.int32)
     flat_all: list[dict[str, Any]] = []
@@ -122,7 +125,6 @@ def android_surface_document(tl: DriveTimeline, step_s: float = CONTROL_STEP_S) 
         + [{"start_ms": w["start_ms"], "kind": "waveform_envelope", "index": i} for i, w in enumerate(waveform)],
         key=lambda e: (e["start_ms"], e["kind"]))
     return {
-        "rendering": "surface",
         "timings_ms": timings,
         "amplitudes": amps,
         "repeat": -1,
@@ -134,7 +136,8 @@ def android_surface_document(tl: DriveTimeline, step_s: float = CONTROL_STEP_S) 
         "transient_min_interval_ms": round(PHONE_TRANSIENT_S * 1e3, 3),
         "limits": ANDROID_LIMITS,
         "duration_ms": int(round(tl.end_s * 1e3)),
-        "bumps": len(tl.events or ()),
+        "bumps": len(events),
+        "drive": tl.drives(kind, channel)[0].to_dict(),
         "kotlin": _kotlin(comps),
     }
 

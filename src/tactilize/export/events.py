@@ -43,7 +43,7 @@ from typing import Any, NamedTuple, Protocol, Sequence, TypeVar
 
 import numpy as np
 
-from .timeline import CONTROL_STEP_S, SHARPNESS_LOW_HZ, ControlPoint, Pulse, _simplify, continuous_spans
+from .timeline import CONTROL_STEP_S, ControlPoint, _simplify
 
 __all__ = [
     "BumpEvent",
@@ -55,7 +55,8 @@ __all__ = [
     "event_intensity",
     "PHONE_TRANSIENT_S",
     "HJIF_TRANSIENT_S",
-    "steady_plan",
+    "timeline_events",
+    "drive_strength",
     "INTENSITY_FLOOR",
 ]
 
@@ -214,39 +215,30 @@ def plan_events(events: Sequence[BumpEvent], min_interval_s: float, end_s: float
     return EventPlan(tuple(transients), tuple(runs), float(min_interval_s))
 
 
-def steady_plan(tl: Any, kind: str, channel: int, min_interval_s: float) -> tuple[list[tuple[float, float]], list[Pulse]]:
-    """Where a steady drive plays as a continuous vibration, and which of its pulses are taps,
-    for a player whose transients need ``min_interval_s`` [s] between them.
+def drive_strength(drive: Any) -> float:
+    """The strength 0 .. 1 a steady drive's pulse plays at: the one whose intensity
+    (:func:`event_intensity`) is the drive's (:func:`~.timeline.intensity_from_drive`), so a
+    steady train's events play as loud as its drive did; a drive quieter than the least felt
+    bump plays as that one (strength 0+), an off drive not at all."""
+    from .timeline import intensity_from_drive
 
-    A drive at :data:`~.timeline.SHARPNESS_LOW_HZ` or more is continuous; below it each
-    pulse is a tap, unless it comes closer than ``min_interval_s`` to the tap before or
-    after (a train above ``1 / min_interval_s``, or an irregular one's close pairs): then
-    its run of close pulses plays continuously too, from its first pulse to one period
-    after its last (never into the next tap), as :func:`plan_events` does with bumps.
+    i = intensity_from_drive(drive)
+    return 0.0 if i <= 0.0 else min(1.0, max(1e-6, 1.0 + math.log10(i)))
 
-    Returns
-    -------
-    spans : list of (start [s], end [s])
-        In time order, none overlapping.
-    taps : list of Pulse
-    """
-    spans = continuous_spans(tl, kind, channel)
-    slow = [p for p in tl.pulses(kind, channel) if p.drive.pulse_frequency_hz < SHARPNESS_LOW_HZ]
-    groups = close_groups(slow, min_interval_s)
-    taps: list[Pulse] = []
-    for i, g in enumerate(groups):
-        if len(g) == 1:
-            taps.append(g[0])
-            continue
-        nxt = groups[i + 1][0].t_s if i + 1 < len(groups) else math.inf
-        spans.append((g[0].t_s, min(g[-1].t_s + g[-1].drive.period_s, nxt, tl.end_s)))
-    merged: list[tuple[float, float]] = []
-    for a, b in sorted(spans):
-        if merged and a <= merged[-1][1] + TIME_TOLERANCE_S:
-            merged[-1] = (merged[-1][0], max(merged[-1][1], b))
-        elif b > a:
-            merged.append((a, b))
-    return merged, taps
+
+def timeline_events(tl: Any, kind: str = "profile", channel: int = 0) -> tuple[BumpEvent, ...]:
+    """The one events timeline every parametric format plays for one channel of ``tl``.
+
+    The events the stroke's rendering fired (``tl.events``: a stroke over a surface), else
+    the pulses of the drive over time (``kind``: a steady rendering's, or what the wire
+    applied) as the synthesiser schedules them (:meth:`~.timeline.DriveTimeline.pulses`:
+    phase-continuous, an irregular drive jittered as on the wire; here at 1 ns, so a train's
+    rate reads back exact): each pulse an event of :func:`drive_strength` at its train's
+    frequency."""
+    if kind == "profile" and tl.events is not None:
+        return tuple(tl.events)
+    return tuple(BumpEvent(p.t_s, drive_strength(p.drive), p.drive.pulse_frequency_hz, p.drive.clamped)
+                 for p in tl.pulses(kind, channel, rate_hz=1_000_000_000))
 
 
 def run_points(run: Run, start_s: float | None = None, end_s: float | None = None,

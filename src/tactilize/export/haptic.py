@@ -11,18 +11,15 @@ onto the device's own range.  The layout written here::
          "frequency": [{"time": s, "frequency": 0..1}, ...]}}}}
 
 Breakpoint times increase strictly (a run's last value stands 0.5 ms before its
-end, where the amplitude steps to zero).  Where the train is at 65 Hz and
-above the envelopes follow the stroke on the
-control grid; where it is slower each pulse is a short amplitude bump with an
-*emphasis* (Meta's tap) at its start, unless it comes within 20 ms of another
-(then its run follows the envelopes too: :func:`~.events.steady_plan`).  Frequency is mapped linearly from
+end, where the amplitude steps to zero).  One document for every rendering: the
+events of the stroke (:func:`~.events.timeline_events`: a stroke's bumps, or a
+steady drive's pulses).  An event at least 20 ms from its neighbours is a short
+amplitude bump with an *emphasis* (Meta's tap) at its start (its amplitude the
+event's intensity, its frequency the event's own); closer events (a train from
+50 Hz up, a run of close bumps) follow the envelopes on the control grid
+(intensity, rate as frequency).  Frequency is mapped linearly from
 :data:`HAPTIC_LOW_HZ` .. :data:`HAPTIC_HIGH_HZ` (the example range of section
 6) and clipped; the metadata states the mapping so a reader can undo it.
-
-A stroke over a surface (``tl.events``) plays its bumps (:mod:`.events`): an
-emphasis per bump at least 20 ms from its neighbours (its amplitude the bump's
-intensity, its frequency the bump's own), and the envelopes of a continuous run
-(intensity, rate as frequency) where bumps come closer.
 
 References
 ----------
@@ -33,8 +30,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from .events import PHONE_TRANSIENT_S, event_intensity, plan_events, run_points, steady_plan
-from .timeline import CONTROL_STEP_S, DriveTimeline, control_points
+from .events import PHONE_TRANSIENT_S, event_intensity, plan_events, run_points, timeline_events
+from .timeline import CONTROL_STEP_S, DriveTimeline
 
 __all__ = ["haptic_document", "HAPTIC_LOW_HZ", "HAPTIC_HIGH_HZ", "haptic_frequency", "haptic_hz"]
 
@@ -78,22 +75,14 @@ def haptic_document(tl: DriveTimeline, kind: str = "profile", channel: int = 0, 
             add(t, p.amplitude, p.frequency_hz, 1)
         add(b, 0.0, pts[-1].frequency_hz, 0)
 
-    if tl.plays_events(kind):
-        # A stroke over a surface: an emphasis per bump a phone plays apart, envelopes where they come faster.
-        plan = plan_events(tl.events or (), PHONE_TRANSIENT_S, tl.end_s)
-        for r in plan.runs:
-            run(r.end_s, run_points(r, step_s=step_s))
-        for ev in plan.transients:
-            add(ev.t_s, event_intensity(ev.strength), ev.frequency_hz, 2, emphasis=True)
-            add(ev.t_s + TAP_S, 0.0, ev.frequency_hz, 0)
-    else:
-        spans, taps = steady_plan(tl, kind, channel, PHONE_TRANSIENT_S)
-        for a, b in spans:
-            run(b, control_points(tl, kind, channel, step_s, start_s=a, end_s=b))
-        for p in taps:
-            f = p.drive.pulse_frequency_hz
-            add(p.t_s, p.amplitude, f, 2, emphasis=True)
-            add(p.t_s + min(TAP_S, 0.5 * p.drive.period_s), 0.0, f, 0)
+    # An emphasis per event a phone plays apart, envelopes where they come faster (one rule for
+    # a stroke's bumps and a steady drive's pulses: .events.timeline_events).
+    plan = plan_events(timeline_events(tl, kind, channel), PHONE_TRANSIENT_S, tl.end_s)
+    for r in plan.runs:
+        run(r.end_s, run_points(r, step_s=step_s))
+    for ev in plan.transients:
+        add(ev.t_s, event_intensity(ev.strength), ev.frequency_hz, 2, emphasis=True)
+        add(ev.t_s + TAP_S, 0.0, ev.frequency_hz, 0)
     entries.sort(key=lambda e: (e[0], -e[1]))
     amp: list[dict[str, Any]] = []
     freq: list[dict[str, Any]] = []
@@ -105,7 +94,7 @@ def haptic_document(tl: DriveTimeline, kind: str = "profile", channel: int = 0, 
     if not amp or amp[0]["time"] > 0:
         amp.insert(0, {"time": 0.0, "amplitude": 0.0})
         freq.insert(0, {"time": 0.0, "frequency": freq[0]["frequency"] if freq else 0.0})
-    what = "bumps of a stroke over a surface" if tl.plays_events(kind) else f"{kind} drive, channel {channel}"
+    what = f"events of the {kind}, channel {channel}"
     desc = (f"tactilize: {what}, {tl.end_s:g} s; "
             f"frequency 0..1 = {HAPTIC_LOW_HZ:g}..{HAPTIC_HIGH_HZ:g} Hz")
     return {

@@ -5,22 +5,19 @@ gives them: the root's ``version``, ``profile``, ``level``, ``date``,
 ``description``, ``timescale``, ``avatars``, ``perceptions``, ``syncs``; one
 Vibrotactile perception; one channel per actuator (the pen's two); in each,
 
-* a ``VectorialWave`` band whose ``Basis`` effects (one per run of the stroke
-  at 65 Hz and above, split so no keyframe lies more than
-  :data:`HJIF_MAX_EFFECT_TICKS` after its effect) carry keyframes of
-  ``relative_position`` [ticks], ``amplitude_modulation`` (0..1) and
-  ``frequency_modulation`` [Hz] over the stroke, on a ``Sine`` base signal;
-* a ``Transient`` band with one effect per pulse where the train is slower
-  (the taps), its keyframe carrying the tap's amplitude and the train's
-  pulse frequency [Hz]; a pulse within 22 ms of another (the reference
-  synthesiser's transient lasts 22 ms, so such taps would overlap and smear)
-  is played by the ``VectorialWave`` band instead (:func:`~.events.steady_plan`).
+* a ``VectorialWave`` band whose ``Basis`` effects (one per run of events closer
+  than 22 ms, split so no keyframe lies more than :data:`HJIF_MAX_EFFECT_TICKS`
+  after its effect) carry keyframes of ``relative_position`` [ticks],
+  ``amplitude_modulation`` (0..1) and ``frequency_modulation`` [Hz, the events'
+  rate] on the 20 ms grid, on a ``Sine`` base signal;
+* a ``Transient`` band with one effect per event at least 22 ms from its
+  neighbours (the reference synthesiser's transient lasts 22 ms, so closer taps
+  would overlap and smear), its keyframe the event's intensity and own frequency
+  [Hz, at least 1].
 
-A stroke over a surface (``tl.events``) plays its bumps (:mod:`.events`): a
-``Transient`` effect per bump at least 22 ms from its neighbours (the reference
-synthesiser's transient), its keyframe the bump's intensity and own frequency
-[Hz, at least 1]; a ``VectorialWave`` effect per run of closer bumps, keyframes
-of their intensity and rate [Hz] on the 20 ms grid.
+One document for every rendering: the events are the stroke's
+(:func:`~.events.timeline_events`: the bumps a stroke over a surface crossed, or
+the pulses of a steady drive's train).
 
 Every document keeps the rules of :mod:`.conformance.hjif` (the MPEG reference
 reader's): ``frequency_modulation`` is a whole number of hertz (the reader
@@ -43,8 +40,8 @@ import math
 from functools import partial
 from typing import Any, Callable
 
-from .events import HJIF_TRANSIENT_S, event_intensity, plan_events, run_points, steady_plan
-from .timeline import CONTROL_STEP_S, DriveTimeline, control_points
+from .events import HJIF_TRANSIENT_S, event_intensity, plan_events, run_points, timeline_events
+from .timeline import CONTROL_STEP_S, DriveTimeline
 
 __all__ = ["hjif_document", "HJIF_TIMESCALE", "HJIF_VERSION", "HJIF_MAX_EFFECT_TICKS"]
 
@@ -121,21 +118,13 @@ def _channel(tl: DriveTimeline, kind: str, c: int, step_s: float) -> dict[str, A
         })
         tap_f.append(_hz(f))
 
-    if tl.plays_events(kind):
-        # A stroke over a surface: a transient per bump the reference synthesiser plays apart.
-        plan = plan_events(tl.events or (), HJIF_TRANSIENT_S, tl.end_s)
-        for r in plan.runs:
-            wave(r.start_s, r.end_s, partial(run_points, r, step_s=step_s))
-        for ev in plan.transients:
-            tap(ev.t_s, event_intensity(ev.strength), max(ev.frequency_hz, 1.0))
-    else:
-        # Taps the reference synthesiser plays apart (its transient lasts 22 ms); closer pulses
-        # (a train between 45 and 65 Hz, an irregular one's close pairs) play as a wave.
-        spans, taps_ = steady_plan(tl, kind, c, HJIF_TRANSIENT_S)
-        for a0, b0 in spans:
-            wave(a0, b0, lambda a, b: control_points(tl, kind, c, step_s, start_s=a, end_s=b))
-        for p in taps_:
-            tap(p.t_s, p.amplitude, p.drive.pulse_frequency_hz)
+    # A transient per event the reference synthesiser plays apart, a wave where they come closer
+    # (one rule for a stroke's bumps and a steady drive's pulses: .events.timeline_events).
+    plan = plan_events(timeline_events(tl, kind, c), HJIF_TRANSIENT_S, tl.end_s)
+    for r in plan.runs:
+        wave(r.start_s, r.end_s, partial(run_points, r, step_s=step_s))
+    for ev in plan.transients:
+        tap(ev.t_s, event_intensity(ev.strength), max(ev.frequency_hz, 1.0))
     bands = []
     if effects:
         lo, hi = _band_limits(freqs)
@@ -161,7 +150,7 @@ def hjif_document(tl: DriveTimeline, kind: str = "profile", step_s: float = CONT
     freqs = [d.pulse_frequency_hz for row in tl._rows(kind) for d in row if not d.is_off]
     lo_hz = tl.meta.get("min_frequency_hz", min(freqs) if freqs else 0.0)
     hi_hz = tl.meta.get("max_frequency_hz", max(freqs) if freqs else 1.0)
-    what = "bumps" if tl.plays_events(kind) else f"{kind} drive"
+    what = f"events of the {kind}"
     desc = f"tactilize: {what} of a stroke of {tl.end_s:g} s"
     if tl.meta.get("image"):
         desc += f" on {tl.meta['image']}"

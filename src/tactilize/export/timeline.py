@@ -140,8 +140,9 @@ class DriveTimeline:
     meta : dict
         What made it (image, profile, stroke file...), for the documents.
     events : tuple of BumpEvent, or None
-        The surface rendering's bumps along the stroke (:mod:`.events`), which
-        the parametric formats play instead of the rows; None for a steady rendering.
+        The surface rendering's bumps along the stroke (:mod:`.events`); None when the
+        events are the pulses of the rows' drives (a steady rendering).  The parametric
+        formats play :func:`.events.timeline_events`, which gives either.
     """
 
     t_s: tuple[float, ...]
@@ -171,11 +172,6 @@ class DriveTimeline:
             raise SignalError("<duration>", f"must be a finite number of seconds > 0, got {duration_s!r}")
         nan = math.nan
         return cls((0.0,), float(duration_s), (drives,), (drives,), (nan,), (nan,), (nan,), dict(meta))
-
-    def plays_events(self, kind: str = "profile") -> bool:
-        """Whether the parametric formats play the surface's bumps: a surface stroke's profile drive
-        (``"wire"``, what the simulated wire applied, stays a drive over time)."""
-        return self.events is not None and kind == "profile"
 
     @property
     def channels(self) -> int:
@@ -210,14 +206,14 @@ class DriveTimeline:
         rows = self._rows(kind)
         return [i for i in range(len(rows)) if i == 0 or rows[i] != rows[i - 1]]
 
-    def pulses(self, kind: str = "profile", channel: int = 0) -> list[Pulse]:
+    def pulses(self, kind: str = "profile", channel: int = 0, rate_hz: int = 1_000_000) -> list[Pulse]:
         """Every pulse's start, as the streaming synthesiser schedules it.
 
-        The synthesiser's own scheduler at 1 us (docs/signals-and-wire.md, Pulse
-        trains): phase-continuous across drive changes, and an irregular
-        texture's pulses jitter exactly as they do on the wire and in the WAV.
+        The synthesiser's own scheduler at 1 us (``rate_hz``; docs/signals-and-wire.md,
+        Pulse trains): phase-continuous across drive changes, and an irregular texture's
+        pulses jitter exactly as they do on the wire and in the WAV.
         """
-        rate = 1_000_000
+        rate = int(rate_hz)
         sched = PulseScheduler(rate)
         out: list[Pulse] = []
         drives = self.drives(kind, channel)

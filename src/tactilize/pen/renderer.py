@@ -11,9 +11,9 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable, NamedTuple, Protocol, Sequence, cast
+from typing import Any, Callable, Iterable, NamedTuple, Protocol, Sequence
 
-from ..actuators.base import EventOutput, Output
+from ..actuators.base import Output
 from ..drive import Drive
 from ..mapping import FeaturesForDrive, Profile
 from ..surface.clock import StrokeClock
@@ -63,11 +63,14 @@ class RenderResult:
     features: FeaturesForDrive | None
     requested: list[Drive]
     applied: list[Drive]
-    #: Pulse events this batch scheduled (the surface rendering), on the stroke's clock;
-    #: a batch re-schedules every event not yet fired, so count :attr:`pulses` instead.
+    #: Pulse events this batch's frame scheduled, on the stroke's clock (a steady rendering's
+    #: regular train too); a batch re-schedules every event not yet fired, so count
+    #: :attr:`pulses` instead.
     events: tuple = ()
     #: Pulses that became due since the previous batch.
     pulses: int = 0
+    #: The events are the drive's own regular train (a steady rendering's frame).
+    regular: bool = False
 
     @property
     def on(self) -> bool:
@@ -103,8 +106,9 @@ class RenderResult:
             "channels": channels,
             "events": len(self.events),
             "pulses": self.pulses,
-            # The page's audio plays each event as an acceleration wavelet: [dt_s from t_s, amplitude, sigma_s].
-            "wavelets": wavelet_rows(self.events, st.t_s) if self.events and st is not None else [],
+            # The page's audio plays each event as an acceleration wavelet: [dt_s from t_s, amplitude,
+            # sigma_s]; a regular train it plays as its drive's pulse train, as the sound card does.
+            "wavelets": wavelet_rows(self.events, st.t_s) if self.events and st is not None and not self.regular else [],
         }
 
 
@@ -164,10 +168,8 @@ class PenRenderer:
         safety envelope that depends on the wire's state is asked again.
     surface : SurfaceModel or CompositeSurface, optional
         The picture as a surface; the profile's rendering (:func:`~tactilize.surface.rendering.rendering_for`)
-        makes each batch's frame of events and their operating point: an output that
-        schedules events gets a frame's irregular events (the surface rendering's
-        bumps), any other the operating point, and a regular train (a steady
-        rendering's) is played as its Drive.
+        makes each batch's frame of events and their operating point, and the output
+        plays the frame (``Output.play``: it decides how).
     clock : callable, optional
         ``clock() -> seconds``, monotonic, for ``refresh_s`` (:func:`time.monotonic`
         by default; tests inject one so the resend rule is deterministic).
@@ -207,8 +209,6 @@ class PenRenderer:
         self._running = False  # did we leave the output driven?
         self.resend_rel = float(resend_rel)
         self.refresh_s = float(refresh_s)
-        self._sent: tuple[list[Drive], list[Drive]] | None = None  # (requested, applied) last sent
-        self._sent_at = 0.0
         self._last = RenderResult(False, False, None, None, self._off, self._off)
 
     @property
@@ -237,7 +237,7 @@ class PenRenderer:
         """Another renderer drives the same output from now on (the experiments keep one per
         trial and picture): the next drive this one computes is sent, whatever it sent before;
         the stroke is kept."""
-        self._sent = None
+        self._handed = None
 
     def lift(self) -> RenderResult:
         """The pen left the surface: forget the stroke and rest the output at once
@@ -277,7 +277,7 @@ class PenRenderer:
         if self._running:
             self._rest()
         self._running = False
-        self._sent = None
+        self._handed = None
 
     def _rest(self) -> None:
         """Texture pulses off; an output that can hold its actuators ready does."""
@@ -300,55 +300,43 @@ class PenRenderer:
         frame = self.rendering.frame(state, feat, batch, played)
         requested = self.splitter(frame.drive, self.channels, state)
         applied = self._play(frame, requested, state.t_s)
-        self._last = RenderResult(True, True, state, feat, requested, applied,
-                                  () if frame.regular else frame.events, self.rendering.newly_fired)
+        self._last = RenderResult(True, True, state, feat, requested, applied, frame.events,
+                                  self.rendering.newly_fired, frame.regular)
         return self._last
 
     def _play(self, frame: Frame, requested: list[Drive], now_s: float) -> list[Drive]:
-        """Hand ``frame`` to the output: its events to an output that schedules them (a
-        regular train is its Drive), else its operating point; returns what was applied."""
-        out = self.output
-        if frame.regular or out is None or not getattr(out, "plays_events", False) or (
-                not frame.events and frame.drive.is_off):
-            self._handed = None
-            return self._apply(requested)
-        self._running = True
-        self._sent = None  # the steady resend rule does not apply to events
-        last = self._handed
-        # The same rule as the steady drives' resend rule: events within SAME_EVENT_S of what
-        # the output already holds, with the very same drives, are not sent again (each pulse
-        # is still bounded by the wire's heat when it plays).
-        if (last is not None and 0.0 <= now_s - last.t_s < HAND_AGAIN_S
-                and len(requested) == len(last.requested) and all(a is b for a, b in zip(requested, last.requested))
-                and _same_ahead(frame.events, last.events, now_s)):
-            return last.applied
-        events = list(frame.events)
-        applied = list(cast(EventOutput, out).play_events([events] * self.channels, now_s, requested))
-        self._handed = _Handed(frame.events, requested, applied, now_s)
-        return applied
-
-    def _apply(self, requested: list[Drive]) -> list[Drive]:
-        """Play ``requested`` on the output; returns what it applied."""
-        if all(d.is_off for d in requested):
+        """Hand ``frame`` to the output (``Output.play``: the output decides how it plays it),
+        unless the output already holds it; returns what was applied."""
+        if not frame.events and all(d.is_off for d in requested):
             self._stop()
             return self._off
-        if self.output is None:
+        out = self.output
+        if out is None:
             return requested
         now = self._clock()
-        if (
-            self._running
-            and self._sent is not None
-            and now - self._sent_at < self.refresh_s
-            and _close(requested, self._sent[0], self.resend_rel)
-        ):
-            # Imperceptibly different from what the output already plays:
-            # spare it (and a serial link) the frame.
-            return self._sent[1]
-        # Marked running first: if apply fails half-way, the next lift still stops it.
+        if self._running and self._holds(frame, requested, now_s, now):
+            # Imperceptibly different from what the output already plays: spare it (and a
+            # serial link) the frame.
+            return self._handed.applied  # type: ignore[union-attr]
+        # Marked running first: if play fails half-way, the next lift still stops it.
         self._running = True
-        applied = list(self.output.apply(requested))
-        self._sent, self._sent_at = (requested, applied), now
+        applied = list(out.play(frame, now_s, requested))
+        self._handed = _Handed(frame.events, requested, applied, now_s, now, frame.regular)
         return applied
+
+    def _holds(self, frame: Frame, requested: list[Drive], now_s: float, now: float) -> bool:
+        """The output already plays ``frame``: handed within ``refresh_s`` (wall clock) and
+        :data:`HAND_AGAIN_S` (the stroke's clock), with the same drives and the same events
+        ahead.  A regular train's events are its drive's, so for one the drives within
+        ``resend_rel`` are the same frame; other events must be those held not yet due (times
+        within :data:`SAME_EVENT_S`), with the very same drives."""
+        last = self._handed
+        if (last is None or last.regular != frame.regular or not now - last.at < self.refresh_s
+                or not 0.0 <= now_s - last.t_s < HAND_AGAIN_S or len(requested) != len(last.requested)):
+            return False
+        if frame.regular:
+            return _close(requested, last.requested, self.resend_rel)
+        return all(a is b for a, b in zip(requested, last.requested)) and _same_ahead(frame.events, last.events, now_s)
 
     def close(self) -> None:
         """Stop the output (the renderer does not own it, so it is not closed)."""
@@ -356,17 +344,20 @@ class PenRenderer:
 
 
 class _Handed(NamedTuple):
-    """Events an output was handed, with the drives requested and applied, at a stroke time."""
+    """A frame an output was handed: its events, the drives requested and applied, the stroke
+    time and the wall-clock time, and whether the events were a regular train."""
 
     events: tuple
     requested: list[Drive]
     applied: list[Drive]
     t_s: float
+    at: float
+    regular: bool
 
 
-#: Events the output already holds are handed over again at least this often [s] all the same,
-#: so its plan of the equivalent drive (what the page shows) follows the wire (as ``refresh_s``
-#: does for steady drives).
+#: A frame the output already holds is handed over again at least this often [s] of the stroke
+#: all the same, so its plan of the operating point (what the page shows) follows the wire (as
+#: ``refresh_s`` does on the wall clock).
 HAND_AGAIN_S = 0.1
 #: Events within this of each other [s] count as the same when the output already holds them
 #: (over a window's events, typically 50 ms or more apart end to end, it moves the rate by under

@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 from typing import Any, NamedTuple, Protocol, Sequence
 
-from ..drive import Drive
+from ..drive import Drive, jitter_offset, jitter_periods
 from .events import PulseEvent
 from .model import SurfaceLike
 from .straight import surface_stroke_drive
@@ -101,20 +101,28 @@ class Rendering(Protocol):
         ...
 
 
-def train_events(drive: Drive, anchor_s: float, from_s: float, span_s: float = HORIZON_S) -> tuple[PulseEvent, ...]:
-    """The regular train of ``drive`` in [``from_s``, ``from_s + span_s``) [s], one event per
-    period from ``anchor_s`` [s] on (the phase stays where the train started)."""
+def train_events(drive: Drive, anchor_s: float, from_s: float, span_s: float = HORIZON_S,
+                 seed: int = 0) -> tuple[PulseEvent, ...]:
+    """The train of ``drive`` in [``from_s``, ``from_s + span_s``) [s]: pulse ``k`` at
+    ``anchor_s + (k + j u_k) / f`` [s] (the phase stays where the train started), jittered as
+    the synthesiser jitters an irregular drive (``j`` of :func:`~tactilize.drive.jitter_periods`,
+    ``u_k`` the seeded table; pulse 0, the first after silence, is not moved)."""
     if drive.is_off or drive.pulse_frequency_hz <= 0:
         return ()
     period = 1.0 / drive.pulse_frequency_hz
-    k = max(0, math.ceil((from_s - anchor_s) / period - 1e-9))
+    # At 1 MHz (the wire's schedule) the one-sample margin of jitter_periods is negligible.
+    j = jitter_periods(drive, period * 1e6, max(1, round(drive.pulse_width_s * 1e6)))
+    k = max(0, math.ceil((from_s - anchor_s) / period - 1e-9 - (0.5 * j if j else 0.0)))
     strength = 1.0 if drive.strength is None else float(drive.strength)
     out = []
-    t = anchor_s + k * period
-    while t < from_s + span_s:
-        out.append(PulseEvent(t, strength, drive.clamped))
+    end = from_s + span_s
+    while True:
+        t = anchor_s + (k + (j * jitter_offset(k, seed) if j and k else 0.0)) * period
+        if t >= end and (not j or anchor_s + (k - 0.5 * j) * period >= end):
+            break
+        if from_s - 1e-9 * period <= t < end:
+            out.append(PulseEvent(t, strength, drive.clamped))
         k += 1
-        t = anchor_s + k * period
     return tuple(out)
 
 

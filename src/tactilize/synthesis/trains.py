@@ -50,12 +50,11 @@ References
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 
 import numpy as np
 
 from ..errors import SignalError, check_finite
-from ..drive import Drive
+from ..drive import JITTER_MAX_PERIODS, JITTER_TABLE, Drive, jitter_periods, jitter_table
 
 __all__ = [
     "pulse_train",
@@ -70,36 +69,8 @@ __all__ = [
 DEFAULT_SAMPLE_RATE_HZ = 48_000
 
 
-#: Largest pulse-position jitter [periods], at regularity 0: each pulse moves up to
-#: 0.3 of a period either way, so the intervals' coefficient of variation is
-#: 0.6 / sqrt(6) = 0.245, above the fingertip's frequency Weber fraction (about 0.2,
-#: docs/references.md, section 3 (frequency discrimination)): successive intervals
-#: differ by more than a frequency JND.  No interval is shorter than 0.4 of a
-#: period, so the SMA wire still relaxes between pulses and follows every one
-#: (at 0.8 it missed some on the finest built-in textures at 160 mm/s).
-JITTER_MAX_PERIODS = 0.6
-_JITTER_TABLE = 4096  # pulses before the pattern repeats: 13 s at 300 Hz
-
-
-@lru_cache(maxsize=16)
-def _jitter_table(seed: int) -> np.ndarray:
-    """The seeded offsets u_k in [-1/2, 1/2) (read-only)."""
-    t = np.random.default_rng(seed).uniform(-0.5, 0.5, _JITTER_TABLE)
-    t.flags.writeable = False
-    return t
-
-
-def jitter_periods(drive: Drive, period_samples: float, width_samples: int) -> float:
-    """Depth ``j`` of a drive's pulse-position jitter [periods] (0 for a regular drive).
-
-    Two neighbours may move toward each other by ``j`` periods; ``j`` is capped so
-    that they still leave one sample between them.
-    """
-    regularity = drive.regularity
-    if regularity is None or regularity >= 1.0:
-        return 0.0
-    room = 1.0 - (width_samples + 1) / period_samples
-    return max(0.0, min(JITTER_MAX_PERIODS * (1.0 - regularity), room))
+_JITTER_TABLE = JITTER_TABLE
+_jitter_table = jitter_table  # the one jitter rule lives beside Drive (drive.py)
 
 
 def _round(x: float) -> int:

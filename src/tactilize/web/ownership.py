@@ -28,9 +28,9 @@ from __future__ import annotations
 import itertools
 import threading
 import time
-from typing import Any, Callable, Sequence, cast
+from typing import Any, Callable, Sequence
 
-from ..actuators.base import EventOutput, Output
+from ..actuators.base import Output
 from ..drive import Drive
 from .state import ServerState
 
@@ -184,12 +184,11 @@ class LeasedOutput:
             self.notify(self.lease.status(self))
         return [Drive.off()] * int(self.output.channels)
 
-    def play_events(self, channels: Sequence[Any], now_s: float, equivalent: Sequence[Drive]) -> list[Drive]:
-        # A stroke of events is a stroke: it claims the lease as apply() does (else a page could
-        # replace the holder's events, and its after_batch() would never reach the output).
+    def play(self, frame: Any, now_s: float, channels: Sequence[Drive]) -> list[Drive]:
+        # A frame is a stroke: it claims the lease as apply() does (else a page could replace
+        # the holder's events, and its after_batch() would never reach the output).
         if self.lease.claim(self):
-            # Only outputs that play events (``plays_events``) are handed them.
-            return cast(EventOutput, self.output).play_events(channels, now_s, equivalent)
+            return self.output.play(frame, now_s, channels)
         self.refused += 1
         if not self._told_refused:
             self.notify(self.lease.status(self))
