@@ -90,6 +90,8 @@ def test_one_trial_in_headless_chromium(server):
             expect(page.locator("#view-trial")).to_be_visible()
             expect(page.locator("#trial-title")).to_have_text("Trial 1 of 1")
             expect(page.locator("#answers")).to_be_hidden()  # not before stroking
+            # The pen's socket is open before the stroke (a loaded machine may take a moment).
+            page.wait_for_function("document.body.dataset.pen === 'live'", timeout=30_000)
             box = page.locator("#surface").bounding_box()
             assert box and box["width"] > 100
             page.mouse.move(box["x"] + 20, box["y"] + box["height"] / 2)
