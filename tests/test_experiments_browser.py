@@ -90,9 +90,15 @@ def test_one_trial_in_headless_chromium(server):
             expect(page.locator("#view-trial")).to_be_visible()
             expect(page.locator("#trial-title")).to_have_text("Trial 1 of 1")
             expect(page.locator("#answers")).to_be_hidden()  # not before stroking
-            # The pen's socket is open before the stroke (a loaded machine may take a moment).
+            # The pen's socket is open and the picture laid out before the stroke (a loaded
+            # machine may take a moment to load the picture, which moves the surface).
             page.wait_for_function("document.body.dataset.pen === 'live'", timeout=30_000)
-            box = page.locator("#surface").bounding_box()
+            page.wait_for_function("[...document.images].every((im) => im.complete)", timeout=30_000)
+            box, previous = page.locator("#surface").bounding_box(), None
+            deadline = time.monotonic() + 30.0  # a bound only
+            while box != previous and time.monotonic() < deadline:
+                page.wait_for_timeout(100)
+                previous, box = box, page.locator("#surface").bounding_box()
             assert box and box["width"] > 100
             page.mouse.move(box["x"] + 20, box["y"] + box["height"] / 2)
             page.mouse.down()
