@@ -15,7 +15,6 @@ from tactilize.mapping import Profile
 from tactilize.serial_report import board_stroke
 from tactilize.surface import surface_model
 from tactilize.surface.fields import bump_field
-from tactilize.surface.straight import straight_stroke
 
 SURFACE = Profile.preset("surface")
 

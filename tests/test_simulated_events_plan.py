@@ -6,7 +6,8 @@ Stepped by ``advance`` (offline: a stroke run for an export) each call gets its 
 Running in real time (the pen server) the simulation thread makes it when it takes the
 events, so a pen batch does not plan it again: a batch gets the newest plan, the first
 batch after a steady drive, a lift or a stop its own.  The tests below step that mode by
-hand (``_plan_on_take``, which ``start`` sets) so the thread's moments are the test's.
+hand (the output's event player's ``plan_on_take``, which ``start`` sets) so the thread's
+moments are the test's; they count the controllers' plans to see who planned.
 """
 
 from __future__ import annotations
@@ -30,21 +31,28 @@ def _events(now_s: float) -> list[PulseEvent]:
 
 def _counting(out: SimulatedOutput) -> list[int]:
     calls = [0]
-    for ch in out._chans:
-        plan = ch.ctrl.plan
+    for ctrl in out.controllers:
+        plan = ctrl.plan
 
         def counted(d, _plan=plan):
             calls[0] += 1
             return _plan(d)
 
-        ch.ctrl.plan = counted  # type: ignore[method-assign]
+        ctrl.plan = counted  # type: ignore[method-assign]
     return calls
+
+
+def _assert_planned(out: SimulatedOutput, shown: Drive, d: Drive) -> None:
+    """``shown`` is the controller's plan of ``d`` at the wire's state now."""
+    want = out.controllers[0].plan(d)
+    assert shown.pulse_frequency_hz == d.pulse_frequency_hz
+    assert shown.pulse_width_s == want.pulse_width_s and shown.amplitude == want.level
 
 
 def _live() -> SimulatedOutput:
     """The real-time mode, stepped by hand."""
     out = SimulatedOutput(start=False)
-    out._plan_on_take = True
+    out.event_player.plan_on_take = True
     return out
 
 
@@ -54,9 +62,7 @@ def test_offline_every_hand_over_gets_the_plan_of_its_own_operating_point():
     for k in range(6):
         d = _eq(60.0 + 10 * k)
         shown = out.play(Frame(tuple(_events(1.0 + 0.004 * k)), d, False), 1.0 + 0.004 * k, [d, d])
-        want = out._planned(out._chans[0], d)
-        assert shown[0].pulse_frequency_hz == d.pulse_frequency_hz
-        assert shown[0].pulse_width_s == want.pulse_width_s and shown[0].amplitude == want.amplitude
+        _assert_planned(out, shown[0], d)
         if k % 2:
             out.advance(0.004)
 
@@ -65,15 +71,15 @@ def test_in_real_time_the_pen_thread_plans_once_and_the_wire_thread_the_rest():
     out = SimulatedOutput()  # its thread running
     try:
         by_thread: dict[str, int] = {}
-        for ch in out._chans:
-            plan = ch.ctrl.plan
+        for ctrl in out.controllers:
+            plan = ctrl.plan
 
             def counted(d, _plan=plan):
                 name = threading.current_thread().name
                 by_thread[name] = by_thread.get(name, 0) + 1
                 return _plan(d)
 
-            ch.ctrl.plan = counted  # type: ignore[method-assign]
+            ctrl.plan = counted  # type: ignore[method-assign]
         me = threading.current_thread().name
         for k in range(20):
             d = _eq(60.0 + 5 * k)
@@ -82,7 +88,7 @@ def test_in_real_time_the_pen_thread_plans_once_and_the_wire_thread_the_rest():
         last = _eq(60.0 + 5 * 19)
         # The wire's thread takes the newest events within a tick and plans their operating point.
         def shown_hz() -> float | None:
-            shown = out._events_shown
+            shown = out.event_player.shown
             return shown[0].pulse_frequency_hz if shown else None
 
         deadline = time.monotonic() + 10.0  # a generous wait, not a timing assertion
@@ -113,9 +119,7 @@ def test_batches_get_the_plan_the_wire_made_and_do_not_plan_it_again():
     newest = out.play(Frame(tuple(_events(1.03)), later, False), 1.03, [later, later])
     assert newest is not shown
     # The plan of the operating point the wire took: the last handed over before the step (110 Hz).
-    expected = out._planned(out._chans[0], _eq(110.0))
-    assert newest[0].pulse_frequency_hz == 110.0
-    assert newest[0].pulse_width_s == expected.pulse_width_s and newest[0].amplitude == expected.amplitude
+    _assert_planned(out, newest[0], _eq(110.0))
     assert calls[0] == 3  # (the line above planned once itself)
 
 
@@ -141,14 +145,15 @@ def test_a_plan_the_wire_made_before_a_stop_is_not_shown_after_it():
     out.play(Frame(tuple(_events(1.0)), a, False), 1.0, [a, a])
     b = _eq(70.0)
     out.play(Frame(tuple(_events(1.004)), b, False), 1.004, [b, b])
-    planned = out._planned
+    ctrl = out.controllers[0]
+    plan = ctrl.plan
 
-    def stop_meanwhile(ch, d):
+    def stop_meanwhile(d):
         out.stop()  # the pen lifts while the wire plans
-        return planned(ch, d)
+        return plan(d)
 
-    out._planned = stop_meanwhile  # type: ignore[method-assign]
+    ctrl.plan = stop_meanwhile  # type: ignore[method-assign]
     out.advance(0.004)
-    out._planned = planned  # type: ignore[method-assign]
+    ctrl.plan = plan  # type: ignore[method-assign]
     c = _eq(120.0)
     assert out.play(Frame(tuple(_events(1.3)), c, False), 1.3, [c, c])[0].pulse_frequency_hz == 120.0

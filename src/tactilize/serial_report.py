@@ -113,7 +113,7 @@ def board_stroke(profile: Any, speed_m_s: float, *, surface: Any = None, feature
         (|pin pulse - true crossing|, with ``bumps``), ``fired``, ``shortened``,
         ``skipped``, ``late`` (the board's counters of scheduled pulses).
     """
-    from .surface.straight import STROKE_S, straight_stroke
+    from .surface.straight import STROKE_S, MirroredSurface, fold_into
     from .boardhost.virtual_board import VirtualBoard
 
     duration = STROKE_S if duration_s is None else float(duration_s)
@@ -139,11 +139,23 @@ def board_stroke(profile: Any, speed_m_s: float, *, surface: Any = None, feature
     if bumps is not None and surface is not None:
         from .surface.fields import true_crossings
 
-        t, x, y = straight_stroke(surface.width_m, surface.height_m, speed_m_s, 0.0, duration)
-        truth = true_crossings(t, x, y, bumps.centres_m, bumps.radii_m)
+        t, x, y = _stroke(surface, speed_m_s, duration)
+        # the crossings of the bumps themselves: the stroke's positions folded onto the picture
+        w, h = MirroredSurface.folded_size(surface.width_m, surface.height_m)
+        truth = true_crossings(t, fold_into(x, w), fold_into(y, h), bumps.centres_m, bumps.radii_m)
         cr = _errors_ms(inside, zero_s + truth)
         row.update(crossings=int(truth.size), crossing_p50_ms=cr["p50_ms"], crossing_p95_ms=cr["p95_ms"])
     return row
+
+
+def _stroke(surface: Any, speed_m_s: float, duration: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The steady straight stroke's samples (t [s], x [m], y [m]) over ``[0, duration)``: the
+    pin is counted over that window, so nothing is rendered after it."""
+    from .surface.straight import straight_stroke
+
+    t, x, y = straight_stroke(surface.width_m, surface.height_m, speed_m_s, 0.0, duration)
+    keep = t < duration
+    return t[keep], x[keep], y[keep]
 
 
 def _play_events(board: Any, host: Any, profile: Any, surface: Any, speed_m_s: float,
@@ -155,11 +167,11 @@ def _play_events(board: Any, host: Any, profile: Any, surface: Any, speed_m_s: f
     from .surface.clock import StrokeClock
     from .surface.events import stroke_events
     from .surface.stroke import LOOKAHEAD_S
-    from .surface.straight import straight_stroke
+    from .surface.straight import MirroredSurface
     from .surface.equivalent import equivalent_drive
 
-    t, x, y = straight_stroke(surface.width_m, surface.height_m, speed_m_s, 0.0, duration)
-    events = stroke_events(surface, t.tolist(), x.tolist(), y.tolist()) if speed_m_s > 0 else []
+    t, x, y = _stroke(surface, speed_m_s, duration)
+    events = stroke_events(MirroredSurface(surface), t.tolist(), x.tolist(), y.tolist()) if speed_m_s > 0 else []
     times = np.array([e.t_s for e in events], dtype=float)
     operating = host.make_safe(equivalent_drive(events, duration, profile, window_s=duration + 1.0)) \
         if events else Drive.off()

@@ -32,21 +32,16 @@ from __future__ import annotations
 
 import threading
 import time
-from collections import deque
-from typing import TYPE_CHECKING, Any, Callable, Sequence, cast
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
 from ..errors import OutputError, check_finite
 from ..drive import Drive
-from ..synthesis import PulseScheduler
 from .base import OutputBase
-from .sma import Circuit, SafetyEnvelope, WireController, WireModel, WireSpec, build_envelope
+from .sma import Circuit, SafetyEnvelope, WireController, WireSpec, build_envelope
 from .sma.controller import STATES, ControllerState
-from .simulated_events import event_starts, plan_to_show, relative_events, run_event_block, show_taken_plan, take_events
-
-if TYPE_CHECKING:
-    from .sma.heat import RunningHeat
+from .simulated_events import EventPlayer, WireChannel, relative_events
 
 __all__ = ["SimulatedOutput"]
 
@@ -61,30 +56,6 @@ _SLICE_US = 5_000
 #: Asked for once per piece of a warming burst (every 250 us): one shared value,
 #: not a new validated Drive each time.
 _OFF = Drive.off()
-
-
-class _Channel:
-    """One wire: plant, controller, pulse schedule, and the pulse being followed."""
-
-    def __init__(self, plant_spec: WireSpec, plant_circuit: Circuit, ctrl: WireController) -> None:
-        self.model = WireModel(plant_spec, plant_circuit)
-        self.ctrl = ctrl
-        self.sched = PulseScheduler(_US)
-        self.scheduled = Drive.off()
-        self.carry_us = 0  # rest of a pulse that runs into the next block
-        self.open_pulse: tuple[float, float, float] | None = None  # (t_s, x_start, x_end)
-        self.log: deque[tuple[float, float, float]] = deque(maxlen=4096)  # (t_s, rise_m, swing_m)
-        self.width_s = 0.0
-        self.current_a = 0.0
-        self.peak_c = self.model.temperature_c
-        #: Pulse events still to fire (simulated start [us], strength), in order; None: steady drive.
-        self.events: deque[tuple[int, float]] | None = None
-        self.last_event_us: int | None = None
-        self.heat: RunningHeat | None = None
-        self.events_fired = 0
-        self.events_dropped = 0
-        #: Pulses of events: (start [s], rise during the pulse [m]).
-        self.event_log: deque[tuple[float, float]] = deque(maxlen=4096)
 
 
 class SimulatedOutput(OutputBase):
@@ -159,20 +130,17 @@ class SimulatedOutput(OutputBase):
         ps = plant_wire if plant_wire is not None else self.spec
         pc = plant_circuit if plant_circuit is not None else self.circuit
         self._chans = [
-            _Channel(ps, pc, WireController(self.spec, self.circuit, self.envelope, closed_loop=closed_loop,
+            WireChannel(ps, pc, WireController(self.spec, self.circuit, self.envelope, closed_loop=closed_loop,
                                             standby_s=standby_s))
             for _ in range(channels)
         ]
         self._drives = [Drive.off()] * channels
-        #: The plan of the operating point the newest events came with (the page shows it).
-        self._events_shown: list[Drive] | None = None
-        # Running in real time, the thread plans the operating point of the events it takes
-        # (only the page shows that plan): a pen batch is spared it.
-        self._plan_on_take = False
-        self._handovers = 0  # steady drives, lifts and stops handed over so far
+        #: Plays pulse events on the wires, and plans what a hand-over of them reports.
+        self.event_player = EventPlayer(self._chans, self._piece, self._start_pulse, self._close_pulse)
         self._lock = threading.RLock()
         self._pending_lock = threading.Lock()  # held for microseconds only
-        self._pending: list[tuple[str, list[Drive] | None]] = []
+        # (kind, drives, each channel's events relative to the hand-over [s] for "events")
+        self._pending: list[tuple[str, list[Drive] | None, list[list[tuple[float, float]]] | None]] = []
         self._t_us = 0
         size = max(2, int(round(trace_seconds * self.trace_rate_hz)))
         self._size = size
@@ -254,20 +222,12 @@ class SimulatedOutput(OutputBase):
         if self._failure is not None:
             raise OutputError("<simulated>", self._failure)
         drives = self._check(equivalent)
-        applied = plan_to_show(self, drives)
+        applied = self.event_player.plan_to_show(drives)
+        self._drives = applied
         rel = relative_events(channels, now_s, self.channels)
         with self._pending_lock:
-            self._pending.append(("events", (drives, rel)))  # type: ignore[arg-type]
+            self._pending.append(("events", drives, rel))
         return applied
-
-    def _planned(self, ch: _Channel, d: Drive) -> Drive:
-        # Without the simulation's lock: a pen batch would wait for a whole slice of
-        # it (up to 5 ms) every batch.  plan() only reads a few floats of the
-        # controller, each read whole; what it returns is for the page, and every
-        # pulse is planned again, under the lock, when it is played.
-        plan = ch.ctrl.plan(d)
-        clamped = d.clamped + tuple(n for n in plan.clamped if n not in d.clamped)
-        return d.replace(pulse_width_s=plan.pulse_width_s, amplitude=plan.level, clamped=clamped)
 
     def event_counts(self) -> list[dict[str, int]]:
         """Per channel: events fired as pulses, and events dropped (the wire was not yet in its
@@ -295,21 +255,20 @@ class SimulatedOutput(OutputBase):
         # A pen batch must never wait for a simulation tick: commands wait here
         # and the next advance takes them at the simulated instant it starts from.
         with self._pending_lock:
-            self._pending.append((kind, drives))
+            self._pending.append((kind, drives, None))
             # Events after this are planned afresh (they follow a steady drive, a lift, a stop).
-            self._events_shown = None
-            self._handovers += 1
+            self.event_player.handed_over()
 
     def _take_pending(self) -> None:
         with self._pending_lock:
             pending, self._pending = self._pending, []
-            seen = self._handovers
+            seen = self.event_player.handovers
         now = self._t_us * 1e-6
         taken: list[Drive] | None = None  # the newest events' operating point, if nothing came after them
-        for kind, drives in pending:
-            if kind == "events":
-                take_events(self, drives, now)  # type: ignore[arg-type]
-                taken = cast(list, drives)[0]  # (drives, relative events)
+        for kind, drives, rel in pending:
+            if kind == "events" and drives is not None and rel is not None:
+                self.event_player.take(drives, rel, self._t_us)
+                taken = drives
                 continue
             taken = None
             for c, ch in enumerate(self._chans):
@@ -320,8 +279,12 @@ class SimulatedOutput(OutputBase):
                     ch.ctrl.standby(now)
                 elif drives is not None:
                     ch.ctrl.command(drives[c], now)
-        if taken is not None and self._plan_on_take:
-            show_taken_plan(self, taken, seen)
+        if taken is not None and self.event_player.plan_on_take:
+            # Planned for the page; dropped if a steady drive, a lift or a stop came meanwhile.
+            shown = self.event_player.planned_for(taken)
+            with self._pending_lock:
+                if self.event_player.handovers == seen:
+                    self.event_player.shown = self._drives = shown
 
     def close(self) -> None:
         """Stop, end the thread and wait for it."""
@@ -340,7 +303,7 @@ class SimulatedOutput(OutputBase):
         if self._thread is not None:
             return
         self._running = True
-        self._plan_on_take = True
+        self.event_player.plan_on_take = True
         self._thread = threading.Thread(target=self._guarded_loop, name="tactilize-simulated-wire", daemon=True)
         self._thread.start()
 
@@ -424,7 +387,7 @@ class SimulatedOutput(OutputBase):
             if bins_t.size:
                 self._push(bins_t, cols)
 
-    def _piece(self, ch: _Channel, dur_us: int, level: float, rec: list, marks: list, at_us: int) -> None:
+    def _piece(self, ch: WireChannel, dur_us: int, level: float, rec: list, marks: list, at_us: int) -> None:
         """Run one piece of constant switch level and let the controller read the wire."""
         if dur_us <= 0:
             return
@@ -442,7 +405,7 @@ class SimulatedOutput(OutputBase):
                 ch.heat.anchor(ch.ctrl.martensite_fraction)
         marks.append((at_us, at_us + dur_us, level * amps, _STATE_CODE[ch.ctrl.state]))
 
-    def _start_pulse(self, ch: _Channel, s: int, width_us: int, step: int, t0_us: int, cursor: int,
+    def _start_pulse(self, ch: WireChannel, s: int, width_us: int, step: int, t0_us: int, cursor: int,
                      rec: list, marks: list) -> int:
         """Switch a pulse of ``width_us`` [us] on at offset ``s`` of this step; what does not fit in
         the step is carried into the next.  Returns the step offset [us] where the pulse's part ends."""
@@ -454,7 +417,7 @@ class SimulatedOutput(OutputBase):
             ch.carry_us = width_us - on
         return s + on
 
-    def _close_pulse(self, ch: _Channel) -> None:
+    def _close_pulse(self, ch: WireChannel) -> None:
         """The next pulse starts (or the train stops): the last pulse's own peak is known."""
         if ch.open_pulse is not None:
             t, x0, x1 = ch.open_pulse
@@ -464,7 +427,7 @@ class SimulatedOutput(OutputBase):
                 ch.event_log.append((t, x1 - x0))
             ch.open_pulse = None
 
-    def _run_channel(self, ch: _Channel, t0_us: int, n: int, rec: list, marks: list) -> None:
+    def _run_channel(self, ch: WireChannel, t0_us: int, n: int, rec: list, marks: list) -> None:
         ctrl = ch.ctrl
         cursor = 0
         if ch.carry_us > 0:
@@ -482,7 +445,8 @@ class SimulatedOutput(OutputBase):
                 step = max(1, min(step, int(ctrl.burst_s() * _US)))
             want = ctrl.drive if ctrl.pulses_on else _OFF
             if ch.events is not None:
-                run_event_block(self, ch, event_starts(ch, t0_us + cursor, step, want), step, t0_us, cursor, rec, marks)
+                self.event_player.run_block(ch, EventPlayer.starts(ch, t0_us + cursor, step, want), step, t0_us,
+                                           cursor, rec, marks)
                 cursor += step
                 continue
             if want != ch.scheduled:

@@ -200,63 +200,46 @@ def stroke_json(stroke: Stroke) -> bytes:
 
 def synthetic_stroke(width_m: float, height_m: float, speed_m_s: float, duration_s: float,
                      direction_deg: float = 0.0, rate_hz: float = SYNTHETIC_RATE_HZ) -> Stroke:
-    """A straight stroke from the picture's centre at a steady speed.
+    """A steady straight stroke from the picture's centre, as a :class:`Stroke`.
 
-    It starts :data:`PREROLL_S` early (negative times; :func:`run_stroke` drops
-    them).  The line is not folded: it may run past the picture's edges, and
-    :func:`run_stroke` with ``mirror=True`` shows it the picture mirrored
-    beyond them, so the speed stays steady however long the stroke (a stroke
-    turned back at the edge would slow to a stop at every turn).  Direction
-    [deg] counter-clockwise from +x with y up, as everywhere in tactilize.
+    The samples are :func:`tactilize.surface.straight.straight_stroke`'s (its
+    rule at the edges: the line runs on past them and the picture is read
+    mirrored, which :func:`run_stroke` does with ``mirror=True``).  It starts
+    :data:`PREROLL_S` early (negative times; :func:`run_stroke` drops them).
+
+    Parameters
+    ----------
+    width_m, height_m : float
+        The picture's size where shown [m].
+    speed_m_s : float
+        Speed [m/s].
+    duration_s : float
+        Length after time 0 [s].
+    direction_deg : float
+        Direction [deg] counter-clockwise from +x with y up, as everywhere in tactilize.
+    rate_hz : float
+        Sample rate [Hz].
     """
-    a = math.radians(direction_deg)
-    ux, uy = math.cos(a), -math.sin(a)  # y down on the picture
-    cx, cy = width_m / 2, height_m / 2
-    n = int(math.floor((duration_s + PREROLL_S) * rate_hz)) + 2
-    ts = tuple(-PREROLL_S + k / rate_hz for k in range(n))
-    xs = tuple(cx + ux * speed_m_s * k / rate_hz for k in range(n))
-    ys = tuple(cy + uy * speed_m_s * k / rate_hz for k in range(n))
-    return Stroke(ts, xs, ys, (None,) * n, "<synthetic stroke>")
+    from ..surface.straight import straight_stroke
 
-
-def _reflect(v: float, lo: float, hi: float) -> float:
-    span = hi - lo
-    if span <= 0:
-        return lo
-    u = (v - lo) % (2 * span)
-    return lo + (u if u <= span else 2 * span - u)
+    t, x, y = straight_stroke(width_m, height_m, speed_m_s, math.radians(direction_deg), duration_s, rate_hz,
+                              preroll_s=PREROLL_S)
+    return Stroke(tuple(t.tolist()), tuple(x.tolist()), tuple(y.tolist()), (None,) * len(t), "<synthetic stroke>")
 
 
 class _Mirrored:
     """A texture map continued beyond its edges by mirror images of itself."""
 
     def __init__(self, tmap: FeatureLookup) -> None:
+        from ..surface.straight import MirroredSurface
+
         self.tmap = tmap
-        # just inside the edges: lookup() takes [0, width)
-        self.w, self.h = tmap.width_m * (1 - 1e-9), tmap.height_m * (1 - 1e-9)
+        self.w, self.h = MirroredSurface.folded_size(tmap.width_m, tmap.height_m)
 
     def lookup(self, x_m: float, y_m: float) -> TextureFeatures | None:
-        return self.tmap.lookup(_reflect(x_m, 0.0, self.w), _reflect(y_m, 0.0, self.h))
+        from ..surface.straight import fold_into
 
-
-class _MirroredSurface:
-    """A surface model continued beyond its edges by mirror images of itself."""
-
-    def __init__(self, surface: SurfaceModel) -> None:
-        self.surface = surface
-        self.step_m = surface.step_m
-        self.tip_radius_m = surface.tip_radius_m
-        self.surface_per_display = surface.surface_per_display
-        self.w, self.h = surface.width_m * (1 - 1e-9), surface.height_m * (1 - 1e-9)
-
-    def regions(self, x_m: np.ndarray, y_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        import numpy as np
-
-        def fold(v: np.ndarray, span: float) -> np.ndarray:
-            u = np.mod(np.asarray(v, dtype=np.float64), 2 * span)
-            return np.where(u <= span, u, 2 * span - u)
-
-        return self.surface.regions(fold(x_m, self.w), fold(y_m, self.h))
+        return self.tmap.lookup(float(fold_into(x_m, self.w)), float(fold_into(y_m, self.h)))
 
 
 def _same_drive(drive: Drive, n: int, state: Any) -> list[Drive]:
@@ -315,9 +298,11 @@ def run_stroke(stroke: Stroke, texture_map: FeatureLookup, profile: Profile,
         out = output
     # Both channels get the profile's drive, as on the SMA wire (the phantom
     # split of audio outputs would leave one channel of a phone file silent).
-    felt: SurfaceModel | _MirroredSurface | None = surface
+    from ..surface.straight import MirroredSurface
+
+    felt: SurfaceModel | MirroredSurface | None = surface
     if surface is not None and mirror:
-        felt = _MirroredSurface(surface)
+        felt = MirroredSurface(surface)
     renderer = PenRenderer(_Mirrored(texture_map) if mirror else texture_map, profile, out, resend_rel=0.0,
                            splitter=_same_drive, surface=felt)
     samples = stroke.samples()
