@@ -12,7 +12,7 @@ board (:mod:`tactilize.boardhost.virtual_board`), along the host's own path:
   (:class:`~tactilize.actuators.clock_sync.ClockSync`), every pulse planned by
   :func:`~tactilize.actuators.serial_events.plan_pulses` through the felt band,
   the safety envelope and the board's own limits, as
-  :meth:`SerialOutput.play_events <tactilize.actuators.serial.SerialOutput.play_events>`
+  :meth:`SerialOutput.play <tactilize.actuators.serial.SerialOutput.play>`
   does on a version 4 board;
 - a steady profile: its drive through the same envelope, sent with SET (and
   heartbeats), as :meth:`SerialOutput.apply <tactilize.actuators.serial.SerialOutput.apply>` does.
