@@ -15,6 +15,8 @@ import time
 
 import pytest
 
+from _layout import settled_box
+
 from tactilize.experiments.protocols import load_protocol
 from tactilize.experiments.store import Store
 
@@ -93,12 +95,7 @@ def test_one_trial_in_headless_chromium(server):
             # The pen's socket is open and the picture laid out before the stroke (a loaded
             # machine may take a moment to load the picture, which moves the surface).
             page.wait_for_function("document.body.dataset.pen === 'live'", timeout=30_000)
-            page.wait_for_function("[...document.images].every((im) => im.complete)", timeout=30_000)
-            box, previous = page.locator("#surface").bounding_box(), None
-            deadline = time.monotonic() + 30.0  # a bound only
-            while box != previous and time.monotonic() < deadline:
-                page.wait_for_timeout(100)
-                previous, box = box, page.locator("#surface").bounding_box()
+            box = settled_box(page, "#surface")
             assert box and box["width"] > 100
             page.mouse.move(box["x"] + 20, box["y"] + box["height"] / 2)
             page.mouse.down()

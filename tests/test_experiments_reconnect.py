@@ -19,6 +19,8 @@ import time
 
 import pytest
 
+from _layout import settled_box
+
 from tactilize.experiments.labdata import trial_events
 from tactilize.experiments.protocols import load_protocol
 from tactilize.experiments.store import Store
@@ -65,7 +67,7 @@ def _two_trial_protocol(tmp_path):
 
 
 def _stroke(page, n=30):
-    box = page.locator("#surface").bounding_box()
+    box = settled_box(page, "#surface")
     page.mouse.move(box["x"] + 20, box["y"] + box["height"] / 2)
     page.mouse.down()
     for k in range(n):

@@ -14,6 +14,8 @@ import re
 from pathlib import Path
 
 import pytest
+
+from _layout import settled_box
 from fastapi.testclient import TestClient
 
 import tactilize.experiments.strokes as strokes_mod
@@ -126,7 +128,7 @@ def test_both_pages_send_the_same_schema_for_the_same_stroke(server):  # noqa: F
         return frames
 
     def draw(page, selector):
-        box = page.locator(selector).bounding_box()
+        box = settled_box(page, selector)
         page.mouse.move(box["x"] + 20, box["y"] + 40)
         page.mouse.down()
         for k in range(30):  # 3 CSS px a step, 16 ms apart
