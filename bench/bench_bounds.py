@@ -9,8 +9,8 @@ built-in maps), and measures in the same run:
   (201 analysed, 503 refused beyond the upload limit);
 * the same with one stroke export per client of a minute's stroke.
 
-Prints the peak, the peak over the reference, and the answers.  The goal (issue 23,
-docs/serve.md "Bounds"): six concurrent 16 Mpx uploads peak within 600 MB.
+Prints the peak, the peak over the reference, and the answers.  The goal
+(docs/serve.md "Bounds"): six concurrent 16 Mpx uploads peak within 600 MB.
 
 Usage: python bench/bench_bounds.py [--uploads 6]
 """

@@ -1,4 +1,4 @@
-"""Benchmark: surfaces as they are (issue 24), before and after, in one run.
+"""Benchmark: surfaces as they are, before and after, in one run.
 
 1. What the finger gets from real photographs (scikit-image's CC0 brick, grass
    and gravel, shown 100 mm wide) and from generated sandpaper-like grains
@@ -310,7 +310,7 @@ def main() -> None:
         if a.json:
             print(json.dumps(doc, default=float))
         return
-    if a.only == "audio":  # the voice coil's signal (issue 26): bench_audio.py
+    if a.only == "audio":  # the voice coil's signal: bench_audio.py
         import bench_audio
 
         doc["audio"] = bench_audio.run(a.quick)

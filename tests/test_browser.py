@@ -49,7 +49,7 @@ def server(tmp_path_factory):
     log = open(tmp_path_factory.mktemp("serve") / "serve.log", "w+")
     proc = subprocess.Popen(
         # The page's steady numbers are pinned on the perceptual preset (the default is the
-        # surface rendering since issue 24; tests/test_surface_profile.py drives its session).
+        # surface rendering; tests/test_surface_profile.py drives its session).
         [sys.executable, "-m", "tactilize.cli", "serve", "--no-open", "--port", "0", "--profile", "perceptual"],
         stdout=subprocess.PIPE,
         stderr=log,

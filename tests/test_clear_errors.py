@@ -1,4 +1,4 @@
-"""Clear errors (issue 23, item 10): one line and exit 2, or a 4xx that says what is wrong,
+"""Clear errors: one line and exit 2, or a 4xx that says what is wrong,
 where there was exit 1, a 500 or a traceback (docs/safety.md, "Clear errors")."""
 
 from __future__ import annotations

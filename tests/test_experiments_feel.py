@@ -1,4 +1,4 @@
-"""A participant feels what ``tactilize serve`` renders (issue 27, item 1).
+"""A participant feels what ``tactilize serve`` renders.
 
 The same recorded stroke goes through the pen page's WebSocket and through an
 experiment trial's WebSocket with the same profile, each app with its own

@@ -1,4 +1,4 @@
-"""Issue 14: what a lab runs into -- simulation beside real data, silent conditions,
+"""What a lab runs into -- simulation beside real data, silent conditions,
 paper-ready figures, error paths, backups, withdrawals, exports."""
 
 from __future__ import annotations

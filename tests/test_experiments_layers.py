@@ -1,4 +1,4 @@
-"""The experiments package imports one way (issue 27, item 2).
+"""The experiments package imports one way.
 
 Its layers are an import-linter contract (the contract "experiments-layers" in pyproject.toml); its
 modules import what they use at the top (only the command line, which every

@@ -1,4 +1,4 @@
-"""Issue 25, item 8: every export keeps the rules of the tools that read it, and each rule refuses what breaks it.
+"""Every export keeps the rules of the tools that read it, and each rule refuses what breaks it.
 
 The validators (tactilize.export.conformance) state the rules of the MPEG-I reference reader (.hjif), Meta's
 haptic data model (.haptic), Apple's AHAP documentation and Google's VibrationEffect documentation. Here every

@@ -1,4 +1,4 @@
-"""Issue 26, item 3: the parametric exports carry the surface's events, one per bump crossed where the format allows.
+"""The parametric exports carry the surface's events, one per bump crossed where the format allows.
 
 A generated bump field with known centres (tactilize.surface.fields) is stroked, synthetically and from a recorded
 file; every AHAP, Android, .haptic and .hjif export is counted against the true crossings of the field: one
@@ -220,7 +220,7 @@ def test_the_export_command_carries_the_bumps_of_a_recorded_stroke(tmp_path):
 
 
 def test_steady_renderings_keep_their_output(field):
-    """The paper preset (steady) exports its drive, surface or not: the same bytes as before issue 26."""
+    """The paper preset (steady) exports its drive, surface or not: the same bytes as the steady exporter writes."""
     img, tmap, surface, _ = field
     paper = Profile.preset("paper")
     stroke = synthetic_stroke(tmap.width_m, tmap.height_m, SPEED_M_S, 0.5)

@@ -1,4 +1,4 @@
-"""Exports that follow a stroke (issue 13): AHAP rules, frequency with speed, .hjif/.haptic, round trips, bad strokes."""
+"""Exports that follow a stroke: AHAP rules, frequency with speed, .hjif/.haptic, round trips, bad strokes."""
 
 from __future__ import annotations
 

@@ -409,7 +409,7 @@ def _in_compat_block(node: ast.AST) -> bool:
 def test_an_irregular_train_jitters_around_its_mean_frequency_on_the_board(emu, link):
     """The SET frame's regularity reaches the board, which places each pulse by a
     one-shot timer at (k + j u_k) periods: an irregular texture stays irregular on
-    the real controller (issue "Textures you can tell apart")."""
+    the real controller."""
     starts: list[float] = []
 
     def on_pin(t_s, kind, pin_id, detail):

@@ -45,7 +45,7 @@ def test_export_route_answers_the_file(client):
 
 
 def test_export_route_plays_the_bumps_of_the_surface_rendering(client):
-    """With the surface profile the route exports the texture's bumps (issue 26), as the library does offline."""
+    """With the surface profile the route exports the texture's bumps, as the library does offline."""
     from tactilize.export import parse_stroke, run_stroke
     from tactilize.export.events import HJIF_TRANSIENT_S, plan_events
     from tactilize.mapping import Profile

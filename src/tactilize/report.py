@@ -232,7 +232,7 @@ def _close_pair(speed_mm_s: float, a: str, b: str, fa_hz: float, fb_hz: float) -
     return {"speed_mm_s": float(speed_mm_s), "a": a, "b": b, "frequency_ratio": ratio}
 
 
-# ----------------------------------------------------------------- the voice coil's signal (issue 26)
+# ----------------------------------------------------------------- the voice coil's signal
 
 
 def audio_report(profile: Profile, images: dict[str, Any] | None = None,

@@ -183,8 +183,8 @@ class SerialOutput(SerialLink, OutputBase):
 
     # ------------------------------------------------------------ public
 
-    # OutputBase's connected and fault are plain attributes until types27b's read-only
-    # properties merge (issue 27); these two ignores go then (mypy reports them unused).
+    # OutputBase's connected and fault are plain attributes; SerialOutput makes them
+    # read-only properties (mypy reports the ignores below if that changes).
     @property
     def connected(self) -> bool:
         """True while the controller answers on the port."""

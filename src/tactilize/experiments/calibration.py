@@ -127,7 +127,7 @@ def fit_personal_profile(store, participant: str, base: str | None = None, quest
     texts = {}
     with store.Session() as s:
         for pv in s.query(DesignVersion):
-            texts[pv.sha256] = pv.text  # exports carry the full hash (issue 14)
+            texts[pv.sha256] = pv.text  # exports carry the full hash
     if base is None:
         newest = df.loc[df["answered_at"].idxmax()]
         base = design_from_toml(texts[newest["protocol_sha256"]], source=f"protocol {newest['protocol']}").base_profile

@@ -18,7 +18,7 @@ from then until the next row.  Two drives are kept per row and channel:
 Phone formats sample the timeline on a control grid (:func:`control_points`)
 and drop points a straight line already gives (frequency within 0.5 %,
 amplitude within 0.01), so every kept point is exact and the round trip holds
-to the tolerances of issue 13 (frequency 1 %, amplitude 2 %).
+to the round-trip tolerances (frequency 1 %, amplitude 2 %).
 
 Intensity and sharpness are as in :mod:`.ahap`: the train's fundamental
 relative to a 10 % duty train, and frequency over 65..300 Hz.

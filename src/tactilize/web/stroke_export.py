@@ -1,4 +1,4 @@
-"""The pen page's stroke export: a stroke in, a file out (issue 13).
+"""The pen page's stroke export: a stroke in, a file out.
 
 Routes (mounted by :func:`tactilize.web.app.create_app`)
 --------------------------------------------------------
