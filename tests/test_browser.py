@@ -41,20 +41,16 @@ CHROMIUM_ARGS = [
 DEFAULT_MM_PER_PX = 25.4 / 96
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    # The server's log goes to a file and its stdout is drained: a pipe nobody reads
-    # fills (64 KiB, about fifty tests' worth of log lines) and then blocks the
-    # server for good -- every later test saw "never showed a drive".
+@contextlib.contextmanager
+def serving(tmp_path_factory, *args: str):
+    """``tactilize serve --no-open --port 0 ARGS`` in a process of its own: its address.
+
+    The server's log goes to a file and its stdout is drained: a pipe nobody reads
+    fills (64 KiB, about fifty tests' worth of log lines) and then blocks the
+    server for good -- every later test saw "never showed a drive"."""
     log = open(tmp_path_factory.mktemp("serve") / "serve.log", "w+")
-    proc = subprocess.Popen(
-        # The page's steady numbers are pinned on the perceptual preset (the default is the
-        # surface rendering; tests/test_surface_profile.py drives its session).
-        [sys.executable, "-m", "tactilize.cli", "serve", "--no-open", "--port", "0", "--profile", "perceptual"],
-        stdout=subprocess.PIPE,
-        stderr=log,
-        text=True,
-    )
+    proc = subprocess.Popen([sys.executable, "-m", "tactilize.cli", "serve", "--no-open", "--port", "0", *args],
+                            stdout=subprocess.PIPE, stderr=log, text=True)
     line = proc.stdout.readline()
     m = re.search(r"http://127\.0\.0\.1:\d+/", line)
     if not m:
@@ -62,13 +58,23 @@ def server(tmp_path_factory):
         log.seek(0)
         pytest.fail(f"tactilize serve did not print its address: {line!r} {log.read()[-2000:]}")
     threading.Thread(target=proc.stdout.read, daemon=True).start()
-    yield m.group(0)
-    proc.terminate()
     try:
-        proc.wait(timeout=10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-    log.close()
+        yield m.group(0)
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+        log.close()
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    # The page's steady numbers are pinned on the perceptual preset (the default is the
+    # surface rendering; tests/test_surface_profile.py drives its session).
+    with serving(tmp_path_factory, "--profile", "perceptual") as url:
+        yield url
 
 
 @pytest.fixture(scope="module")

@@ -76,6 +76,20 @@ def _stroke(page, n=30):
     page.mouse.up()
 
 
+def _to_first_trial(page, port, participant):
+    """Consent, calibration, and the first of two trials with the pen's socket live."""
+    from playwright.sync_api import expect
+
+    page.goto(f"http://127.0.0.1:{port}/experiment/")
+    page.fill("#participant-id", participant)
+    page.check("#consent")
+    page.click("#start")
+    page.check("#felt")
+    page.click("#calibrate")
+    expect(page.locator("#trial-title")).to_have_text("Trial 1 of 2")
+    page.wait_for_function("document.body.dataset.pen === 'live'")
+
+
 @pytest.mark.browser
 def test_kill_mid_trial_reconnects_and_keeps_every_sample_in_its_trial(tmp_path):
     from playwright.sync_api import expect, sync_playwright
@@ -90,14 +104,7 @@ def test_kill_mid_trial_reconnects_and_keeps_every_sample_in_its_trial(tmp_path)
                 page = browser.new_page(viewport={"width": 1200, "height": 900})
                 errors = []
                 page.on("pageerror", lambda e: errors.append(str(e)))
-                page.goto(f"http://127.0.0.1:{port}/experiment/")
-                page.fill("#participant-id", "R01")
-                page.check("#consent")
-                page.click("#start")
-                page.check("#felt")
-                page.click("#calibrate")
-                expect(page.locator("#trial-title")).to_have_text("Trial 1 of 2")
-                page.wait_for_function("document.body.dataset.pen === 'live'")
+                _to_first_trial(page, port, "R01")
                 tabs = page.locator("#tabs button")
                 first, second = tabs.nth(0).get_attribute("data-image"), tabs.nth(1).get_attribute("data-image")
 
@@ -191,14 +198,7 @@ def test_an_answer_refused_with_503_is_kept_and_sent_again(tmp_path):
                 page = browser.new_page(viewport={"width": 1200, "height": 900})
                 errors = []
                 page.on("pageerror", lambda e: errors.append(str(e)))
-                page.goto(f"http://127.0.0.1:{port}/experiment/")
-                page.fill("#participant-id", "R02")
-                page.check("#consent")
-                page.click("#start")
-                page.check("#felt")
-                page.click("#calibrate")
-                expect(page.locator("#trial-title")).to_have_text("Trial 1 of 2")
-                page.wait_for_function("document.body.dataset.pen === 'live'")
+                _to_first_trial(page, port, "R02")
                 _stroke(page)
                 page.locator("#tabs button").nth(1).click()
                 _stroke(page)

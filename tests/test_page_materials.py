@@ -9,10 +9,6 @@ profile.
 
 from __future__ import annotations
 
-import re
-import subprocess
-import sys
-import threading
 import time
 
 import numpy as np
@@ -22,30 +18,15 @@ from fastapi.testclient import TestClient
 from tactilize.data import png_bytes
 from tactilize.web import create_app
 
-from test_browser import Pen, browser, opened_page, surface_box  # noqa: F401  (the fixture)
+from test_browser import Pen, browser, opened_page, serving, surface_box  # noqa: F401  (the fixture)
 from test_materials import _lit_flat_metal
 from test_web import FakeOutput
 
 
 @pytest.fixture(scope="module")
 def surface_server(tmp_path_factory):
-    log = open(tmp_path_factory.mktemp("serve") / "serve.log", "w+")
-    proc = subprocess.Popen([sys.executable, "-m", "tactilize.cli", "serve", "--no-open", "--port", "0"],
-                            stdout=subprocess.PIPE, stderr=log, text=True)
-    line = proc.stdout.readline()
-    m = re.search(r"http://127\.0\.0\.1:\d+/", line)
-    if not m:
-        proc.kill()
-        log.seek(0)
-        pytest.fail(f"tactilize serve did not print its address: {line!r} {log.read()[-2000:]}")
-    threading.Thread(target=proc.stdout.read, daemon=True).start()
-    yield m.group(0)
-    proc.terminate()
-    try:
-        proc.wait(timeout=10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-    log.close()
+    with serving(tmp_path_factory) as url:
+        yield url
 
 
 def _events_of_a_stroke(page) -> int:
