@@ -143,10 +143,11 @@ def test_toggled_frames_never_fire_uncounted_pulses(monkeypatch, tmp_path, circu
 # ------------------------------------------------------------------ 3. and 4. the ticks wrap
 
 
-def test_an_events_base_far_behind_is_late_not_a_crash(monkeypatch, tmp_path):
+@pytest.mark.parametrize("circuit", CIRCUITS)
+def test_an_events_base_far_behind_is_late_not_a_crash(monkeypatch, tmp_path, circuit):
     """A base 2^29 us or more behind the board's clock made ticks_add raise
     OverflowError out of Controller.feed, and main() exited."""
-    board = Board(monkeypatch, tmp_path)
+    board = Board(monkeypatch, tmp_path, circuit)
     _run(board, 0.2)
     board.replies()
     now = board.ctl.clock.now()
@@ -160,18 +161,21 @@ def test_an_events_base_far_behind_is_late_not_a_crash(monkeypatch, tmp_path):
     assert board.pulse_count(0) == 0
 
 
+@pytest.mark.parametrize("circuit", CIRCUITS)
 @pytest.mark.parametrize("idle_s", [540.0, 800.0])
-def test_a_slow_train_long_after_the_last_pulse_plays(monkeypatch, tmp_path, idle_s):
+def test_a_slow_train_long_after_the_last_pulse_plays(monkeypatch, tmp_path, idle_s, circuit):
     """A 5 Hz SET 537 s after the channel's last pulse raised OverflowError (ticks_add
     of a period from a tick that had wrapped); later it played nothing for 2 s."""
-    board = Board(monkeypatch, tmp_path, start_us=(1 << 30) - 3_000_000)
-    board.set(0, 20.0, 1e-3)
+    board = Board(monkeypatch, tmp_path, circuit, start_us=(1 << 30) - 3_000_000)
+    width_s = min(1e-3, _widest(board, 5.0), _widest(board, 20.0))  # what every preset admits
+    board.set(0, 20.0, width_s)
+    board.replies()
     _run(board, 0.3)
     board.send(P.Command.STOP)
     before = board.pulse_count(0)
     assert before > 5
     board.until(0.3 + idle_s)  # silence: the watchdog has nothing left to turn off
-    board.set(0, 5.0, 1e-3)
+    board.set(0, 5.0, width_s)
     _run(board, board.now_s + 2.0)
     got = board.replies()
     assert all(f.command == P.Command.ACK for f in got)
@@ -179,11 +183,12 @@ def test_a_slow_train_long_after_the_last_pulse_plays(monkeypatch, tmp_path, idl
     assert 9 <= board.pulse_count(0) - before <= 11
 
 
+@pytest.mark.parametrize("circuit", CIRCUITS)
 @pytest.mark.parametrize("idle_s", [9 * 60.0, 18 * 60.0])
-def test_a_stroke_long_after_the_last_pulse_plays_every_scheduled_pulse(monkeypatch, tmp_path, idle_s):
+def test_a_stroke_long_after_the_last_pulse_plays_every_scheduled_pulse(monkeypatch, tmp_path, idle_s, circuit):
     """9-18 min after a channel's last pulse a stroke played 0 of 20 EVENTS pulses:
     the gap to the last pulse read -473,741,824 us, closer than the 3 ms rule."""
-    board = Board(monkeypatch, tmp_path)
+    board = Board(monkeypatch, tmp_path, circuit)
     now = board.ctl.clock.now()
     board.send(P.Command.EVENTS, _events_payload(0, now + 2_000, [(900, 0, 800)]))
     _run(board, 0.1)
