@@ -98,6 +98,7 @@ from ..pen import PenRenderer
 from ..encode import dumps
 from ..pen.samples import PenSample
 from ..pen.display import MM_PER_PX_RANGE  # the one display-scale rule, shared with the experiments
+from ..surface.rendering import rendering_kind
 from .limits import MessageRate
 from .rows import MAX_BATCH, PenMessageError, batch_id, pen_batch
 from .state import ServerState
@@ -312,7 +313,7 @@ class PenSession:
             "texture": self.texture_id,
             "mm_per_px": self.m_per_px * 1e3,
             "profile": p.name,
-            "rendering": p.rendering,
+            "rendering": rendering_kind(p).name,
             "limits": p.limits.to_dict(),
             "output": self.state.output_name,
             "channels": self.renderer.channels,
@@ -357,7 +358,7 @@ class PenSession:
     def _drive_msg(self, res: Any) -> dict[str, Any]:
         d = res.to_dict()
         d["type"] = "drive"
-        d["rendering"] = self.renderer.profile.rendering
+        d["rendering"] = rendering_kind(self.renderer.profile).name
         d["batch"] = self.batch
         d["resting"] = False
         # Why the output cannot be trusted now (a faulty sense path, a stopped
