@@ -338,3 +338,19 @@ def test_every_preset_renders_through_every_consumer(preset, tmp_path, name_read
     assert any(r[2] > 0 for r in logged)
 
     assert name_readers <= {"surface/rendering.py", "mapping/profile.py"}, name_readers
+
+
+def test_the_report_strokes_only_what_a_rendering_reads():
+    """Features alone serve a steady rendering; a surface rendering needs each texture's picture
+    (given, or the built-in one of that name) and says which one it lacks."""
+    from tactilize.errors import TactilizeError
+    from tactilize.report import profile_report
+
+    img, tmap, sm = _picture()
+    feat = extract_features(img)
+    steady = profile_report(Profile.preset("perceptual"), {"mine": feat}, (60.0,), simulate_wire=False)
+    assert [r["texture"] for r in steady.rows] == ["mine"] and steady.rows[0]["pulses"] > 0
+    with pytest.raises(TactilizeError, match="mine: no picture of this texture"):
+        profile_report(Profile.preset("surface"), {"mine": feat}, (60.0,), simulate_wire=False)
+    built_in = profile_report(Profile.preset("surface"), {"corduroy": feat}, (60.0,), simulate_wire=False)
+    assert [r["texture"] for r in built_in.rows] == ["corduroy"] and built_in.rows[0]["pulses"] > 0
