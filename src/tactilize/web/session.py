@@ -94,9 +94,8 @@ from starlette.websockets import WebSocketDisconnect, WebSocketState
 
 from ..actuators.base import Output
 from ..errors import TactilizeError
-from ..pen import PenRenderer
+from ..pen import PenRenderer, PenSample
 from ..encode import dumps
-from ..pen.samples import PenSample
 from ..pen.display import MM_PER_PX_RANGE  # the one display-scale rule, shared with the experiments
 from ..surface.rendering import rendering_kind
 from .limits import MessageRate
