@@ -33,7 +33,8 @@ from scipy.ndimage import gaussian_filter
 from tactilize.materials import library, sensation_ratio
 from tactilize.surface import surface_model
 from tactilize.surface.events import stroke_events
-from tactilize.synthesis.acceleration import Mirrored, spectral_centroid_hz, spectrum, tip_acceleration
+from tactilize.surface.straight import MirroredSurface
+from tactilize.synthesis.acceleration import spectral_centroid_hz, spectrum, tip_acceleration
 
 N = 512
 WIDTH_M = 50e-3
@@ -105,7 +106,7 @@ def measure(surface, speed_mm_s: float, duration_s: float = 1.0) -> dict[str, fl
     v = speed_mm_s * 1e-3
     t = np.arange(-0.1, duration_s + 0.1, 1 / 240.0)
     x, y = 5e-3 + v * t, np.full(t.size, 0.5 * WIDTH_M)
-    sig = tip_acceleration(Mirrored(surface), t, x, y, sample_rate_hz=FS, start_s=0.0, end_s=duration_s)
+    sig = tip_acceleration(MirroredSurface(surface), t, x, y, sample_rate_hz=FS, start_s=0.0, end_s=duration_s)
     f, p = spectrum(sig)
     rms = float(np.sqrt(np.mean(sig.samples ** 2)))
     inside = x <= surface.width_m  # events on the picture itself (no mirror), per second of it
