@@ -13,7 +13,7 @@ facts (docs/references.md, section 11 (checks on the library)):
 - coarser sandpaper is louder (P80 over P240; Bensmaia and Hollins 2003 and 2005);
 - the level grows with speed, and the centroid and event rate rise with it
   (Bensmaia and Hollins 2003; kinematics, docs/references.md, section 3 (stylus on a natural surface));
-- the six recorded materials of the issue in their order: the brushed metal the quietest and
+- the six materials of the reference recordings in their order: the brushed metal the quietest and
   the granite the loudest at 170-250 mm/s, beside the picture alone on the same pictures;
 - smooth materials (polished metal and stone, glass, smooth plastic) are under the
   detection threshold.
@@ -179,7 +179,7 @@ def _checks(rows, recorded) -> list[dict[str, object]]:
     span = recorded[order[-1]]["material_db"] - recorded[order[0]]["material_db"]
     alone = sorted(recorded, key=lambda n: recorded[n]["picture_db"])
     span_alone = recorded[alone[-1]]["picture_db"] - recorded[alone[0]]["picture_db"]
-    check("brushed metal the quietest and granite the loudest of the six recorded (the issue's recordings)",
+    check("brushed metal the quietest and granite the loudest of the six recorded (the reference recordings)",
           order[0] == "metal-brushed" and order[-1] == "stone-granite",
           f"order {', '.join(order)}; span {span:.1f} dB (recorded: 32 dB); picture alone: {', '.join(alone)}, "
           f"span {span_alone:.1f} dB")
