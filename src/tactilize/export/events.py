@@ -39,11 +39,15 @@ References
 from __future__ import annotations
 
 import math
-from typing import Any, NamedTuple, Protocol, Sequence, TypeVar
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, Sequence, TypeVar
 
 import numpy as np
 
 from .timeline import CONTROL_STEP_S, ControlPoint, _simplify
+
+if TYPE_CHECKING:  # the surfaces load scipy: not at import
+    from ..surface.model import SurfaceLike
+    from .stroke import Stroke
 
 __all__ = [
     "BumpEvent",
@@ -125,7 +129,7 @@ def event_intensity(strength: float) -> float:
     return 0.0 if s <= 0.0 else INTENSITY_FLOOR ** (1.0 - s)
 
 
-def _pressures(stroke: Any, t: np.ndarray) -> list[float | None]:
+def _pressures(stroke: Stroke, t: np.ndarray) -> list[float | None]:
     """Each crossing's pressure, interpolated between the samples that have one (None where none do)."""
     known = [(ts, p) for ts, p in zip(stroke.t_s, stroke.pressure) if p is not None]
     if not known:
@@ -134,7 +138,7 @@ def _pressures(stroke: Any, t: np.ndarray) -> list[float | None]:
     return [float(v) for v in np.interp(t, kt, kp)]
 
 
-def stroke_bump_events(stroke: Any, surface: Any, *, origin_s: float = 0.0,
+def stroke_bump_events(stroke: Stroke, surface: SurfaceLike, *, origin_s: float = 0.0,
                        end_s: float = math.inf) -> tuple[BumpEvent, ...]:
     """Every bump ``stroke`` crosses on ``surface``, timed from ``origin_s`` [s], those in [0, ``end_s``).
 

@@ -17,6 +17,7 @@ from ..actuators.base import Output
 from ..drive import Drive
 from ..mapping import FeaturesForDrive, Profile
 from ..surface.clock import StrokeClock
+from ..surface.model import SurfaceLike
 from ..surface.rendering import Frame, Rendering, rendering_for
 from ..synthesis import pen_channels
 from ..synthesis.wavelets import wavelet_rows
@@ -192,7 +193,7 @@ class PenRenderer:
         splitter: Callable[[Drive, int, StrokeState | None], list[Drive]] | None = None,
         resend_rel: float = 0.005,
         refresh_s: float = 0.1,
-        surface: Any = None,
+        surface: SurfaceLike | None = None,
         clock: Callable[[], float] | None = None,
     ) -> None:
         self.texture_map = texture_map
@@ -216,7 +217,7 @@ class PenRenderer:
         """The latest result."""
         return self._last
 
-    def set_texture(self, texture_map: PictureLookup, surface: Any = None) -> RenderResult:
+    def set_texture(self, texture_map: PictureLookup, surface: SurfaceLike | None = None) -> RenderResult:
         """Show another picture (and its surface, for the surface rendering): the
         stroke restarts and the output stops."""
         self.texture_map = texture_map
@@ -224,7 +225,7 @@ class PenRenderer:
         return self.lift()
 
     @property
-    def surface(self) -> Any:
+    def surface(self) -> SurfaceLike | None:
         """The picture's surface model, or None."""
         return self.rendering.surface
 
