@@ -5,8 +5,8 @@
 strength is the prominence on a log scale between the picture's prominence
 floor (0) and :data:`FULL_PROMINENCE` (1), scaled by pressure; clustered bumps
 get weaker pulses; above :data:`RATE_ONLY_HZ` only the rate is rendered; no two
-pulses are closer than :data:`MIN_INTERVAL_S`.  :func:`stroke_events` is the whole
-pure path: a stroke's samples and a surface in, events out.
+pulses are closer than :data:`MIN_INTERVAL_S`.  :func:`stroke_events` is a whole
+stroke's events: the one whole-stroke path (:mod:`.playback`) through a surface rendering.
 
 Units: SI (s, Hz); strength in [0, 1].
 """
@@ -19,7 +19,6 @@ from typing import Any, NamedTuple, Sequence
 
 import numpy as np
 
-from .bumps import crossings_along, resample_path
 
 __all__ = [
     "PulseEvent",
@@ -194,7 +193,9 @@ def stroke_events(
     y_m: Sequence[float] | np.ndarray,
     pressure: float | None = None,
 ) -> list[PulseEvent]:
-    """Every pulse of a whole stroke, offline: the pure path of the surface rendering.
+    """Every pulse the surface rendering fires over a whole stroke: the one whole-stroke path
+    (:func:`~.playback.play_stroke`) with the page's batches, through a surface rendering of
+    ``surface`` without a profile.
 
     Parameters
     ----------
@@ -206,13 +207,12 @@ def stroke_events(
     pressure : float, optional
         Pen pressure in [0, 1] for the whole stroke; None when unknown.
     """
-    if len(t_s) < 2:
-        return []
-    path = resample_path(t_s, x_m, y_m, surface.step_m)
-    c = crossings_along(surface, *path)
-    if c.t_s.size == 0:
-        return []
-    return place_events(c.t_s, strength_of(c.prominence, c.floor, pressure, full_prominence(surface)))
+    from .playback import play_stroke
+    from .rendering import SurfaceRendering
+    from .samples import PenSample
+
+    samples = [PenSample(float(t), float(x), float(y), pressure) for t, x, y in zip(t_s, x_m, y_m)]
+    return list(play_stroke(SurfaceRendering(None, surface), samples).events)
 
 
 class EventStatistics(NamedTuple):

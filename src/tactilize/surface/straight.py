@@ -25,7 +25,7 @@ import numpy as np
 
 from ..drive import Drive
 from .equivalent import drive_of_statistics
-from .events import EventStatistics, PulseEvent, event_statistics, stroke_events
+from .events import EventStatistics, PulseEvent, event_statistics
 from .model import SurfaceLike
 
 __all__ = ["straight_stroke", "fold_into", "MirroredSurface", "surface_stroke_drive", "STROKE_S", "STROKE_RATE_HZ"]
@@ -119,12 +119,18 @@ class MirroredSurface:
 
 def surface_stroke_drive(surface: SurfaceLike, profile: Any, speed_m_s: float, direction_rad: float | None = None,
                          pressure: float | None = None) -> tuple[Drive, list[PulseEvent], EventStatistics]:
-    """The events of a steady :func:`straight_stroke` on ``surface`` (mirrored beyond its
-    edges), their statistics over the whole stroke and their equivalent Drive
-    (:func:`~.equivalent.drive_of_statistics`)."""
+    """The events the pen fires over a steady :func:`straight_stroke` on ``surface`` (mirrored
+    beyond its edges; the one whole-stroke path, :func:`~.playback.play_stroke`, through the
+    profile's surface rendering), their statistics over the whole stroke and their equivalent
+    Drive (:func:`~.equivalent.drive_of_statistics`)."""
+    from .playback import play_stroke
+    from .rendering import SurfaceRendering
+    from .samples import PenSample
+
     if speed_m_s <= 0:
         return Drive.off(), [], event_statistics([])
     t, x, y = straight_stroke(surface.width_m, surface.height_m, speed_m_s, direction_rad or 0.0)
-    events = stroke_events(MirroredSurface(surface), t, x, y, pressure)
+    samples = [PenSample(a, b, c, pressure) for a, b, c in zip(t.tolist(), x.tolist(), y.tolist())]
+    events = list(play_stroke(SurfaceRendering(profile, MirroredSurface(surface)), samples).events)
     stats = event_statistics(events, float(t[-1]))
     return drive_of_statistics(stats, profile), events, stats
