@@ -68,11 +68,15 @@ class PlayedStroke(NamedTuple):
     drives : tuple of Drive or None
         Each batch's frame's drive (None where nothing was rendered: before the tracker has
         a sample, off the picture).
+    regular : tuple of (Drive, bool)
+        For each fired event, the drive of the frame that handed it and whether that frame was
+        its drive's regular train.
     """
 
     events: tuple[PulseEvent, ...]
     t_s: tuple[float, ...]
     drives: tuple[Drive | None, ...]
+    regular: tuple[tuple[Drive, bool], ...] = ()
 
 
 def stroke_batches(samples: Sequence[Any], batch_s: float) -> list[list[Any]]:
@@ -136,8 +140,9 @@ def play_stroke(rendering: Rendering, samples: Sequence[Any], picture: PictureLo
     """
     tracker = tracker or StrokeTracker()
     clock = StrokeClock()
-    fired: list[PulseEvent] = []
+    fired: list[tuple[PulseEvent, Drive, bool]] = []
     pending: tuple[PulseEvent, ...] = ()
+    handed: Frame | None = None
     times: list[float] = []
     drives: list[Drive | None] = []
     now = -math.inf
@@ -145,21 +150,23 @@ def play_stroke(rendering: Rendering, samples: Sequence[Any], picture: PictureLo
         now = batch[-1].t_s
         arrival = now + transport_s
         played = clock.played_until_s(now, arrival)
-        fired.extend(e for e in pending if e.t_s <= played)
-        pending = ()
+        if handed is not None:
+            fired.extend((e, handed.drive, handed.regular) for e in pending if e.t_s <= played)
+        pending, handed = (), None
         state = tracker.extend(batch)
         feat = None
         frame = None
         if state is not None and (picture is None or (feat := picture.lookup(state.x_m, state.y_m)) is not None):
             frame = rendering.frame(state, feat, batch, played)
-            pending = frame.events
+            pending, handed = frame.events, frame
         else:
             rendering.reset()
         times.append(now)
         drives.append(None if frame is None else frame.drive)
         if on_frame is not None:
             on_frame(batch, state, feat, frame, arrival)
-    fired.extend(e for e in pending if e.t_s <= now)
+    if handed is not None:
+        fired.extend((e, handed.drive, handed.regular) for e in pending if e.t_s <= now)
     rendering.reset()
-    fired.sort(key=lambda e: e.t_s)
-    return PlayedStroke(tuple(fired), tuple(times), tuple(drives))
+    fired.sort(key=lambda f: f[0].t_s)
+    return PlayedStroke(tuple(f[0] for f in fired), tuple(times), tuple(drives), tuple((f[1], f[2]) for f in fired))
