@@ -32,7 +32,7 @@ from scipy.ndimage import gaussian_filter
 
 from tactilize.materials import library, sensation_ratio
 from tactilize.surface import surface_model
-from tactilize.surface.events import stroke_events
+from tactilize.surface import stroke_events
 from tactilize.surface.straight import MirroredSurface
 from tactilize.synthesis.acceleration import spectral_centroid_hz, spectrum, tip_acceleration
 

@@ -45,7 +45,7 @@ import scipy.fft
 from tactilize.image import TextureImage
 from tactilize.mapping import Profile
 from tactilize.surface import surface_model
-from tactilize.surface.events import event_statistics, stroke_events
+from tactilize.surface import event_statistics, stroke_events
 from tactilize.surface.fields import grain_field
 from tactilize.surface.rendering import Frame
 

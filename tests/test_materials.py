@@ -23,7 +23,7 @@ from tactilize.materials import (LEAST_FELT_PROMINENCE_M, MicroRoughness, librar
                                  threshold_acceleration_m_s2)
 from tactilize.pen.samples import PenSample
 from tactilize.surface import SurfaceStroke, surface_model
-from tactilize.surface.events import stroke_events
+from tactilize.surface import stroke_events
 from tactilize.surface.straight import MirroredSurface
 from tactilize.synthesis.acceleration import spectrum, tip_acceleration
 
