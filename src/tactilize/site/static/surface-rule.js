@@ -168,6 +168,7 @@ export function decodeModel(buffer) {
 export async function parseModel(buffer) { return decodeModel(buffer); }
 
 const MASK64 = (1n << 64n) - 1n;
+const NODE_CACHE = 128;  // nodes per side of the table of normal numbers (a power of two)
 const M1 = 0xBF58476D1CE4E5B9n, M2 = 0x94D049BB133111EBn, NODE_U = 0x9E3779B1n, NODE_V = 0x85EBCA77n;
 
 /** The splitmix64 finaliser on a 64-bit word (BigInt), wrapping modulo 2^64 as numpy's uint64 does. */
@@ -187,20 +188,21 @@ export class MicroRoughness {
     const r = p.spacing_m / p.sigma_m;
     this.k = -0.5 * (r * r);
     this.seed = BigInt("0x" + p.seed_word);
-    this.normals = new Map();  // a node's normal number, by node: a stroke meets each node many times
+    // A node's normal number, kept in a direct-mapped table by its low bits: a stroke meets each
+    // node for many points in a row, and hashing in BigInt is the slow part.
+    this.tagU = new Int32Array(NODE_CACHE * NODE_CACHE).fill(-0x80000000);
+    this.tagV = new Int32Array(NODE_CACHE * NODE_CACHE);
+    this.value = new Float64Array(NODE_CACHE * NODE_CACHE);
   }
 
   /** The standard normal number of lattice node (iu, iv) (Box-Muller on its hash's two halves). */
   normal(iu, iv) {
-    const key = (iu + 1048576) * 2097152 + (iv + 1048576);
-    let n = this.normals.get(key);
-    if (n === undefined) {
-      const h = mix((BigInt.asUintN(64, BigInt(iu)) * NODE_U & MASK64) ^ (BigInt.asUintN(64, BigInt(iv)) * NODE_V & MASK64) ^ this.seed);
-      const lo = (Number(h & 0xFFFFFFFFn) + 0.5) / 4294967296.0, hi = (Number(h >> 32n) + 0.5) / 4294967296.0;
-      n = Math.sqrt(-2.0 * Math.log(lo)) * Math.cos(2.0 * Math.PI * hi);
-      if (this.normals.size > 65536) this.normals.clear();
-      this.normals.set(key, n);
-    }
+    const slot = ((iu & (NODE_CACHE - 1)) * NODE_CACHE) | (iv & (NODE_CACHE - 1));
+    if (this.tagU[slot] === iu && this.tagV[slot] === iv) return this.value[slot];
+    const h = mix((BigInt.asUintN(64, BigInt(iu)) * NODE_U & MASK64) ^ (BigInt.asUintN(64, BigInt(iv)) * NODE_V & MASK64) ^ this.seed);
+    const lo = (Number(h & 0xFFFFFFFFn) + 0.5) / 4294967296.0, hi = (Number(h >> 32n) + 0.5) / 4294967296.0;
+    const n = Math.sqrt(-2.0 * Math.log(lo)) * Math.cos(2.0 * Math.PI * hi);
+    this.tagU[slot] = iu; this.tagV[slot] = iv; this.value[slot] = n;
     return n;
   }
 
