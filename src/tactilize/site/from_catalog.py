@@ -21,6 +21,7 @@ from ..catalog.sources import CatalogItem
 from ..catalog.stores import is_sql_url, safe_url
 from ..errors import CatalogError
 from .builder import MAX_MODEL_BYTES, MODEL_PX, PHOTO_PX, _build, static_files
+from .model_file import FORMAT_VERSION
 
 __all__ = ["CatalogSite", "catalog_site", "cache_root"]
 
@@ -83,6 +84,8 @@ def catalog_site(location: str | os.PathLike, *, cache: str | Path | None = None
     ------
     CatalogError
         Not a catalogue, or the cache folder cannot be written.
+    MaterialError
+        An ok row names a material this library does not hold (a catalogue of another version).
     """
     from .. import __version__
 
@@ -104,7 +107,8 @@ def catalog_site(location: str | os.PathLike, *, cache: str | Path | None = None
         choices[str(r["id"])] = choice
         state_rows.append([str(r["id"]), path, st.st_mtime_ns, st.st_size, width, choice.name, choice.relief_rms_m])
     own = [[f.name, f.stat().st_mtime_ns] for f in static_files()]
-    state = {"version": __version__, "title": title, "products": state_rows, "static": own}
+    state = {"version": __version__, "model_format": FORMAT_VERSION, "title": title, "products": state_rows,
+             "static": own}
     root = Path(cache) if cache is not None else cache_root()
     key = loc if is_sql_url(loc) else os.path.abspath(loc)
     folder = root / hashlib.sha1(key.encode("utf-8")).hexdigest()[:16]
