@@ -255,3 +255,19 @@ def test_cli_serve_catalog_mounts_its_shop_site(tmp_path, monkeypatch):
     c = TestClient(app)
     assert "fabric1" in c.get("/shop/index.html").text and "fabric0" not in c.get("/shop/").text
     assert c.get("/api/catalog").json()["total"] == 2
+
+
+def test_a_rows_given_relief_is_the_models_as_relief_mm_makes_it():
+    """A row that carries ``relief_rms_m`` (as ``--relief-mm`` gives it) renders at that relief, its
+    material's hardness and micro-roughness kept; without a material, the picture at that relief."""
+    from tactilize.catalog import Catalog
+
+    rng = np.random.default_rng(4)
+    pixels, pitch = rng.random((300, 400)).astype(np.float32), (1e-4, 1e-4)
+    for row in ({"material": "cork", "relief_rms_m": 50e-6}, {"material": "", "relief_rms_m": 20e-6}):
+        choice = Catalog.choice_of(row)
+        h = decode_model(model_bytes(pixels, pitch, material=choice)).header
+        server = surface_model(pixels, pitch_m=pitch, material=row["material"] or None, relief_rms_m=row["relief_rms_m"])
+        assert h["relief_scale_m"] == server.relief.scale_m and h["material"] == (row["material"] or None)
+        assert (h["micro"] is None) == (server.micro is None)
+    assert Catalog.choice_of({"material": None}).picture_only and Catalog.choice_of({}).picture_only
