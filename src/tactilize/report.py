@@ -181,7 +181,7 @@ def _surface_report(profile: Profile, images: dict[str, Any] | None, speeds_mm_s
                     simulate_wire: bool, material: Any = None) -> ProfileReport:
     """The report of a surface rendering: what a straight stroke at each speed produces."""
     from .surface.model import surface_model
-    from .surface.straight import surface_stroke_drive
+    from .surface.rendering import surface_stroke_drive
 
     if images is None:
         from .data import get_texture, texture_ids

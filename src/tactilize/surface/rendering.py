@@ -20,13 +20,15 @@ from __future__ import annotations
 import math
 from typing import Any, NamedTuple, Protocol, Sequence
 
+import numpy as np
+
 from ..drive import Drive, jitter_offset, jitter_periods
-from .events import PulseEvent
+from .events import EventStatistics, PulseEvent, event_statistics
 from .model import SurfaceLike
-from .straight import surface_stroke_drive
+from .straight import MirroredSurface, straight_stroke
 
 __all__ = ["Frame", "Rendering", "SteadyRendering", "SurfaceRendering", "rendering_for", "rendered_drive",
-           "train_events", "HORIZON_S"]
+           "train_events", "HORIZON_S", "surface_stroke_drive", "stroke_events"]
 
 #: How far ahead a frame's events reach [s]: the surface stroke's prediction horizon.
 HORIZON_S = 0.025
@@ -264,3 +266,50 @@ def rendered_drive(profile: Any, image: Any, features: Any, speed_m_s: float,
     :meth:`Rendering.steady_drive` of :func:`rendering_for` the picture (``image``, or its
     ``surface`` when the caller has it)."""
     return rendering_for(profile, surface, image=image).steady_drive(features, speed_m_s, direction_rad)
+
+
+def surface_stroke_drive(surface: SurfaceLike, profile: Any, speed_m_s: float, direction_rad: float | None = None,
+                         pressure: float | None = None) -> tuple[Drive, list[PulseEvent], EventStatistics]:
+    """The events the pen fires over a steady :func:`~.straight.straight_stroke` on ``surface``
+    (mirrored beyond its edges; the one whole-stroke path, :func:`~.playback.play_stroke`,
+    through the profile's surface rendering), their statistics over the whole stroke and their
+    equivalent Drive (:func:`~.equivalent.drive_of_statistics`)."""
+    from .equivalent import drive_of_statistics
+    from .playback import play_stroke
+    from .samples import PenSample
+
+    if speed_m_s <= 0:
+        return Drive.off(), [], event_statistics([])
+    t, x, y = straight_stroke(surface.width_m, surface.height_m, speed_m_s, direction_rad or 0.0)
+    samples = [PenSample(a, b, c, pressure) for a, b, c in zip(t.tolist(), x.tolist(), y.tolist())]
+    events = list(play_stroke(SurfaceRendering(profile, MirroredSurface(surface)), samples).events)
+    stats = event_statistics(events, float(t[-1]))
+    return drive_of_statistics(stats, profile), events, stats
+
+
+def stroke_events(
+    surface: Any,
+    t_s: Sequence[float] | np.ndarray,
+    x_m: Sequence[float] | np.ndarray,
+    y_m: Sequence[float] | np.ndarray,
+    pressure: float | None = None,
+) -> list[PulseEvent]:
+    """Every pulse the surface rendering fires over a whole stroke: the one whole-stroke path
+    (:func:`~.playback.play_stroke`) with the page's batches, through a surface rendering of
+    ``surface`` without a profile.
+
+    Parameters
+    ----------
+    surface : SurfaceModel or CompositeSurface
+    t_s : sequence of float
+        Sample times [s], increasing.
+    x_m, y_m : sequence of float
+        Sample positions [display m] from the picture's top-left, y down.
+    pressure : float, optional
+        Pen pressure in [0, 1] for the whole stroke; None when unknown.
+    """
+    from .playback import play_stroke
+    from .samples import PenSample
+
+    samples = [PenSample(float(t), float(x), float(y), pressure) for t, x, y in zip(t_s, x_m, y_m)]
+    return list(play_stroke(SurfaceRendering(None, surface), samples).events)

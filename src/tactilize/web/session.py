@@ -87,7 +87,7 @@ import logging
 import math
 import time
 from collections import deque
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fastapi import WebSocket
 from starlette.websockets import WebSocketDisconnect, WebSocketState
@@ -101,6 +101,11 @@ from ..pen.display import MM_PER_PX_RANGE  # the one display-scale rule, shared 
 from .limits import MessageRate
 from .rows import MAX_BATCH, PenMessageError, batch_id, pen_batch
 from .state import ServerState
+
+if TYPE_CHECKING:  # the maps and the surfaces load the FFT stack: not at import
+    from ..maps.composite import CompositeMap
+    from ..surface.composite import CompositeSurface
+    from ..surface.model import SurfaceModel
 
 __all__ = ["websocket_endpoint", "PenSession", "MAX_BATCH", "MAX_PENDING", "MAX_MESSAGE_CHARS", "IDLE_S", "MAX_COMPOSITE"]
 
@@ -384,13 +389,14 @@ class PenSession:
         self.renderer.lift()
 
 
-def _composite_surface(surfaces: list[Any], cols: int, cmap: Any) -> Any:
+def _composite_surface(surfaces: list[SurfaceModel | None], cols: int, cmap: CompositeMap) -> CompositeSurface | None:
     """The surfaces laid out as the composite map lays the pictures (None if one is missing)."""
-    if any(s is None for s in surfaces):
+    present = [s for s in surfaces if s is not None]
+    if len(present) < len(surfaces):
         return None
     from ..surface import CompositeSurface
 
-    return CompositeSurface.of(surfaces, cols, cmap.cell_m)
+    return CompositeSurface.of(present, cols, cmap.cell_m)
 
 
 class _NoPicture:

@@ -465,7 +465,8 @@ export class SurfaceStroke {
     const h = this.ph.slice(a, end), times = this.pt.slice(a, end);
     if (moving) {
       const k1 = Math.floor(s0 / step) + 1;
-      const k2 = Math.floor((s0 + Math.min(speed * this.lookahead(), r.max_ahead_m)) / step);
+      // Read history_m beyond the look-ahead (a bump handed out has as much profile ahead as behind).
+      const k2 = Math.floor((s0 + Math.min(speed * this.lookahead() + r.history_m, r.max_ahead_m)) / step);
       const ux = Math.cos(direction), uy = -Math.sin(direction);  // y up -> y down
       for (let k = k1; k <= k2; k++) {
         const d = k * step - s0;
@@ -499,11 +500,13 @@ export class SurfaceStroke {
   _place(idx, prom, tc, k0, late, now, scale) {
     const r = this.r, step = this.step, floor = this.floor, ring = this.ring;
     let c = [];
+    const horizon = now + r.lookahead_s;
     for (let i = 0; i < idx.length; i++) {
       const ti = tc[idx[i]];
-      if (ti <= late) continue;
+      if (ti <= late || ti > horizon) continue;
       const si = (k0 + idx[i]) * step;
-      if (ring.some((f) => { const d = f.arc - si; return -this.same < d && d < this.same; })) continue;
+      // A fired pulse's arcs: its bump's and those of the crossings merged into it.
+      if (ring.some((f) => f.arc - this.same < si && si < f.lastArc + this.same)) continue;
       const span = Math.log(Math.max(this.full / floor, 1 + 1e-9));
       c.push({ t: ti > now ? ti : now, arc: si, s: Math.min(1, Math.max(0, Math.log(Math.max(prom[i], 1e-12) / floor) / span)) * scale });
     }
@@ -542,13 +545,15 @@ export class SurfaceStroke {
       if (hasPrev || out.length) {
         const gap = ti - last;
         if (gap < r.min_interval_s) {
-          if (out.length) out[out.length - 1].f |= MERGED;
+          // Merged into the pulse before (this batch's, or the last fired): its arc is that pulse's.
+          if (out.length) { out[out.length - 1].f |= MERGED; out[out.length - 1].lastArc = c[i].arc; }
+          else if (ring.length) ring[ring.length - 1].lastArc = Math.max(ring[ring.length - 1].lastArc, c[i].arc);
           continue;
         }
         if (gap < r.cluster_interval_s && !fast[i]) { si *= gap / r.cluster_interval_s; f |= CLUSTER; }
       }
       if (ti <= now) f |= LATE;
-      out.push({ t: ti, s: si, f, arc: c[i].arc });
+      out.push({ t: ti, s: si, f, arc: c[i].arc, lastArc: c[i].arc });
       last = ti;
     }
     return out;
@@ -574,28 +579,34 @@ export class SurfaceRenderer {
   lift() { this.tracker.reset(); this.stroke.reset(); }
 }
 
-/** What an event-playing output fires for a whole stroke, cut into batches of batchS [s] each
- *  arriving transportS [s] after its newest sample (pen/replay.py's replay_stroke): [{t, s, f}]. */
+/** What an event-playing output fires for a whole stroke, cut into batches of batchS [s] on a grid
+ *  from the first sample, each arriving transportS [s] after its newest sample (surface/playback.py's
+ *  play_stroke): [{t, s, f}], t on the stroke's clock. */
 export function replayStroke(model, displayPitch, samples, batchS = 0.004, transportS = 0.001) {
   const rd = new SurfaceRenderer(model, displayPitch);
   const fired = [];
   let schedule = [];
   const batches = [];
-  for (const smp of samples) {
-    if (batches.length && smp.t < batches[batches.length - 1][0].t + batchS) batches[batches.length - 1].push(smp);
-    else batches.push([smp]);
+  if (samples.length) {
+    const t0 = samples[0].t;
+    const slot = (t) => Math.floor((t - t0) / batchS + 1e-6);  // a sample on a boundary opens the next
+    for (const smp of samples) {
+      const b = batches[batches.length - 1];
+      if (b && slot(b[0].t) === slot(smp.t)) b.push(smp);
+      else batches.push([smp]);
+    }
   }
+  let now = -Infinity;
   for (const batch of batches) {
-    const arrival = batch[batch.length - 1].t + transportS;
-    for (const ev of schedule) if (ev.t + transportS <= arrival) fired.push({ ...ev, t: ev.t + transportS });
+    now = batch[batch.length - 1].t;
+    // Due by the time this batch arrives (the output's clock, transportS behind the host's): fired.
+    for (const ev of schedule) if (ev.t <= now) fired.push(ev);
     for (const s of batch) rd.tracker.add(s);
     const st = rd.tracker.estimate;
-    if (st === null) { schedule = []; continue; }
+    if (st === null) { schedule = []; rd.stroke.reset(); continue; }
     schedule = rd.stroke.update(batch, st.speed, st.direction, st.pressure);
-    schedule = schedule.filter((ev) => ev.t + transportS > arrival)
-      .concat(schedule.filter((ev) => ev.t + transportS <= arrival).map((ev) => ({ ...ev, t: arrival - transportS })));
   }
-  for (const ev of schedule) fired.push({ ...ev, t: ev.t + transportS });
+  for (const ev of schedule) if (ev.t <= now) fired.push(ev);
   fired.sort((p, q) => p.t - q.t);
   return fired;
 }
