@@ -193,6 +193,7 @@ export class MicroRoughness {
     this.tagU = new Int32Array(NODE_CACHE * NODE_CACHE).fill(-0x80000000);
     this.tagV = new Int32Array(NODE_CACHE * NODE_CACHE);
     this.value = new Float64Array(NODE_CACHE * NODE_CACHE);
+    this.gv = new Float64Array(2 * p.reach + 1);
   }
 
   /** The standard normal number of lattice node (iu, iv) (Box-Muller on its hash's two halves). */
@@ -210,10 +211,17 @@ export class MicroRoughness {
   height(x, y) {
     const u = x / this.spacing, v = y / this.spacing;
     const iu = Math.floor(u), iv = Math.floor(v), fu = u - iu, fv = v - iv, R = this.reach, k = this.k;
+    const gv = this.gv;  // the row factors, the same for every du
+    for (let dv = -R; dv <= R; dv++) gv[dv + R] = Math.exp(k * ((fv - dv) * (fv - dv)));
+    const tagU = this.tagU, tagV = this.tagV, value = this.value, M = NODE_CACHE - 1;
     let out = 0;
     for (let du = -R; du <= R; du++) {
-      const gu = Math.exp(k * ((fu - du) * (fu - du)));
-      for (let dv = -R; dv <= R; dv++) out += this.normal(iu + du, iv + dv) * gu * Math.exp(k * ((fv - dv) * (fv - dv)));
+      const gu = Math.exp(k * ((fu - du) * (fu - du))), nu = iu + du, row = (nu & M) * NODE_CACHE;
+      for (let dv = -R; dv <= R; dv++) {
+        const nv = iv + dv, slot = row | (nv & M);
+        const n = tagU[slot] === nu && tagV[slot] === nv ? value[slot] : this.normal(nu, nv);
+        out += n * gu * gv[dv + R];
+      }
     }
     return out * this.weight;
   }
