@@ -220,14 +220,24 @@ def test_the_export_command_carries_the_bumps_of_a_recorded_stroke(tmp_path):
 
 
 def test_steady_renderings_keep_their_output(field):
-    """The paper preset (steady) exports its drive, surface or not: the same bytes as the steady exporter writes."""
+    """The paper preset (steady) exports the trains its rendering fired, surface or not: each pulse at
+    its drive's strength and frequency, a period of that drive after the one before, and the same
+    bytes with or without the picture's surface."""
+    from tactilize.export.events import drive_strength
+
     img, tmap, surface, _ = field
     paper = Profile.preset("paper")
     stroke = synthetic_stroke(tmap.width_m, tmap.height_m, SPEED_M_S, 0.5)
     with_surface = run_stroke(stroke, tmap, paper, start_s=0.0, end_s=0.5, mirror=True, surface=surface)
     without = run_stroke(stroke, tmap, paper, start_s=0.0, end_s=0.5, mirror=True)
-    assert with_surface.events is None
-    for fmt in ("ahap", "android", "haptic"):
+    assert with_surface.events == without.events and with_surface.regular
+    events = with_surface.events
+    assert len(events) > 50
+    for a, b in zip(events, events[1:]):
+        drive = with_surface.at(b.t_s)
+        assert b.frequency_hz == drive.pulse_frequency_hz and b.strength == drive_strength(drive)
+        assert b.t_s - a.t_s == pytest.approx(1.0 / b.frequency_hz, rel=1e-6)
+    for fmt in ("ahap", "android", "haptic", "hjif"):
         assert render(with_surface, fmt) == render(without, fmt)
 
 

@@ -138,9 +138,15 @@ def test_ahap_structure_rules_on_the_accelerating_stroke(tapping):
     # the stroke needs more than 16 points: the curves were split
     assert len(by_id["HapticIntensityControl"]) >= 2 and len(by_id["HapticSharpnessControl"]) >= 2
     # after the continuous run nothing is left scaled: the last curves are neutral
-    # (or end where the pattern ends)
+    # (or end where the pattern ends); the run lasts from its first pulse to one interval after
+    # its last (the pen lifts at the stroke's last sample: nothing fires after it)
+    from tactilize.export.events import PHONE_TRANSIENT_S, plan_events, timeline_events
+
     cont = [e for e in events if e["EventType"] == "HapticContinuous"]
-    assert sum(e["EventDuration"] for e in cont) == pytest.approx(timeline.end_s - cont[0]["Time"], abs=1e-5)
+    (run,) = plan_events(timeline_events(timeline), PHONE_TRANSIENT_S, timeline.end_s).runs
+    assert cont[0]["Time"] == pytest.approx(run.start_s, abs=1e-6)
+    assert sum(e["EventDuration"] for e in cont) == pytest.approx(run.end_s - run.start_s, abs=1e-5)
+    assert run.events[-1].t_s < run.end_s <= timeline.end_s
 
 
 def test_ahap_sharpness_control_is_neutral_so_the_event_sharpness_plays():
@@ -287,7 +293,9 @@ def test_no_player_gets_taps_closer_than_it_plays_them_apart(profile):
     tmap = builtin_map("sandpaper")
     stroke = synthetic_stroke(tmap.width_m, tmap.height_m, 0.050, 2.0)
     tl = run_stroke(stroke, tmap, Profile.preset(profile), start_s=0.0, end_s=2.0, mirror=True)
-    slow = [q.t_s for q in tl.pulses() if q.drive.pulse_frequency_hz < 65.0]
+    from tactilize.export.events import timeline_events
+
+    slow = [e.t_s for e in timeline_events(tl) if e.frequency_hz < 65.0]
     doc = json.loads(render(tl, "hjif"))
     for c in range(2):
         (perc,) = doc["perceptions"]
@@ -402,8 +410,12 @@ def test_android_envelopes_within_the_documented_limits(timeline):
         assert 1 <= len(env["control_points"]) <= 16
         for c in env["control_points"]:
             assert 20 <= c["duration_ms"] <= 1000 and 0.0 <= c["amplitude"] <= 1.0
+    # the envelopes play the stroke's pulses: from the first one fired to one interval after the last
+    from tactilize.export.events import PHONE_TRANSIENT_S, plan_events, timeline_events
+
+    runs = plan_events(timeline_events(timeline), PHONE_TRANSIENT_S, timeline.end_s).runs
     total = sum(c["duration_ms"] for env in doc["waveform_envelopes"] for c in env["control_points"])
-    assert abs(total - timeline.end_s * 1e3) <= 1
+    assert abs(total - sum(r.end_s - r.start_s for r in runs) * 1e3) <= 1
     for env in doc["basic_envelopes"]:
         assert len(env["control_points"]) <= 16 and env["control_points"][-1]["intensity"] == 0.0
         assert all(20 <= c["duration_ms"] <= 1000 for c in env["control_points"])

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -101,7 +103,8 @@ def _hand_stroke(tmap):
 
 def _socket_fired(renderer, samples, batch_s):
     """What the pen's renderer (the socket's) hands an event-playing output batch by batch, and
-    what of it fired: a frame's events due by the next batch's newest sample (no transport)."""
+    what of it fired: a frame's events due by the next batch's newest sample (no transport),
+    each with the drive of the frame that handed it and whether that frame was a regular train."""
     from tactilize.surface.playback import stroke_batches
 
     now = [0.0]
@@ -109,15 +112,21 @@ def _socket_fired(renderer, samples, batch_s):
     fired, pending = [], ()
     for batch in stroke_batches(samples, batch_s):
         now[0] = batch[-1].t_s
-        fired += [e for e in pending if e.t_s <= now[0]]
+        fired += [e for e in pending if e[0].t_s <= now[0]]
         res = renderer.feed(batch)
-        pending = res.events
-    fired += [e for e in pending if e.t_s <= now[0]]
+        pending = [(e, res.requested[0], res.regular) for e in res.events]
+    fired += [e for e in pending if e[0].t_s <= now[0]]
     return fired
 
 
 @pytest.mark.parametrize("preset", PRESETS)
 def test_a_recorded_stroke_fires_the_same_events_on_every_path(preset, picture):
+    """A hand-like stroke (curved, speed 20 .. 120 mm/s, a reversal), every preset: the whole-stroke
+    path, the pen's renderer fed batch by batch (the socket's path) and every export format's events
+    timeline fire the same events; an export's event carries what its frame's drive played (a steady
+    rendering's pulse: the drive's strength and frequency) or the bump's own strength."""
+    from tactilize.export.events import drive_strength, plan_events, PHONE_TRANSIENT_S
+    from tactilize.export.readers import read_ahap, read_haptic
     from tactilize.surface.playback import play_stroke
     from tactilize.surface.rendering import rendering_for
 
@@ -125,18 +134,32 @@ def test_a_recorded_stroke_fires_the_same_events_on_every_path(preset, picture):
     prof = Profile.preset(preset)
     samples = _hand_stroke(tmap)
     one = play_stroke(rendering_for(prof, sm), samples, tmap, batch_s=FRAME_S, transport_s=0.0).events
-    socket = _socket_fired(PenRenderer(tmap, prof, RecordingOutput(), surface=sm), samples, FRAME_S)
-    assert len(one) > 10
-    assert [(e.t_s, e.strength, e.clamped) for e in socket] == [(e.t_s, e.strength, e.clamped) for e in one]
+    # (each channel the frame's own drive, as an export's: run_stroke's splitter)
+    pen = PenRenderer(tmap, prof, RecordingOutput(), surface=sm, splitter=lambda d, n, st: [d] * n)
+    socket = _socket_fired(pen, samples, FRAME_S)
+    # (the perceptual law plays 1 .. 15 Hz on this stroke: 9 pulses in its 1.2 s)
+    assert len(one) > 5
+    assert [(e.t_s, e.strength, e.clamped) for e, _, _ in socket] == [(e.t_s, e.strength, e.clamped) for e in one]
     rows = [[s.t_s, s.x_m * 1e3, s.y_m * 1e3, s.pressure] for s in samples]
     tl = run_stroke(parse_stroke(rows, "<hand>", tmap.width_m, tmap.height_m), tmap, prof, surface=sm)
-    if tl.events is not None:  # the rendering's own events (a steady one's are its drives' trains)
-        exported = timeline_events(tl)
-        assert len(exported) == len(one)
-        assert [e.t_s for e in exported] == pytest.approx([e.t_s - samples[0].t_s for e in one], abs=1e-12)
-        assert [(e.strength, e.clamped) for e in exported] == [(e.strength, e.clamped) for e in one]
-        for fmt in FORMATS:
-            assert len(render(tl, fmt)) > 0, (preset, fmt)
+    exported = timeline_events(tl)
+    assert tl.events is not None and exported == tl.events
+    assert tl.regular == all(r for _, _, r in socket)
+    assert [e.t_s for e in exported] == pytest.approx([e.t_s - samples[0].t_s for e, _, _ in socket], abs=1e-12)
+    assert [e.clamped for e in exported] == [e.clamped for e, _, _ in socket]
+    for x, (e, drive, regular) in zip(exported, socket):
+        if regular:  # (the export reads the stroke back from millimetres: the last bits differ)
+            assert (x.strength, x.frequency_hz) == pytest.approx((drive_strength(drive), drive.pulse_frequency_hz),
+                                                                 rel=1e-9)
+        else:
+            assert x.strength == e.strength and x.frequency_hz > 0
+    # every format plays that one timeline: a phone's taps are its events a phone plays apart
+    plan = plan_events(exported, PHONE_TRANSIENT_S, tl.end_s)
+    for fmt, read in (("ahap", lambda b: read_ahap(json.loads(b))), ("haptic", read_haptic)):
+        taps = [t.t_s for t in read(render(tl, fmt)).taps]
+        assert taps == pytest.approx([e.t_s for e in plan.transients], abs=1e-3), fmt
+    for fmt in FORMATS:
+        assert len(render(tl, fmt)) > 0, (preset, fmt)
 
 
 @pytest.mark.parametrize("preset", PRESETS)

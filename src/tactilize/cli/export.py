@@ -2,8 +2,8 @@
 
 The stroke runs through the pen server's path (:func:`tactilize.export.run_stroke`):
 tracker, texture map, profile, and the simulated SMA wire's controller and
-envelope; the chosen format is rendered from the drive over time, or, for the
-``surface`` rendering, the parametric formats from the bumps the stroke crosses.
+envelope; the chosen format is rendered from the drive over time, the parametric
+formats from the events the stroke's rendering fired.
 """
 
 from __future__ import annotations

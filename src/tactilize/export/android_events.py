@@ -104,11 +104,13 @@ def android_events_document(tl: DriveTimeline, kind: str = "profile", channel: i
     waveform: list[dict[str, Any]] = []
     basic: list[dict[str, Any]] = []
     for run in plan.runs:
-        pts = run_points(run, step_s=step_s)
+        start = int(round(run.start_s * 1e3))
+        # The grid from the run's whole millisecond: its segments are whole steps, none shorter
+        # than a segment may be and lengthened (which would move every later piece).
+        pts = run_points(run, start_s=start * 1e-3, step_s=step_s)
         flat, wf, bs = envelopes(pts)
         _at_least_a_segment(wf)
         _at_least_a_segment(bs)
-        start = int(round(run.start_s * 1e3))
         flat_all += flat
         waveform += _starts(wf, start)
         basic += _starts(bs, start)

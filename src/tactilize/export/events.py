@@ -1,11 +1,14 @@
-"""A stroke's bumps as the parametric exports play them: a transient per bump, or a continuous stretch.
+"""The events a stroke's rendering fired, as the parametric exports play them: a transient each, or a
+continuous stretch.
 
-A profile whose rendering is ``surface`` fires one pulse per bump the tip crosses
-(docs/surfaces.md).  An export plays the events the stroke's rendering fired along the
-one whole-stroke path (:func:`tactilize.surface.playback.play_stroke`, in
-:func:`~.stroke.run_stroke`), the ones its wire column played (:func:`bump_events`).
-Each event also carries the bump's own frequency, from how long the tip takes to cross
-it, read on the profile along the stroke's path.
+An export plays the events the stroke's rendering fired along the one whole-stroke path
+(:func:`tactilize.surface.playback.play_stroke`, in :func:`~.stroke.run_stroke`), the ones its
+wire column played (:func:`fired_events`), whatever the rendering: a steady rendering fires its
+drive's regular train (each pulse carries the strength and frequency of the drive that handed it),
+the ``surface`` rendering one pulse per bump the tip crosses (docs/surfaces.md; each carries its
+bump's own frequency, from how long the tip takes to cross it, read on the profile along the
+stroke's path).  Rows of drives without a stroke (a drive held; what the wire applied) play the
+steady rendering's train of each row's drive (:func:`timeline_events`).
 
 :func:`plan_events` splits the events for a format whose player has a shortest
 interval between two transients it can play apart (``min_interval_s``): bumps
@@ -52,7 +55,7 @@ __all__ = [
     "BumpEvent",
     "Run",
     "EventPlan",
-    "bump_events",
+    "fired_events",
     "plan_events",
     "run_points",
     "event_intensity",
@@ -129,7 +132,7 @@ def event_intensity(strength: float) -> float:
 
 
 class StrokePath(Protocol):
-    """What :func:`bump_events` reads of a stroke (a :class:`~.stroke.Stroke` is one): sample
+    """What :func:`fired_events` reads of a stroke (a :class:`~.stroke.Stroke` is one): sample
     times [s] and positions [display m]."""
 
     @property
@@ -142,27 +145,34 @@ class StrokePath(Protocol):
     def y_m(self) -> Sequence[float]: ...
 
 
-def bump_events(events: Sequence[Any], stroke: StrokePath, surface: SurfaceLike | None, *, origin_s: float = 0.0,
-                end_s: float = math.inf) -> tuple[BumpEvent, ...]:
-    """The pulse ``events`` a stroke's surface rendering fired, timed from ``origin_s`` [s], those in
-    [0, ``end_s``), each with its bump's own frequency read along the stroke's path.
+def fired_events(played: Any, stroke: StrokePath, surface: SurfaceLike | None, *, origin_s: float = 0.0,
+                 end_s: float = math.inf) -> tuple[BumpEvent, ...]:
+    """The events a stroke's rendering fired, timed from ``origin_s`` [s], those in [0, ``end_s``).
+
+    An event a regular frame handed (a steady rendering's train) plays as its drive did: the
+    strength :func:`drive_strength`, the drive's pulse frequency.  Any other event is a bump
+    crossed: its own strength, and its bump's frequency read along the stroke's path.
 
     Parameters
     ----------
-    events : sequence of PulseEvent
-        What the rendering fired (:func:`tactilize.surface.playback.play_stroke`), stroke clock [s].
+    played : PlayedStroke
+        What the rendering fired (:func:`tactilize.surface.playback.play_stroke`): its events
+        on the stroke's clock [s], and for each the drive of the frame that handed it and
+        whether that frame was its drive's regular train.
     stroke : Stroke
         Samples: times [s], positions [display m].
     surface : SurfaceModel, CompositeSurface or a mirrored one, or None
-        What the stroke crossed (None: no frequency, 0).
+        What the stroke crossed (None: a bump's frequency is 0).
     origin_s : float
         Stroke time [s] of the export's 0.
     end_s : float
         Length of the export [s].
     """
-    kept = [e for e in events if 0.0 <= e.t_s - origin_s < end_s]
-    freq = _bump_frequencies([e.t_s for e in kept], stroke, surface) if kept and surface is not None else [0.0] * len(kept)
-    return tuple(BumpEvent(e.t_s - origin_s, e.strength, f, e.clamped) for e, f in zip(kept, freq))
+    kept = [(e, d, r) for e, (d, r) in zip(played.events, played.regular) if 0.0 <= e.t_s - origin_s < end_s]
+    bumps = [e.t_s for e, _, r in kept if not r]
+    freq = iter(_bump_frequencies(bumps, stroke, surface) if bumps and surface is not None else [0.0] * len(bumps))
+    return tuple(BumpEvent(e.t_s - origin_s, drive_strength(d), d.pulse_frequency_hz, e.clamped) if r
+                 else BumpEvent(e.t_s - origin_s, e.strength, next(freq), e.clamped) for e, d, r in kept)
 
 
 def _bump_frequencies(times_s: Sequence[float], stroke: StrokePath, surface: SurfaceLike) -> list[float]:
@@ -243,16 +253,25 @@ def drive_strength(drive: Any) -> float:
 def timeline_events(tl: Any, kind: str = "profile", channel: int = 0) -> tuple[BumpEvent, ...]:
     """The one events timeline every parametric format plays for one channel of ``tl``.
 
-    The events the stroke's rendering fired (``tl.events``: a stroke over a surface), else
-    the pulses of the drive over time (``kind``: a steady rendering's, or what the wire
-    applied) as the synthesiser schedules them (:meth:`~.timeline.DriveTimeline.pulses`:
-    phase-continuous, an irregular drive jittered as on the wire; here at 1 ns, so a train's
-    rate reads back exact): each pulse an event of :func:`drive_strength` at its train's
-    frequency."""
+    The events the stroke's rendering fired (``tl.events``, :func:`fired_events`), for the
+    profile's drive.  Rows without them (a drive held, no stroke; ``kind="wire"``, what the wire
+    applied) play a steady rendering's train of each row's drive from the row's start
+    (:class:`~tactilize.surface.rendering.SteadyTrain`), each pulse an event of
+    :func:`drive_strength` at the train's frequency."""
     if kind == "profile" and tl.events is not None:
         return tuple(tl.events)
-    return tuple(BumpEvent(p.t_s, drive_strength(p.drive), p.drive.pulse_frequency_hz, p.drive.clamped)
-                 for p in tl.pulses(kind, channel, rate_hz=1_000_000_000))
+    from ..surface.rendering import SteadyTrain
+
+    out: list[BumpEvent] = []
+    train = SteadyTrain()
+    bounds = list(tl.t_s[1:]) + [tl.end_s]
+    for t0, t1, d in zip(tl.t_s, bounds, tl.drives(kind, channel)):
+        train.set_drive(d, t0)
+        pulses = train.pulses(t0, t1 - t0)
+        train.played(pulses, t1)
+        s = drive_strength(d)
+        out.extend(BumpEvent(e.t_s, s, d.pulse_frequency_hz, e.clamped) for _, e in pulses)
+    return tuple(out)
 
 
 def run_points(run: Run, start_s: float | None = None, end_s: float | None = None,

@@ -279,10 +279,16 @@ def run_stroke(stroke: Stroke, texture_map: FeatureLookup, profile: Profile,
         synthetic stroke longer than the picture).
     surface : SurfaceModel, optional
         The picture as a surface, for a profile whose rendering is ``surface``
-        (docs/surfaces.md): the simulated wire plays its pulse events, the
-        rows hold the equivalent drive of each frame's window, and the result's
-        ``events`` the events the rendering fired (:func:`.events.bump_events`), which the
-        parametric formats play.
+        (docs/surfaces.md): the simulated wire plays its pulse events and the
+        rows hold the equivalent drive of each frame's window.
+
+    Returns
+    -------
+    DriveTimeline
+        Its ``events`` are the events the rendering fired (:func:`.events.fired_events`:
+        a steady rendering's regular trains, the surface rendering's bumps), which the
+        parametric formats play; ``regular`` says whether every frame was its drive's
+        regular train.
     """
     from ..actuators.recording import RecordingOutput
 
@@ -312,7 +318,7 @@ def run_stroke(stroke: Stroke, texture_map: FeatureLookup, profile: Profile,
     rows: list[tuple[float, tuple, tuple, float, float, float]] = []
     advance = getattr(out, "advance", None)
     clock = [samples[0].t_s]
-    irregular = [False]  # a frame's events were not its drive's regular train
+    irregular = [False]  # some frame's events were not its drive's regular train
 
     def show(batch: list[Any], state: Any, features: Any, frame: Any, arrival_s: float) -> None:
         # The output's clock follows the stroke's, batch by batch (the wire plays what is due).
@@ -349,17 +355,15 @@ def run_stroke(stroke: Stroke, texture_map: FeatureLookup, profile: Profile,
     for r in kept:
         dedup[r[0]] = r
     kept = sorted(dedup.values(), key=lambda r: r[0])
-    events = None
-    if irregular[0]:
-        from .events import bump_events
+    from .events import fired_events
 
-        # The events the stroke's rendering fired, when they are not its drives' regular trains
-        # (those the formats read from the rows, DriveTimeline.pulses).
-        events = bump_events(played.events, stroke, felt, origin_s=origin, end_s=end)
+    # The events the stroke's rendering fired, the ones the wire column played: a steady
+    # rendering's regular trains, the surface rendering's bumps.
+    events = fired_events(played, stroke, felt, origin_s=origin, end_s=end)
     return DriveTimeline(
         tuple(r[0] for r in kept), end,
         tuple(r[1] for r in kept), tuple(r[2] for r in kept),
         tuple(r[3] for r in kept), tuple(r[4] for r in kept), tuple(r[5] for r in kept),
         {"samples": len(stroke), "source": stroke.source, **(meta or {})},
-        events,
+        events, not irregular[0],
     )

@@ -140,9 +140,14 @@ class DriveTimeline:
     meta : dict
         What made it (image, profile, stroke file...), for the documents.
     events : tuple of BumpEvent, or None
-        The surface rendering's bumps along the stroke (:mod:`.events`); None when the
-        events are the pulses of the rows' drives (a steady rendering).  The parametric
-        formats play :func:`.events.timeline_events`, which gives either.
+        The events the stroke's rendering fired (:func:`.events.fired_events`: a steady
+        rendering's regular trains, the surface rendering's bumps); None without a stroke
+        (a drive held), where the events are the steady rendering's train of each row's
+        drive.  The parametric formats play :func:`.events.timeline_events`, which gives either.
+    regular : bool
+        The events are the rows' drives' own regular trains (a steady rendering's, a drive
+        held), so the rows' pulse trains play them (the WAV); False for the surface
+        rendering's bumps.
     """
 
     t_s: tuple[float, ...]
@@ -154,6 +159,7 @@ class DriveTimeline:
     y_m: tuple[float, ...]
     meta: dict[str, Any] = field(default_factory=dict)
     events: tuple[Any, ...] | None = None
+    regular: bool = True
 
     def __post_init__(self) -> None:
         n = len(self.t_s)

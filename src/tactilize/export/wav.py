@@ -94,7 +94,7 @@ def stroke_wav_source(timeline: DriveTimeline, stroke: Stroke, surface: SurfaceM
         A synthetic stroke (timeline from stroke time 0, the picture mirrored
         beyond its edges); a recorded one starts at its first sample.
     """
-    if surface is None or drive != "profile" or timeline.events is None:  # no crossings: the pulse train
+    if surface is None or drive != "profile" or timeline.regular:  # its drives' own trains: the pulse train
         return timeline
     origin = 0.0 if synthetic else float(stroke.t_s[0])  # the timeline's t = 0 on the stroke's clock [s]
     return StrokeAcceleration(stroke, surface, origin, origin + float(timeline.end_s), mirror=synthetic)

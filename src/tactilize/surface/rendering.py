@@ -32,7 +32,8 @@ from .model import SurfaceLike
 from .straight import STROKE_S, MirroredSurface, straight_stroke
 
 __all__ = ["Frame", "Straight", "Rendering", "SteadyRendering", "SurfaceRendering", "rendering_for",
-           "rendering_kind", "rendered_drive", "train_events", "HORIZON_S", "surface_stroke_drive", "stroke_events"]
+           "rendering_kind", "rendered_drive", "train_events", "SteadyTrain", "HORIZON_S", "surface_stroke_drive",
+           "stroke_events"]
 
 #: How far ahead a frame's events reach [s]: the surface stroke's prediction horizon.
 HORIZON_S = 0.025
@@ -161,14 +162,11 @@ class Rendering(Protocol):
         ...
 
 
-def train_events(drive: Drive, anchor_s: float, from_s: float, span_s: float = HORIZON_S,
-                 seed: int = 0) -> tuple[PulseEvent, ...]:
-    """The train of ``drive`` in [``from_s``, ``from_s + span_s``) [s]: pulse ``k`` at
-    ``anchor_s + (k + j u_k) / f`` [s] (the phase stays where the train started), jittered as
-    the synthesiser jitters an irregular drive (``j`` of :func:`~tactilize.drive.jitter_periods`,
-    ``u_k`` the seeded table; pulse 0, the first after silence, is not moved)."""
+def _train(drive: Drive, anchor_s: float, from_s: float, span_s: float, seed: int,
+           first_index: int) -> list[tuple[int, PulseEvent]]:
+    """:func:`train_events` with each pulse's index in the jitter pattern (``first_index + k``)."""
     if drive.is_off or drive.pulse_frequency_hz <= 0:
-        return ()
+        return []
     period = 1.0 / drive.pulse_frequency_hz
     # At 1 MHz (the wire's schedule) the one-sample margin of jitter_periods is negligible.
     j = jitter_periods(drive, period * 1e6, max(1, round(drive.pulse_width_s * 1e6)))
@@ -177,13 +175,77 @@ def train_events(drive: Drive, anchor_s: float, from_s: float, span_s: float = H
     out = []
     end = from_s + span_s
     while True:
-        t = anchor_s + (k + (j * jitter_offset(k, seed) if j and k else 0.0)) * period
+        u = jitter_offset(first_index + k, seed) if j else 0.0
+        if k == 0:
+            u = 0.0 if first_index == 0 else max(u, 0.0)  # pulse 0 is never moved earlier
+        t = anchor_s + (k + j * u) * period
         if t >= end and (not j or anchor_s + (k - 0.5 * j) * period >= end):
             break
         if from_s - 1e-9 * period <= t < end:
-            out.append(PulseEvent(t, strength, drive.clamped))
+            out.append((first_index + k, PulseEvent(t, strength, drive.clamped)))
         k += 1
-    return tuple(out)
+    return out
+
+
+def train_events(drive: Drive, anchor_s: float, from_s: float, span_s: float = HORIZON_S,
+                 seed: int = 0, first_index: int = 0) -> tuple[PulseEvent, ...]:
+    """The train of ``drive`` in [``from_s``, ``from_s + span_s``) [s]: pulse ``k`` at
+    ``anchor_s + (k + j u_k) / f`` [s] (the phase stays where the train started), jittered as
+    the synthesiser jitters an irregular drive (``j`` of :func:`~tactilize.drive.jitter_periods`,
+    ``u_k`` the seeded table from index ``first_index``).  Pulse 0 of a train that starts after
+    silence (``first_index`` 0) is not moved; that of a train taking over from another drive is
+    only delayed."""
+    return tuple(e for _, e in _train(drive, anchor_s, from_s, span_s, seed, first_index))
+
+
+class SteadyTrain:
+    """A steady rendering's pulse train as its drive changes, by the synthesiser's rule
+    (:class:`tactilize.synthesis.trains.PulseScheduler`): after silence the first pulse comes at
+    once; a new drive's first pulse comes one of its periods after the last pulse played (not
+    before the change), the jitter pattern running on; a pulse is played once.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the jitter of irregular drives.
+    """
+
+    def __init__(self, seed: int = 0) -> None:
+        self.seed = int(seed)
+        self.reset()
+
+    def reset(self) -> None:
+        """Silence: the next drive starts a train."""
+        self._drive: Drive | None = None
+        self._anchor_s = 0.0
+        self._first = 0
+        self._last: tuple[float, int] | None = None  # the last pulse played: time [s], index
+
+    def set_drive(self, drive: Drive, now_s: float) -> None:
+        """The train plays ``drive`` from ``now_s`` [s] on (an off drive is silence)."""
+        if drive.is_off or drive.pulse_frequency_hz <= 0:
+            self.reset()
+            return
+        if self._drive is None:
+            self._anchor_s, self._first = now_s, 0
+        elif drive != self._drive and self._last is not None:
+            t, k = self._last
+            self._anchor_s, self._first = max(now_s, t + 1.0 / drive.pulse_frequency_hz), k + 1
+        self._drive = drive
+
+    def pulses(self, from_s: float, span_s: float) -> list[tuple[int, PulseEvent]]:
+        """(index, pulse) of the train in [``from_s``, ``from_s + span_s``) [s] not yet played."""
+        if self._drive is None:
+            return []
+        after = -math.inf if self._last is None else self._last[0]
+        return [(k, e) for k, e in _train(self._drive, self._anchor_s, from_s, span_s, self.seed, self._first)
+                if e.t_s > after]
+
+    def played(self, pulses: Sequence[tuple[int, PulseEvent]], until_s: float) -> None:
+        """Of ``pulses`` (:meth:`pulses`), those due by ``until_s`` [s] have played."""
+        for k, e in pulses:
+            if e.t_s <= until_s and (self._last is None or e.t_s > self._last[0]):
+                self._last = (e.t_s, k)
 
 
 class _SteadyDriveOfStraight:
@@ -208,20 +270,22 @@ class SteadyRendering(_SteadyDriveOfStraight):
         self.profile = profile
         #: The picture's surface, kept for a later profile that renders it (:func:`rendering_for`).
         self.surface = surface
-        self._anchor_s: float | None = None  # when the train started (its phase)
+        self._train = SteadyTrain()
+        self._handed: list[tuple[int, PulseEvent]] = []  # the latest frame's pulses
 
     def reset(self) -> None:
-        self._anchor_s = None
+        self._train.reset()
+        self._handed = []
 
     def frame(self, state: TrackedPen, features: Any, batch: Sequence[Any],
               played_until_s: float | None = None) -> Frame:
         drive = self.profile.drive(features, state.speed_m_s, state.direction_rad, state.pressure)
-        if drive.is_off:
-            self._anchor_s = None
-            return Frame((), drive, True)
-        if self._anchor_s is None:
-            self._anchor_s = state.t_s
-        return Frame(train_events(drive, self._anchor_s, state.t_s), drive, True)
+        played = state.t_s if played_until_s is None else max(state.t_s, played_until_s)
+        # The pulses handed before and due by now have played; the drive changes from now on.
+        self._train.played(self._handed, played)
+        self._train.set_drive(drive, played)
+        self._handed = self._train.pulses(state.t_s, HORIZON_S)
+        return Frame(tuple(e for _, e in self._handed), drive, True)
 
     def straight(self, features: Any, speed_m_s: float, direction_rad: float | None = None,
                  pressure: float | None = None) -> Straight:
