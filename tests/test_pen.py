@@ -61,6 +61,24 @@ def test_speed_of_straight_strokes(rate_hz, speed):
     assert st.direction_rad == pytest.approx(0.3, abs=1e-6)
 
 
+def test_the_velocity_at_the_newest_sample_follows_a_hand_speeding_up():
+    """The line's slope trails an accelerating pen by half its window; the parabola through the
+    same samples gives the velocity at the newest one (exact for constant acceleration), which the
+    path ahead is predicted with."""
+    acc, rate = 0.2, 240.0  # m/s^2, Hz: from rest, as a stroke starts
+    samples = [PenSample(k / rate, 0.01 + 0.5 * acc * (k / rate) ** 2, 0.02) for k in range(60)]
+    tr = StrokeTracker()
+    for k, s in enumerate(samples):
+        st = tr.extend([s])
+        if k >= 10:
+            true = acc * s.t_s
+            assert st.speed_now_m_s == pytest.approx(true, rel=1e-6) and st.direction_now_rad == pytest.approx(0.0)
+            assert true - st.speed_m_s > acc * 0.010  # the line's: the velocity 10 ms and more ago
+    # a steady stroke: the same speed either way
+    st = StrokeTracker().extend(line_stroke(0.06, 0.3, 240.0))
+    assert st.speed_now_m_s == pytest.approx(st.speed_m_s, rel=1e-6) and st.direction_now_rad == pytest.approx(0.3)
+
+
 def test_direction_is_y_up():
     tr = StrokeTracker()
     # Moving up the screen: y decreases in pointer coordinates.

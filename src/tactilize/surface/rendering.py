@@ -110,6 +110,12 @@ class TrackedPen(Protocol):
     @property
     def pressure(self) -> float | None: ...
 
+    @property
+    def speed_now_m_s(self) -> float: ...
+
+    @property
+    def direction_now_rad(self) -> float | None: ...
+
 
 class Rendering(Protocol):
     """A rendering: made once per picture and profile, fed pen batches (see the module docstring)."""
@@ -348,7 +354,8 @@ class SurfaceRendering(_SteadyDriveOfStraight):
             stroke.update(batch, 0.0, None, state.pressure, played_until_s)
             stroke.rest()
             return Frame((), Drive.off(), False)
-        events = stroke.update(batch, state.speed_m_s, state.direction_rad, state.pressure, played_until_s)
+        # The path ahead is predicted with the velocity at the newest sample (the tracker's).
+        events = stroke.update(batch, state.speed_now_m_s, state.direction_now_rad, state.pressure, played_until_s)
         # Most batches bring the same window, its predicted times moved by microseconds: the
         # same Drive object is kept then (a Drive and its limits cost more than comparing five
         # numbers, and the output keeps its plan of it).

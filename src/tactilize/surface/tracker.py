@@ -16,14 +16,42 @@ from typing import Iterable, NamedTuple
 
 from .samples import PenSample, is_trackable
 
-__all__ = ["StrokeState", "StrokeTracker"]
+__all__ = ["StrokeState", "StrokeTracker", "QUADRATIC_SAMPLES"]
 
 _time = attrgetter("t_s")
+
+#: Fewest samples a parabola is fitted through (three would pass through them exactly, jitter and all).
+QUADRATIC_SAMPLES = 5
 
 
 def _dot(a: list[float], b: list[float]) -> float:
     """Sum of the products a[i] * b[i], in order (a 1 kHz pen puts ~30 samples in the fit)."""
     return sum(map(mul, a, b), 0.0)
+
+
+def _velocity_at_newest(dts: list[float], xs: list[float], ys: list[float], stt: float, vx: float, vy: float,
+                        d_new: float) -> tuple[float, float]:
+    """The velocity [m/s] at the newest sample (``d_new`` [s] from the window's mean time) of the
+    parabola fitted through the window by least squares; the line's (``vx``, ``vy``) with fewer
+    than :data:`QUADRATIC_SAMPLES` samples or none to fit."""
+    m = len(dts)
+    if m < QUADRATIC_SAMPLES or stt <= 0:
+        return vx, vy
+    sq = [d * d for d in dts]
+    sq_mean = sum(sq) / m
+    q = [v - sq_mean for v in sq]  # the square term, centred: it leaves the mean to the constant
+    s3 = _dot(dts, q)
+    sqq = _dot(q, q)
+    det = stt * sqq - s3 * s3
+    if det <= 0:
+        return vx, vy
+
+    def now(sdx: float, sqx: float) -> float:
+        slope = (sdx * sqq - s3 * sqx) / det
+        curve = (stt * sqx - s3 * sdx) / det
+        return slope + 2.0 * curve * d_new
+
+    return now(vx * stt, _dot(q, xs)), now(vy * stt, _dot(q, ys))
 
 
 class StrokeState(NamedTuple):
@@ -44,6 +72,12 @@ class StrokeState(NamedTuple):
         Latest pressure in [0, 1].
     samples : int
         Samples in the estimation window.
+    speed_now_m_s, direction_now_rad : float, float or None
+        The velocity at the latest sample itself [m/s, rad], what the path ahead is predicted
+        with: the line's slope (``speed_m_s``) is the velocity at the window's mean time, which
+        trails a hand speeding up or slowing down by half the window; a parabola through the
+        same samples moves it to the latest one (the line's, with fewer than
+        :data:`QUADRATIC_SAMPLES` samples).
     """
 
     t_s: float
@@ -53,6 +87,8 @@ class StrokeState(NamedTuple):
     direction_rad: float | None
     pressure: float | None
     samples: int
+    speed_now_m_s: float = 0.0
+    direction_now_rad: float | None = None
 
 
 class StrokeTracker:
@@ -261,15 +297,20 @@ class StrokeTracker:
         t_mean = sum(ts) / m
         dts = [t - t_mean for t in ts]
         stt = _dot(dts, dts)
+        xs = [s.x_m - newest.x_m for s in window]
+        ys = [s.y_m - newest.y_m for s in window]
         if stt > 0:
-            vx = _dot(dts, [s.x_m - newest.x_m for s in window]) / stt
-            vy = _dot(dts, [s.y_m - newest.y_m for s in window]) / stt
+            vx = _dot(dts, xs) / stt
+            vy = _dot(dts, ys) / stt
         else:  # one sample: no velocity yet
             vx = vy = 0.0
         speed = math.hypot(vx, vy)
         # y is down on screen, up in the direction frame: flip its sign.
         direction = math.atan2(-vy, vx) if speed > self.still_speed_m_s else None
-        return StrokeState(newest.t_s, newest.x_m, newest.y_m, speed, direction, newest.pressure, m)
+        wx, wy = _velocity_at_newest(dts, xs, ys, stt, vx, vy, -t_mean)
+        now = math.hypot(wx, wy)
+        return StrokeState(newest.t_s, newest.x_m, newest.y_m, speed, direction, newest.pressure, m,
+                           now, math.atan2(-wy, wx) if now > self.still_speed_m_s else None)
 
     def _window_start(self) -> int:
         """Index in the stroke of the first sample to fit."""
