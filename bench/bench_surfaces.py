@@ -112,10 +112,10 @@ def surface_stats(img: TextureImage) -> dict[str, float]:
     rates, cvs, strengths = [], [], []
     for share in (0.35, 0.4, 0.45, 0.5, 0.55, 0.6, 0.65):
         ev = stroke_events(sm, t, 1e-3 + v * t, np.full(t.size, sm.height_m * share))
-        st = event_statistics(ev, duration_s=float(t[-1]))
-        rates.append(st["rate_hz"])
-        cvs.append(st["interval_cv"])
-        strengths.append(st["strength"])
+        st = event_statistics(ev, float(t[-1]))
+        rates.append(st.rate_hz)
+        cvs.append(st.interval_cv)
+        strengths.append(st.strength)
     return {"rate_hz": float(np.mean(rates)), "interval_cv": float(np.mean(cvs)), "strength": float(np.mean(strengths))}
 
 
