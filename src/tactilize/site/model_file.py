@@ -44,6 +44,7 @@ import numpy as np
 from ..errors import ImageError
 from ..materials import MicroRoughness, Relief, material as library_material
 from ..pen.tracker import StrokeTracker
+from ..surface.tracker import QUADRATIC_SAMPLES
 from ..surface import events as _events
 from ..surface import stroke as _stroke
 from ..surface.model import SurfaceModel
@@ -82,6 +83,7 @@ def rule_parameters() -> dict[str, Any]:
             "window_s": tr.window_s, "min_samples": tr.min_samples, "min_travel_m": tr.min_travel_m,
             "max_window_s": tr.max_window_s, "max_gap_s": tr.max_gap_s, "max_speed_m_s": tr.max_speed_m_s,
             "still_speed_m_s": tr.still_speed_m_s, "max_samples": tr._buf.maxlen,
+            "quadratic_samples": QUADRATIC_SAMPLES,
         },
     }
 

@@ -278,7 +278,7 @@ function fsum(xs) {
   return f;
 }
 
-/** The stroke tracker: velocity as the least-squares slope over the last window (pen/tracker.py). */
+/** The stroke tracker: velocity as the least-squares slope over the last window, and at the newest sample (pen/tracker.py). */
 export class Tracker {
   constructor(p) { this.p = p; this.buf = []; this.cand = null; this.state = null; this.dirty = false; }
 
@@ -356,7 +356,24 @@ export class Tracker {
     }
     const speed = Math.hypot(vx, vy);
     const direction = speed > this.p.still_speed_m_s ? Math.atan2(-vy, vx) : null;
-    return { t: newest.t, x: newest.x, y: newest.y, speed, direction, pressure: newest.p };
+    // The velocity at the newest sample (what the path ahead is predicted with): the parabola
+    // through the same samples (pen/tracker.py's _velocity_at_newest), the line's with fewer
+    // than quadratic_samples of them.
+    let wx = vx, wy = vy;
+    if (m >= this.p.quadratic_samples && stt > 0) {
+      const sq = dts.map((d) => d * d);
+      const sqMean = fsum(sq) / m;
+      const q = sq.map((v) => v - sqMean);
+      const s3 = dot(dts, q), sqq = dot(q, q), det = stt * sqq - s3 * s3;
+      if (det > 0) {
+        const now = (sdx, sqx) => (sdx * sqq - s3 * sqx) / det + 2 * ((stt * sqx - s3 * sdx) / det) * -tm;
+        wx = now(vx * stt, dot(q, w.map((s) => s.x - newest.x)));
+        wy = now(vy * stt, dot(q, w.map((s) => s.y - newest.y)));
+      }
+    }
+    const speedNow = Math.hypot(wx, wy);
+    const directionNow = speedNow > this.p.still_speed_m_s ? Math.atan2(-wy, wx) : null;
+    return { t: newest.t, x: newest.x, y: newest.y, speed, direction, pressure: newest.p, speedNow, directionNow };
   }
 }
 
@@ -581,7 +598,7 @@ export class SurfaceRenderer {
     for (const s of batch) this.tracker.add(s);
     const st = this.tracker.estimate;
     if (st === null) return [];
-    return this.stroke.update(batch, st.speed, st.direction, st.pressure);
+    return this.stroke.update(batch, st.speedNow, st.directionNow, st.pressure);
   }
 
   lift() { this.tracker.reset(); this.stroke.reset(); }
@@ -612,7 +629,7 @@ export function replayStroke(model, displayPitch, samples, batchS = 0.004, trans
     for (const s of batch) rd.tracker.add(s);
     const st = rd.tracker.estimate;
     if (st === null) { schedule = []; rd.stroke.reset(); continue; }
-    schedule = rd.stroke.update(batch, st.speed, st.direction, st.pressure);
+    schedule = rd.stroke.update(batch, st.speedNow, st.directionNow, st.pressure);
   }
   for (const ev of schedule) if (ev.t <= now) fired.push(ev);
   fired.sort((p, q) => p.t - q.t);
