@@ -215,10 +215,10 @@ class PathGrid:
             for buf, origin, slope in ((self._x, x0, ux), (self._y, y0, uy)):
                 out = buf[end:stop]
                 np.multiply(off, slope, out=out)
-                out += origin
+                np.add(out, origin, out=out)
             out = self._t[end:stop]
             np.divide(off, speed_m_s, out=out)
-            out += t0
+            np.add(out, t0, out=out)
         if stop > n:
             h, ids, fl = self.surface.regions(self._x[n:stop], self._y[n:stop])
             self._h[n:stop], self._id[n:stop], self._fl[n:stop] = h, ids, fl
