@@ -201,3 +201,38 @@ def test_a_catalogue_row_is_what_the_pen_fires_over_the_straight_stroke(preset, 
     else:
         want = drive_of_statistics(event_statistics(fired, float(t[-1])), prof)
         assert numbers(row) == pytest.approx(numbers(want), rel=1e-12) and row.clamped == want.clamped
+
+
+@pytest.mark.parametrize("preset", PRESETS)
+def test_every_preset_plays_a_straight_stroke_over_serial_on_the_virtual_board(preset, picture):
+    """The serial report's path: the one whole-stroke path's frames through the host's serial
+    output to the firmware on the virtual board.  The pin shows what play_stroke fired: each
+    scheduled event within 5 ms (p95) and none missing or added; a steady preset's train at
+    its drive's frequency."""
+    from tactilize.features import extract_features
+    from tactilize.serial_report import played_on_board
+    from tactilize.surface.playback import Everywhere, play_stroke
+    from tactilize.surface.rendering import rendering_for
+    from tactilize.surface.straight import MirroredSurface, straight_stroke
+
+    tmap, sm = picture
+    prof = Profile.preset(preset)
+    feat = extract_features(get_texture("corduroy").image)
+    duration = 1.0
+    t, x, y = straight_stroke(sm.width_m, sm.height_m, 0.06, duration_s=duration)
+    samples = [PenSample(float(a), float(b), float(c)) for a, b, c in zip(t, x, y) if a < duration]
+    want = play_stroke(rendering_for(prof, MirroredSurface(sm)), samples, Everywhere(feat))
+    run = played_on_board(rendering_for(prof, MirroredSurface(sm)), samples, Everywhere(feat))
+    assert run.played.events == want.events and len(want.events) > 10
+    pins = run.pins_s[(run.pins_s >= -0.005) & (run.pins_s < duration)]
+    fired = np.array([e.t_s for e in want.events])
+    if all(regular for _, regular in want.regular):
+        # a regular train: the board makes it from the drive sent with SET
+        f = run.trains[-1].pulse_frequency_hz
+        assert [d.pulse_frequency_hz for d in run.trains[1:]] == pytest.approx([f] * (len(run.trains) - 1), rel=1e-6)
+        assert abs(pins.size - f * duration) <= 1.5
+    else:
+        assert not any(regular for _, regular in want.regular)
+        err = np.min(np.abs(pins[:, None] - fired[None, :]), axis=1)
+        assert pins.size == fired.size == run.counts.fired and run.counts.skipped == 0
+        assert np.percentile(err, 95) <= 5e-3

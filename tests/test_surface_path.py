@@ -166,3 +166,26 @@ def test_a_long_jump_keeps_only_the_history_behind_the_pen():
     w = grid.window(0.0, None, 0.025)
     assert w.kept == len(w.h) <= HISTORY_M / sm.step_m + 1
     assert w.s_at(len(w.h) - 1) <= 69e-3 < w.s_at(len(w.h) - 1) + sm.step_m
+
+
+def test_the_bump_search_is_find_peaks_with_the_prominence_floor():
+    """bumps_in calls find_peaks' own steps: the same indices and prominences as find_peaks with
+    the floor as its prominence, plateaus and ties included, one region or several."""
+    from scipy.signal import find_peaks
+
+    from tactilize.surface.bumps import bumps_in
+
+    rng = np.random.default_rng(4)
+    for _ in range(500):
+        n = int(rng.integers(3, 300))
+        h = np.round(rng.normal(size=n), int(rng.integers(1, 3)))  # rounded: plateaus and equal peaks
+        floor = float(rng.uniform(0.0, 1.0))
+        idx, prom = bumps_in(h, np.zeros(n, dtype=np.intp), np.full(n, floor))
+        want, props = find_peaks(h, prominence=floor)
+        assert np.array_equal(idx, want) and np.array_equal(prom, props["prominences"])
+        cut = int(rng.integers(1, n))
+        ids = np.where(np.arange(n) < cut, 0, 1)
+        idx, prom = bumps_in(h, ids, np.full(n, floor))
+        parts = [(find_peaks(h[a:b], prominence=floor), a) for a, b in ((0, cut), (cut, n)) if b - a >= 3]
+        assert np.array_equal(idx, np.concatenate([p + a for (p, _), a in parts] or [np.zeros(0, int)]))
+        assert np.array_equal(prom, np.concatenate([q["prominences"] for (_, q), _ in parts] or [np.zeros(0)]))

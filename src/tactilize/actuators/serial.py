@@ -233,7 +233,7 @@ class SerialOutput(SerialLink, OutputBase):
             self._sender.forget()  # a SET replaces the board's schedule
             self._send_drives(drives)
             if self.loop is not None:
-                self.loop.command(drives, time.monotonic())
+                self.loop.command(drives, self._now())
                 self._send_holds()
         return drives
 
@@ -301,7 +301,7 @@ class SerialOutput(SerialLink, OutputBase):
             # The operating point alone: the same Drives handed again with new events (the
             # renderer hands a frame whenever its events change) are not sent again for 0.1 s.
             held, at, sent = self._fallback
-            host = time.monotonic()
+            host = self._now()
             if (not self._events_mode and len(held) == len(equivalent) and host - at < 0.1
                     and all(a is b for a, b in zip(held, equivalent))):
                 return sent
@@ -313,7 +313,7 @@ class SerialOutput(SerialLink, OutputBase):
         assert status is not None
         widths = (int(math.ceil(status.min_pulse_width_s * 1e6)), int(status.max_pulse_width_s * 1e6))
         lists = list(channels) + [[] for _ in range(self.channels - len(channels))]
-        host_now = time.monotonic()
+        host_now = self._now()
         zero = self._stroke_clock.host_s(now_s, host_now)
         planned: dict[int, list[tuple[float, int]]] = {}
         with self._apply_lock:
@@ -324,7 +324,7 @@ class SerialOutput(SerialLink, OutputBase):
                     planned[id(evs)] = plan_pulses(evs, zero, host_now, self.clock.board_us, drives[index],
                                                    self._make_safe, widths)
                 payload = self._sender.payload(index, planned[id(evs)], force=entering,
-                                               now_us=self.clock.board_us(time.monotonic()))
+                                               now_us=self.clock.board_us(self._now()))
                 if payload is not None:
                     requests.append((int(P.Command.EVENTS), payload))
             self._desired = drives
@@ -334,7 +334,7 @@ class SerialOutput(SerialLink, OutputBase):
             except _PortLost:
                 raise OutputError(self.port, "controller disconnected; its watchdog turned the outputs off") from None
             if self.loop is not None:
-                self.loop.command(drives, time.monotonic())
+                self.loop.command(drives, self._now())
                 self._send_holds()
         return drives
 
@@ -392,7 +392,7 @@ class SerialOutput(SerialLink, OutputBase):
         loop = self.loop
         if loop is None:
             return
-        requests = [(int(P.Command.HOLD), P.encode_hold(*h)) for h in loop.holds(time.monotonic())]
+        requests = [(int(P.Command.HOLD), P.encode_hold(*h)) for h in loop.holds(self._now())]
         if requests:
             try:
                 self._transact(requests)
@@ -439,7 +439,7 @@ class SerialOutput(SerialLink, OutputBase):
         token = next(self._tokens) & 0xFFFFFFFF
         if len(self._pings) > 64:
             self._pings.clear()  # PONGs lost: their tokens would never be taken
-        self._pings[token] = time.monotonic()
+        self._pings[token] = self._now()
         if wait:
             self._request(P.Command.PING, P.encode_ping(token))
         else:
@@ -448,7 +448,7 @@ class SerialOutput(SerialLink, OutputBase):
     # ------------------------------------------------------------ threads
 
     def _dispatch(self, frame: P.Frame) -> None:
-        self._last_rx_s = received = time.monotonic()
+        self._last_rx_s = received = self._now()
         if frame.command == P.Command.PONG:
             try:
                 pong = P.decode_pong(frame.payload)
@@ -484,7 +484,7 @@ class SerialOutput(SerialLink, OutputBase):
             if report is not None and report.faults is not None:
                 self._sense_faults(report.faults)
             if report is not None and self.loop is not None:
-                self.loop.observe(report, time.monotonic())
+                self.loop.observe(report, self._now())
         self._wake(frame)
 
     def _keep_loop(self) -> None:
@@ -496,7 +496,7 @@ class SerialOutput(SerialLink, OutputBase):
 
     def _heartbeat(self) -> None:
         ser = self._serial
-        if time.monotonic() - self._last_rx_s > self.unresponsive_s:
+        if self._now() - self._last_rx_s > self.unresponsive_s:
             self._lost(ser, f"controller silent for more than {self.unresponsive_s:g} s")
             return
         seq = next(self._seq) & 0xFF
@@ -540,7 +540,7 @@ class SerialOutput(SerialLink, OutputBase):
             self._lost_quietly()
             time.sleep(self.reconnect_interval_s)
             return
-        self._last_rx_s = time.monotonic()
+        self._last_rx_s = self._now()
         # Drives first, then "connected": whoever waits for the connection
         # finds the controller already running them.
         self._reapply_drives()

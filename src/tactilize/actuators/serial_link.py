@@ -51,7 +51,7 @@ class SerialLink:
         self.ack_timeout_s = ack_timeout_s
         self.retries = retries
         self._on_event = on_event
-        #: recent ``(monotonic time [s], kind, detail)`` events
+        #: recent ``(host time [s], kind, detail)`` events
         self.events: Any = collections.deque(maxlen=256)  # a deque of (time, kind, detail)
         self._seq = itertools.count(1)
         self._write_lock = threading.RLock()
@@ -60,8 +60,14 @@ class SerialLink:
         self._serial: Any = None
         self._connected = threading.Event()
         self._closing = threading.Event()
-        self._last_rx_s = time.monotonic()
+        self._last_rx_s = self._now()
         self._decoder = P.FrameDecoder()
+
+    def _now(self) -> float:
+        """The host's clock [s] for what the link times: clock exchanges, the stroke's clock, the
+        silence check (:func:`time.monotonic`; a host on a simulated clock gives its own).  The
+        waits for replies and the handshake's deadline stay on the wall clock."""
+        return time.monotonic()
 
     def wait_connected(self, timeout_s: float) -> bool:
         """Block until connected (or the timeout [s] passes); True when connected."""
@@ -69,7 +75,7 @@ class SerialLink:
 
     def _dispatch(self, frame: P.Frame) -> None:
         """A reply arrived (the reader thread); wakes its waiter."""
-        self._last_rx_s = time.monotonic()
+        self._last_rx_s = self._now()
         self._wake(frame)
 
     def _wake(self, frame: P.Frame) -> None:
@@ -201,7 +207,7 @@ class SerialLink:
                 t.join(timeout=1.0)
 
     def _event(self, kind: str, detail: str) -> None:
-        self.events.append((time.monotonic(), kind, detail))
+        self.events.append((self._now(), kind, detail))
         if self._on_event is not None:
             try:
                 self._on_event(kind, detail)

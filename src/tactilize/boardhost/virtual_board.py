@@ -372,7 +372,12 @@ class VirtualBoard:
     def send(self, command: Any, payload: bytes = b"") -> None:
         """A frame as the host writes it, received at once."""
         self.seq = (self.seq + 1) & 0xFFFF
-        self.vm._run(self.ctl.feed, P.encode_frame(self.seq, command, payload))
+        self.receive(P.encode_frame(self.seq, command, payload))
+
+    def receive(self, data: bytes) -> None:
+        """Bytes as a host's port writes them (whole frames or not), received at once, at the
+        board's clock now (:class:`~tactilize.boardhost.virtual_serial.VirtualSerialOutput` writes here)."""
+        self.vm._run(self.ctl.feed, bytes(data))
 
     def set(self, channel: int, f_hz: float, w_s: float, amp: float = 1.0, regularity: float | None = None) -> None:
         self.send(P.Command.SET, P.encode_set_channel(channel, f_hz, w_s, amp, regularity))

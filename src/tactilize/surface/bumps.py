@@ -19,6 +19,13 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy.signal import find_peaks  # at import: a first stroke must not wait for it (0.5 s and more)
 
+try:
+    # find_peaks' own two steps (its local maxima, their prominences), called without its
+    # argument handling: that handling is half of what a pen batch's search costs.
+    from scipy.signal._peak_finding_utils import _local_maxima_1d, _peak_prominences
+except ImportError:  # another scipy: find_peaks itself
+    _local_maxima_1d = _peak_prominences = None
+
 from .model import SurfaceLike
 
 __all__ = ["Crossings", "resample_path", "crossings_along", "bumps_in"]
@@ -118,8 +125,7 @@ def bumps_in(h: np.ndarray, ids: np.ndarray, floors: np.ndarray) -> tuple[np.nda
     first = ids[0]
     if first >= 0 and ids[-1] == first and (ids == first).all():
         # One picture all along (the usual case): one search.
-        idx, props = find_peaks(h, prominence=float(floors[0]))
-        return idx, props["prominences"]
+        return _peaks(h, float(floors[0]))
     # Runs of one region (a picture); -1 (off every picture) is never searched.
     picked: list[np.ndarray] = []
     proms: list[np.ndarray] = []
@@ -129,10 +135,23 @@ def bumps_in(h: np.ndarray, ids: np.ndarray, floors: np.ndarray) -> tuple[np.nda
     for a, b in zip(starts.tolist(), ends.tolist()):
         if ids[a] < 0 or b - a < 3:
             continue
-        idx, props = find_peaks(h[a:b], prominence=float(floors[a]))
+        idx, prom = _peaks(h[a:b], float(floors[a]))
         if idx.size:
             picked.append(idx + a)
-            proms.append(props["prominences"])
+            proms.append(prom)
     if not picked:
         return _NONE
     return np.concatenate(picked), np.concatenate(proms)
+
+
+def _peaks(h: np.ndarray, floor: float) -> tuple[np.ndarray, np.ndarray]:
+    """``find_peaks(h, prominence=floor)``: (indices, prominences) of the local maxima whose
+    prominence is at least ``floor``."""
+    if _local_maxima_1d is None or _peak_prominences is None:
+        idx, props = find_peaks(h, prominence=floor)
+        return idx, props["prominences"]
+    x = np.ascontiguousarray(h, dtype=np.float64)
+    peaks = _local_maxima_1d(x)[0]
+    prom = _peak_prominences(x, peaks, -1)[0]  # -1: no window, as find_peaks without wlen
+    keep = floor <= prom
+    return peaks[keep], prom[keep]

@@ -211,9 +211,14 @@ class PathGrid:
         a = min(end, max(0, math.ceil((s0 - self.history_m) / step) - self._k0))
         if npred:
             off = np.arange(k1, k1 + npred) * step - s0
-            self._x[end:stop] = x0 + ux * off
-            self._y[end:stop] = y0 + uy * off
-            self._t[end:stop] = t0 + off / speed_m_s
+            # x0 + ux * off (and the others), written in place: the same numbers, no temporaries.
+            for buf, origin, slope in ((self._x, x0, ux), (self._y, y0, uy)):
+                out = buf[end:stop]
+                np.multiply(off, slope, out=out)
+                np.add(out, origin, out=out)
+            out = self._t[end:stop]
+            np.divide(off, speed_m_s, out=out)
+            np.add(out, t0, out=out)
         if stop > n:
             h, ids, fl = self.surface.regions(self._x[n:stop], self._y[n:stop])
             self._h[n:stop], self._id[n:stop], self._fl[n:stop] = h, ids, fl

@@ -98,6 +98,9 @@ class SurfaceStroke:
         self._fired: deque[_Handed] = deque(maxlen=FIRED_KEPT)
         self._pending: list[_Handed] = []
         self._last_fired_t: float | None = None
+        # How far [s] a fired event's time has come below an earlier fired one's (0 while they
+        # fire in time order, the usual case): recent() reads back no further than that.
+        self._disorder_s = 0.0
         self.now_s: float | None = None
         #: Pulses that became due with the latest update (handed out before, due by now).
         self.newly_fired = 0
@@ -108,6 +111,7 @@ class SurfaceStroke:
         self._fired.clear()
         self._pending = []
         self._last_fired_t = None
+        self._disorder_s = 0.0
         self.now_s = None
 
     def update(
@@ -212,8 +216,11 @@ class SurfaceStroke:
         due = [h for h in self._pending if h.event.t_s <= played_s]
         for h in due:
             self._fired.append(h)
-            if self._last_fired_t is None or h.event.t_s > self._last_fired_t:
-                self._last_fired_t = h.event.t_s
+            t = h.event.t_s
+            if self._last_fired_t is None or t > self._last_fired_t:
+                self._last_fired_t = t
+            elif self._last_fired_t - t > self._disorder_s:
+                self._disorder_s = self._last_fired_t - t
         self.newly_fired = len(due)
         if before:
             self._pending = []
@@ -237,7 +244,19 @@ class SurfaceStroke:
         if self.now_s is None:
             return []
         since = self.now_s - window_s
-        return [h.event for h in (*self._fired, *self._pending) if h.event.t_s >= since]
+        # Newest first, back to where every older fired event is before ``since`` (an event's
+        # time is never more than _disorder_s below one fired before it): a few dozen of the
+        # FIRED_KEPT, every pen batch.
+        stop = since - self._disorder_s
+        fired = []
+        for h in reversed(self._fired):
+            t = h.event.t_s
+            if t >= since:
+                fired.append(h.event)
+            elif t < stop:
+                break
+        fired.reverse()
+        return fired + [h.event for h in self._pending if h.event.t_s >= since]
 
     def window_statistics(self, window_s: float) -> EventStatistics:
         """:func:`~.equivalent.window_statistics` of the :meth:`recent` events."""
