@@ -539,7 +539,9 @@ async def websocket_endpoint(ws: WebSocket, state: ServerState) -> None:
                         await deliver()
                     except Exception as exc:  # a bug: ended as in a helper task, below
                         failed.append(exc)
-            failed += [t.exception() for t in tasks if t.done() and not t.cancelled() and t.exception() is not None]
+            for t in tasks:
+                if t.done() and not t.cancelled() and (err := t.exception()) is not None:
+                    failed.append(err)
             if failed:
                 # A bug or a dead socket in a helper task: end this connection
                 # (the output is stopped below); the page reconnects.
