@@ -1,4 +1,4 @@
-"""Benchmark: the voice coil's signal (issue 26 item 2), run by ``bench_surfaces.py --only audio``.
+"""Benchmark: the voice coil's signal, run by ``bench_surfaces.py --only audio``.
 
 1. The spectrum of the tip's acceleration (:mod:`tactilize.synthesis.acceleration`,
    what the WAV export carries) and of the event wavelets (what the sound card and

@@ -1,4 +1,4 @@
-"""Benchmark: what the parametric exports carry of a surface stroke (issue 26, item 3), against the true crossings.
+"""Benchmark: what the parametric exports carry of a surface stroke, against the true crossings.
 
 A generated field of bumps 3 mm apart (raised cosines of 1 mm radius, centres known) is stroked straight through
 its centres for 1.5 s at 20 .. 160 mm/s, and generated grains (1 mm mean pitch) at 20 .. 80 mm/s.  For each:

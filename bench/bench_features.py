@@ -5,7 +5,7 @@ and of ``scipy.fft.rfft2(x, workers=1)`` on the same float32 array, measured in
 the same run, their ratio, milliseconds per megapixel, and time / (N^2 log2 N^2)
 normalised to the smallest size (flat means N log N growth), for both: beyond
 the caches the bare FFT itself grows faster than N log N, and a flat ratio says
-the analysis grows as the FFT does.  Goal (issue 2): ratio <= 1.5 at 1024.
+the analysis grows as the FFT does.  Goal: ratio <= 1.5 at 1024.
 
 The two calls alternate, one of each per pair, and the ratio printed is the
 median of the pairs' ratios (with its quartiles): on a shared machine a

@@ -9,15 +9,13 @@ on the ``aa-resistor`` circuit), and this reports:
   displacement peak of at least 0.5 um) and its per-pulse swing [um];
 * the first felt pulse after pen-down, from standby and from cold [ms].
 
-Reference, measured in the same run: the same drives with no controller: the
+Reference, measured in the same run: the same drives with no controller, the
 profile's own width (after its limits) at the rated 0.5 A into the relaxed wire
-from the stiff source the model assumed before, open loop, from cold, judged as
-the issue "Every stroke is felt, at once" judged it (every pulse of the last
-third has its own peak, median swing >= 0.5 um).  The issue's own figures also
-had the old model-grid envelope shortening hot widths into the vibrating band
-(28 of 42 followed for ``paper``, 5 of 42 for ``physical``; first felt pulse
-0.78 s after pen-down on corduroy at 40 mm/s); that envelope is gone, so the
-reference here is the bare laws, which hold the wire contracted more often.
+from a stiff voltage source, open loop, from cold, for 1.5 s.  It follows when
+every pulse of its last third has its own displacement peak (at least 0.01 um)
+and the median swing is at least 0.5 um; its first felt pulse is the end of the
+first pulse with such a peak.  The ratio of the two counts of followed cells is
+what the controller adds to the bare laws.
 
 Run: python bench/bench_felt.py [--json]
 """
@@ -40,14 +38,15 @@ SPEEDS_MM_S = (10, 20, 40, 60, 100, 160)
 
 
 def uncontrolled(drive: tz.Drive, spec: WireSpec) -> tuple[bool, float]:
-    """The drive as before: its own width at the rated current, open loop, from cold."""
+    """(follows, first felt pulse [ms]) of the drive with no controller: its own width at the
+    rated current from a stiff source, open loop, from cold."""
     d = drive.replace(amplitude=1.0, strength=None)
     if d.is_off:
         return False, math.inf
-    stiff = Circuit("before", "voltage", supply_v=spec.rated_current_a * spec.resistance_martensite_ohm, source_ohm=1e-9)
+    stiff = Circuit("stiff", "voltage", supply_v=spec.rated_current_a * spec.resistance_martensite_ohm, source_ohm=1e-9)
     res = simulate_drive(d, 1.5, spec, circuit=stiff, dt_s=1e-4)
-    # The issue's criterion (as the project measured then): every pulse of the
-    # last third has its own peak (0.01 um) and the median swing is >= 0.5 um.
+    # Follows: every pulse of the last third has its own peak (0.01 um) and the median
+    # swing is >= 0.5 um.
     rises = res.per_pulse_rise_m(1.0)
     swing = res.per_pulse_swing_m(1.0)
     follows = bool(rises.size) and bool((rises >= 0.01e-6).all()) and statistics.median(swing) >= FOLLOW_THRESHOLD_M

@@ -13,7 +13,7 @@ facts (docs/references.md, section 11 (checks on the library)):
 - coarser sandpaper is louder (P80 over P240; Bensmaia and Hollins 2003 and 2005);
 - the level grows with speed, and the centroid and event rate rise with it
   (Bensmaia and Hollins 2003; kinematics, docs/references.md, section 3 (stylus on a natural surface));
-- the six recorded materials of the issue in their order: the brushed metal the quietest and
+- the six materials of the reference recordings in their order: the brushed metal the quietest and
   the granite the loudest at 170-250 mm/s, beside the picture alone on the same pictures;
 - smooth materials (polished metal and stone, glass, smooth plastic) are under the
   detection threshold.
@@ -32,8 +32,9 @@ from scipy.ndimage import gaussian_filter
 
 from tactilize.materials import library, sensation_ratio
 from tactilize.surface import surface_model
-from tactilize.surface.events import stroke_events
-from tactilize.synthesis.acceleration import Mirrored, spectral_centroid_hz, spectrum, tip_acceleration
+from tactilize.surface import stroke_events
+from tactilize.surface.straight import MirroredSurface
+from tactilize.synthesis.acceleration import spectral_centroid_hz, spectrum, tip_acceleration
 
 N = 512
 WIDTH_M = 50e-3
@@ -105,7 +106,7 @@ def measure(surface, speed_mm_s: float, duration_s: float = 1.0) -> dict[str, fl
     v = speed_mm_s * 1e-3
     t = np.arange(-0.1, duration_s + 0.1, 1 / 240.0)
     x, y = 5e-3 + v * t, np.full(t.size, 0.5 * WIDTH_M)
-    sig = tip_acceleration(Mirrored(surface), t, x, y, sample_rate_hz=FS, start_s=0.0, end_s=duration_s)
+    sig = tip_acceleration(MirroredSurface(surface), t, x, y, sample_rate_hz=FS, start_s=0.0, end_s=duration_s)
     f, p = spectrum(sig)
     rms = float(np.sqrt(np.mean(sig.samples ** 2)))
     inside = x <= surface.width_m  # events on the picture itself (no mirror), per second of it
@@ -178,7 +179,7 @@ def _checks(rows, recorded) -> list[dict[str, object]]:
     span = recorded[order[-1]]["material_db"] - recorded[order[0]]["material_db"]
     alone = sorted(recorded, key=lambda n: recorded[n]["picture_db"])
     span_alone = recorded[alone[-1]]["picture_db"] - recorded[alone[0]]["picture_db"]
-    check("brushed metal the quietest and granite the loudest of the six recorded (the issue's recordings)",
+    check("brushed metal the quietest and granite the loudest of the six recorded (the reference recordings)",
           order[0] == "metal-brushed" and order[-1] == "stone-granite",
           f"order {', '.join(order)}; span {span:.1f} dB (recorded: 32 dB); picture alone: {', '.join(alone)}, "
           f"span {span_alone:.1f} dB")

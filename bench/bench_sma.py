@@ -18,7 +18,7 @@ Measured, for 300 Hz / 150 us pulses at the rated current (the densest drive):
 against references measured in the same run: a pure-Python forward-Euler loop at
 the same 5 us step (what a naive integrator costs; run for 0.2 s and scaled), and
 ``np.interp`` of one trace onto the 5 us grid (the floor cost of returning traces).
-Goal (issue 3): >= 100 x real time.  Also prints the cost of ``envelope.apply``
+Goal: >= 100 x real time.  Also prints the cost of ``envelope.apply``
 (closed-form since the envelope is in energy: nothing to build or cache).
 
 Run: python bench/bench_sma.py [--seconds S]

@@ -1,20 +1,20 @@
-"""Benchmark: surfaces as they are, before and after, in one run.
+"""Benchmark: the steady presets against the surface rendering, in one run.
 
 1. What the finger gets from real photographs (scikit-image's CC0 brick, grass
    and gravel, shown 100 mm wide) and from generated sandpaper-like grains
    (bumps on a jittered grid, mean pitch 0.5 .. 8 mm), stroked at 40 mm/s:
 
-   * before: the ``paper``, ``perceptual`` and ``physical`` presets, pulses per
+   * steady: the ``paper``, ``perceptual`` and ``physical`` presets, pulses per
      second counted in the export's samples (``tactilize export ... --format
-     csv``, a 2 s synthetic stroke), as the issue counted them;
-   * after: the ``surface`` rendering, the pulses the simulated wire is given
+     csv``, a 2 s synthetic stroke);
+   * surface: the ``surface`` rendering, the pulses the simulated wire is given
      along the same stroke (its events), with their intervals' CV and strength.
 
 2. Costs, each against a reference measured in the same run:
 
    * server work per pen batch (arrival to drive handed to the socket, the
      server's own record) on the page's WebSocket, p50 / p99, ``surface`` against
-     today's page default ``perceptual``, sessions alternating in rounds of
+     the page's default ``perceptual``, sessions alternating in rounds of
      ROUND_BATCHES, the first SKIP_FIRST of each left out (goal p99 <= 1.2x),
      then the renderer alone, both renderings alternating batch by batch, and the
      machine's load average (the p99 moves with it);
@@ -45,14 +45,14 @@ import scipy.fft
 from tactilize.image import TextureImage
 from tactilize.mapping import Profile
 from tactilize.surface import surface_model
-from tactilize.surface.events import event_statistics, stroke_events
+from tactilize.surface import event_statistics, stroke_events
 from tactilize.surface.fields import grain_field
 from tactilize.surface.rendering import Frame
 
 SPEED_MM_S = 40.0
 WIDTH_MM = 100.0
 STROKE_S = 2.0
-BEFORE = ("paper", "perceptual", "physical")
+STEADY_PRESETS = ("paper", "perceptual", "physical")
 PITCHES_MM = (0.5, 1.0, 2.0, 4.0, 8.0)
 CSV_RATE_HZ = 48_000
 #: The server-work bench: rounds of this many batches per session, alternating renderings. Short
@@ -88,7 +88,7 @@ def grains() -> dict[str, TextureImage]:
     return out
 
 
-def before_rate(img: TextureImage, profile: str) -> float:
+def steady_rate(img: TextureImage, profile: str) -> float:
     """Pulses per second in the export's samples of a 2 s synthetic stroke (channel 0)."""
     from tactilize.export import run_stroke, synthetic_stroke
     from tactilize.maps.texturemap import texture_map
@@ -101,7 +101,7 @@ def before_rate(img: TextureImage, profile: str) -> float:
     return rising / STROKE_S
 
 
-def after(img: TextureImage) -> dict[str, float]:
+def surface_stats(img: TextureImage) -> dict[str, float]:
     """The surface rendering's events along straight strokes across the picture's middle third
     (seven rows, so no single row between grains decides)."""
     sm = surface_model(img)
@@ -121,8 +121,8 @@ def after(img: TextureImage) -> dict[str, float]:
 
 def table(title: str, images: dict[str, TextureImage], expected: dict[str, float] | None = None) -> dict:
     cols = list(images)
-    rows: dict[str, list[float]] = {p: [before_rate(img, p) for img in images.values()] for p in BEFORE}
-    stats = [after(img) for img in images.values()]
+    rows: dict[str, list[float]] = {p: [steady_rate(img, p) for img in images.values()] for p in STEADY_PRESETS}
+    stats = [surface_stats(img) for img in images.values()]
     rows["surface"] = [s["rate_hz"] for s in stats]
     w = max(10, *(len(c) for c in cols))
     print(f"\n{title}: pulses per second at {SPEED_MM_S:g} mm/s")

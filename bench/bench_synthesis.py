@@ -6,7 +6,7 @@ block by block, for several block sizes, with the drive unchanged and with a new
 drive every block (a stroke changing speed).  References measured in the same
 run: the one-shot :func:`tactilize.pulse_train` of both channels, and the floor
 cost of producing the frames at all (``np.zeros((n, 2), float32)`` plus a copy).
-Goal (issue 3): >= 2000 x real time for two channels at 48 kHz.
+Goal: >= 2000 x real time for two channels at 48 kHz.
 
 Run: python bench/bench_synthesis.py [--seconds S] [--repeat R]
 """

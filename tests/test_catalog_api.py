@@ -201,3 +201,39 @@ def test_any_registry_format_is_served(client):
     assert r.status_code == 200 and (read_haptic(r.content).points or read_haptic(r.content).taps)
     r = client.get(f"{base}/mp3")
     assert r.status_code == 404 and "unknown export format" in r.json()["error"]
+
+
+def test_a_rows_material_renders_its_drive_and_exports(tmp_path):
+    """A surface catalogue of one lit flat sheet, alone, as granite and as polished metal: the API's
+    drive at any speed is what ``--material`` renders for the picture, and its exports follow."""
+    from test_materials import _lit_flat_metal
+
+    from tactilize.surface.rendering import rendering_for
+
+    sheet = (_lit_flat_metal() * 255).round().astype(np.uint8)
+    Image.fromarray(sheet).save(tmp_path / "sheet.png")
+    (tmp_path / "m.csv").write_text("id,path,width_mm,material\nalone,sheet.png,50,\ngranite,sheet.png,50,stone-granite\n"
+                                    "polished,sheet.png,50,metal-polished\n")
+    run_batch(str(tmp_path / "m.csv"), tmp_path / "cat", profile="surface", workers=1)
+    c = TestClient(create_catalog_app(tmp_path / "cat"))
+    doc = c.get("/api/catalog/products/granite").json()
+    assert doc["material"] == "stone-granite" and doc["rendered_as"].startswith("stone-granite (relief ")
+    assert "material" not in doc["features"]
+    assert c.get("/api/catalog/products/alone").json()["rendered_as"] == "picture only"
+    prof, img = Profile.preset("surface"), load_image(tmp_path / "sheet.png", width_mm=50)
+    feat = extract_features(img)
+    rates = {}
+    for ident, material in (("alone", None), ("granite", "stone-granite"), ("polished", "metal-polished")):
+        expected = rendering_for(prof, image=img, material=material).steady_drive(feat, 0.045)
+        d = c.get(f"/api/catalog/products/{ident}/drive", params={"speed_mm_s": 45}).json()
+        assert d["pulse_frequency_hz"] == pytest.approx(expected.pulse_frequency_hz, rel=1e-6), ident
+        assert d["amplitude"] == pytest.approx(expected.amplitude, rel=1e-6, abs=1e-9), ident
+        rates[ident] = d["pulse_frequency_hz"]
+    # Polished metal is below the least felt bump; granite and the picture alone are not, and differ.
+    assert rates["polished"] == 0.0 and rates["granite"] > 5.0 and rates["alone"] > 5.0
+    assert rates["granite"] != pytest.approx(rates["alone"], rel=0.01), rates
+    q = {"speed_mm_s": 45, "duration_s": 0.3, "sample_rate_hz": 8000}
+    silent = c.get("/api/catalog/products/polished/export/wav", params=q).content
+    felt = c.get("/api/catalog/products/granite/export/wav", params=q).content
+    assert np.abs(np.frombuffer(silent[44:], "<i2")).max(initial=0) == 0
+    assert np.abs(np.frombuffer(felt[44:], "<i2")).max() > 1000

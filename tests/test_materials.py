@@ -23,8 +23,9 @@ from tactilize.materials import (LEAST_FELT_PROMINENCE_M, MicroRoughness, librar
                                  threshold_acceleration_m_s2)
 from tactilize.pen.samples import PenSample
 from tactilize.surface import SurfaceStroke, surface_model
-from tactilize.surface.events import stroke_events
-from tactilize.synthesis.acceleration import Mirrored, spectrum, tip_acceleration
+from tactilize.surface import stroke_events
+from tactilize.surface.straight import MirroredSurface
+from tactilize.synthesis.acceleration import spectrum, tip_acceleration
 
 N = 400
 WIDTH_M = 50e-3
@@ -59,7 +60,7 @@ def _stroke(speed_m_s: float, duration_s: float = 1.0, y_m: float = 0.5 * WIDTH_
 
 def _acceleration(surface, speed_m_s: float, duration_s: float = 1.0) -> np.ndarray:
     t, x, y = _stroke(speed_m_s, duration_s)
-    return tip_acceleration(Mirrored(surface), t, x, y, sample_rate_hz=FS, start_s=0.0, end_s=duration_s).samples
+    return tip_acceleration(MirroredSurface(surface), t, x, y, sample_rate_hz=FS, start_s=0.0, end_s=duration_s).samples
 
 
 def _rms_db(x: np.ndarray) -> float:

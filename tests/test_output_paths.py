@@ -149,3 +149,25 @@ def test_a_batch_folder_names_its_fifo_and_device_link_in_error_rows(tmp_path, p
 
     rows = pd.read_parquet(tmp_path / "cat").set_index("id")["error"]
     assert "FIFO" in rows["b.png"] and "character device" in rows["c.png"] and pd.isna(rows["a.png"])
+
+
+def test_a_batch_glob_names_its_fifo_in_an_error_row_as_a_folder_does(tmp_path, png):
+    import os
+
+    from tactilize.catalog.sources import discover
+
+    shop = tmp_path / "shop"
+    (shop / "sub").mkdir(parents=True)
+    (shop / "a.png").write_bytes(png.read_bytes())
+    os.mkfifo(shop / "b.png")
+    pattern = str(shop / "*")  # matches the folder "sub" too, which lists nothing
+    items = {it.id: it.problem for it in discover(pattern)}
+    assert set(items) == {"a.png", "b.png"}
+    assert items["a.png"] is None and "FIFO" in items["b.png"]
+    assert items == {it.id: it.problem for it in discover(shop)}  # the same rows as the folder's
+    res = _run("batch", pattern, "--out", tmp_path / "cat", "--workers", "1")
+    assert res.exit_code == 0 and "1 failed" in res.output, res.output
+    import pandas as pd
+
+    rows = pd.read_parquet(tmp_path / "cat").set_index("id")["error"]
+    assert "FIFO" in rows["b.png"] and pd.isna(rows["a.png"])

@@ -24,16 +24,22 @@ def _photo(path, size=(2000, 1500), seed=0, period=41):
     Image.fromarray((np.clip(g, 0, 1) * 255).astype(np.uint8)).save(path, quality=90)
 
 
-def test_model_file_round_trip_keeps_heights_within_one_level():
+@pytest.mark.parametrize("material", [None, "fabric-knit"])
+def test_model_file_round_trip_keeps_heights_within_one_level(material):
     rng = np.random.default_rng(1)
-    s = surface_model(rng.random((60, 80)).astype(np.float32), pitch_m=1e-4)
-    m = decode_model(encode_model(s, material="wool", product_id="a/b"))
-    assert m.header["material"] == "wool" and m.header["id"] == "a/b"
+    s = surface_model(rng.random((60, 80)).astype(np.float32), pitch_m=1e-4, material=material)
+    m = decode_model(encode_model(s, product_id="a/b"))
+    assert m.header["material"] == material and m.header["id"] == "a/b"
     assert m.levels.shape == (60, 80)
-    assert np.abs(m.heights - s.height).max() <= m.header["scale"] * 0.5 + 1e-6
+    assert np.abs(m.heights - s.height).max() <= m.header["scale"] * 0.5 * (1 + 1e-6)
     back = m.surface()
     assert back.prominence_floor == s.prominence_floor and back.tip_radius_m == s.tip_radius_m
     assert back.display_pitch_m == s.display_pitch_m and back.surface_pitch_m == s.surface_pitch_m
+    # A material's surface comes back in metres, with its micro-roughness drawn as Python draws it.
+    assert back.full_prominence == s.full_prominence and m.header["full_prominence"] == events.full_prominence(s)
+    assert back.micro == s.micro and (material is None) == (back.micro is None)
+    x, y = rng.uniform(0, 7e-3, 50), rng.uniform(0, 5e-3, 50)
+    assert np.array_equal(back.micro_at(x, y), s.micro_at(x, y))
 
 
 def test_rule_parameters_are_the_python_renderers():
@@ -80,6 +86,52 @@ def test_build_from_a_manifest_passes_material_through(tmp_path):
     page = (out / "p" / f"{shirt['slug']}.html").read_text()
     assert f'<tactile-surface model="../models/{shirt["slug"]}.tsf"' in page and "http" not in page
     assert json.loads((out / "products.json").read_text())[1]["material"] == "fabric-woven"
+
+
+def _events_along(model, speed_m_s=0.1):
+    """A steady stroke across the middle of a model file's surface: the Python renderer's events."""
+    from tactilize.pen.replay import replay_stroke
+    from tactilize.pen.samples import PenSample
+
+    surface = model.surface()
+    t = np.arange(0.0, 0.6, 1 / 240)
+    x, y = 0.1 * surface.width_m + speed_m_s * t, 0.5 * surface.height_m
+    return replay_stroke(surface, [PenSample(float(a), float(b), y, None) for a, b in zip(t, x)])
+
+
+def test_a_product_of_a_material_is_rendered_as_the_server_renders_that_material(tmp_path):
+    """Three rows of one photo: the picture alone, brushed metal, granite.  Each model holds what
+    ``--material`` renders for the photo (its relief scale, micro-roughness, full prominence in
+    metres), and the three feel different."""
+    from tactilize.image import load_image
+    from tactilize.materials import MaterialChoice
+    from tactilize.site import read_model
+
+    _photo(tmp_path / "sheet.png", size=(800, 600))
+    (tmp_path / "m.csv").write_text("id,path,width_mm,material\nalone,sheet.png,80,\nbrushed,sheet.png,80,metal-brushed\n"
+                                    "granite,sheet.png,80,Stone-Granite\n")
+    s = build_site(str(tmp_path / "m.csv"), tmp_path / "out")
+    models = {p["id"]: read_model(tmp_path / "out" / "models" / f"{p['slug']}.tsf") for p in s.products}
+    alone = models["alone"].header
+    assert (alone["material"], alone["relief_scale_m"], alone["micro"]) == (None, None, None)
+    assert alone["full_prominence"] == events.FULL_PROMINENCE
+    img = load_image(tmp_path / "sheet.png", width_mm=80)
+    for ident, name in (("brushed", "metal-brushed"), ("granite", "stone-granite")):
+        server = surface_model(img, material=name)  # what analyze, export and serve render with --material
+        h = models[ident].header
+        assert h["material"] == name and h["rendered_as"] == MaterialChoice.of(name).label()
+        assert h["relief_scale_m"] == server.relief.scale_m, "the relief scale is the whole picture's"
+        assert h["micro"] == server.micro.to_dict() and h["full_prominence"] == server.full_prominence
+        assert h["prominence_floor"] < 1e-3  # metres, not luminance units
+    assert [p["material"] for p in s.products] == [None, "metal-brushed", "stone-granite"]
+    felt = {ident: _events_along(m) for ident, m in models.items()}
+    assert len(felt["granite"]) >= 5, felt
+    # The same bumps, but brushed metal's relief is 0.6 um RMS and granite's hundreds of times
+    # deeper: from the least felt prominence to the full one, granite's are far the stronger.
+    strength = {k: float(np.mean([e.strength for e in v])) for k, v in felt.items()}
+    assert strength["brushed"] + 0.3 < strength["granite"], strength
+    same = [(round(a.t_s, 4), round(a.strength, 3)) for a in felt["granite"]]
+    assert same != [(round(a.t_s, 4), round(a.strength, 3)) for a in felt["alone"]]
 
 
 def test_cli_site_builds_and_bad_input_is_one_line_and_exit_2(tmp_path):
@@ -165,6 +217,25 @@ def test_catalog_site_is_built_once_from_the_catalogues_pictures_and_says_what_i
     assert "fabric1" not in (again.folder / "index.html").read_text()
 
 
+def test_catalog_site_renders_each_row_as_its_material(tmp_path):
+    """``serve --catalog``'s /shop/: a catalogue row's material is in its model, as the batch rendered it."""
+    from tactilize.catalog import run_batch
+    from tactilize.site import read_model
+    from tactilize.site.from_catalog import catalog_site
+
+    _photo(tmp_path / "sheet.png", size=(240, 180))
+    (tmp_path / "m.csv").write_text("id,path,width_mm,material\nalone,sheet.png,60,\nknit,sheet.png,60,fabric-knit\n"
+                                    "cork,sheet.png,60,cork\n")
+    run_batch(str(tmp_path / "m.csv"), tmp_path / "cat", profile="surface", workers=1)
+    built = catalog_site(tmp_path / "cat", cache=tmp_path / "cache")
+    products = {p["id"]: p for p in json.loads((built.folder / "products.json").read_text())}
+    header = {k: read_model(built.folder / "models" / f"{p['slug']}.tsf").header for k, p in products.items()}
+    assert {k: h["material"] for k, h in header.items()} == {"alone": None, "knit": "fabric-knit", "cork": "cork"}
+    assert header["knit"]["micro"] is not None and header["knit"]["relief_scale_m"] != header["cork"]["relief_scale_m"]
+    state = json.loads((built.folder / "catalog-state.json").read_text())
+    assert sorted(r[5] for r in state["products"] if r[5]) == ["cork", "fabric-knit"]  # a new material builds again
+
+
 def test_cli_serve_catalog_mounts_its_shop_site(tmp_path, monkeypatch):
     import tactilize.web.serve as web_serve
     from fastapi.testclient import TestClient
@@ -184,3 +255,19 @@ def test_cli_serve_catalog_mounts_its_shop_site(tmp_path, monkeypatch):
     c = TestClient(app)
     assert "fabric1" in c.get("/shop/index.html").text and "fabric0" not in c.get("/shop/").text
     assert c.get("/api/catalog").json()["total"] == 2
+
+
+def test_a_rows_given_relief_is_the_models_as_relief_mm_makes_it():
+    """A row that carries ``relief_rms_m`` (as ``--relief-mm`` gives it) renders at that relief, its
+    material's hardness and micro-roughness kept; without a material, the picture at that relief."""
+    from tactilize.catalog import Catalog
+
+    rng = np.random.default_rng(4)
+    pixels, pitch = rng.random((300, 400)).astype(np.float32), (1e-4, 1e-4)
+    for row in ({"material": "cork", "relief_rms_m": 50e-6}, {"material": "", "relief_rms_m": 20e-6}):
+        choice = Catalog.choice_of(row)
+        h = decode_model(model_bytes(pixels, pitch, material=choice)).header
+        server = surface_model(pixels, pitch_m=pitch, material=row["material"] or None, relief_rms_m=row["relief_rms_m"])
+        assert h["relief_scale_m"] == server.relief.scale_m and h["material"] == (row["material"] or None)
+        assert (h["micro"] is None) == (server.micro is None)
+    assert Catalog.choice_of({"material": None}).picture_only and Catalog.choice_of({}).picture_only

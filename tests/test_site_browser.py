@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import http.server
 import json
@@ -70,13 +71,22 @@ def site(tmp_path_factory):
     return root / "site", summary
 
 
-@pytest.fixture(scope="module")
-def base(site):
-    handler = functools.partial(_Quiet, directory=str(site[0]))
+@contextlib.contextmanager
+def _served(folder):
+    """A static server of ``folder`` on a free port: its base URL."""
+    handler = functools.partial(_Quiet, directory=str(folder))
     httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
     threading.Thread(target=httpd.serve_forever, daemon=True).start()
-    yield f"http://127.0.0.1:{httpd.server_address[1]}"
-    httpd.shutdown()
+    try:
+        yield f"http://127.0.0.1:{httpd.server_address[1]}"
+    finally:
+        httpd.shutdown()
+
+
+@pytest.fixture(scope="module")
+def base(site):
+    with _served(site[0]) as url:
+        yield url
 
 
 class _Quiet(http.server.SimpleHTTPRequestHandler):
@@ -158,6 +168,88 @@ def test_js_rule_equals_python_rule(site, base, pw):
         assert checked == len(summary.products) * 8
     finally:
         page.close()
+
+
+@pytest.fixture(scope="module")
+def material_site(tmp_path_factory):
+    """One woven photo as knit and as granite; a flat sheet under uneven light alone and as polished metal."""
+    from test_materials import _lit_flat_metal
+
+    root = tmp_path_factory.mktemp("materials")
+    photo(root / "weave.jpg", 41, 4)
+    Image.fromarray((_lit_flat_metal() * 255).round().astype(np.uint8)).save(root / "sheet.png")
+    (root / "shop.csv").write_text("id,path,width_mm,material\nweave-knit,weave.jpg,200,fabric-knit\n"
+                                   "weave-granite,weave.jpg,200,stone-granite\nsheet-alone,sheet.png,100,\n"
+                                   "sheet-polished,sheet.png,100,metal-polished\n")
+    summary = build_site(str(root / "shop.csv"), root / "site")
+    with _served(root / "site") as url:
+        yield root / "site", summary, url
+
+
+def test_a_material_product_feels_on_the_page_as_the_server_renders_it(material_site, pw):
+    """Two rows of one photo, two materials: different events on the page, each the Python renderer's
+    for that photo and material (its micro-roughness drawn as Python draws it); polished metal on a lit
+    flat sheet is silent where the sheet alone is not, replayed and under a finger."""
+    import dataclasses
+
+    out, summary, url = material_site
+    page = pw[1].new_page()
+    felt = {}
+    try:
+        page.goto(url + "/index.html")
+        for p in summary.products:
+            model = read_model(out / "models" / f"{p['slug']}.tsf")
+            cols, rows = model.header["cols"], model.header["rows"]
+            pitch = 340 * CSS_PX_M / cols
+            surface = model.surface(pitch)
+            for name, (t, x, y) in strokes(cols * pitch, rows * pitch).items():
+                samples = [PenSample(float(a), float(b), float(c), None) for a, b, c in zip(t + 1234.5, x, y)]
+                py = replay_stroke(surface, samples)
+                js = page.evaluate(
+                    """async ([url, pitch, rows]) => {
+                        const r = await import('/surface-rule.js');
+                        const m = await r.parseModel(await (await fetch(url)).arrayBuffer());
+                        return r.replayStroke(m, [pitch, pitch], rows.map((s) => ({t: s[0], x: s[1], y: s[2], p: null})))
+                          .map((e) => [e.t, e.s]);
+                    }""", [f"/models/{p['slug']}.tsf", pitch, [[s.t_s, s.x_m, s.y_m] for s in samples]])
+                where = f"{p['id']} {name}"
+                assert len(js) == len(py), f"{where}: {len(js)} events in JS, {len(py)} in Python"
+                if py:
+                    dt = max(abs(a[0] - b.t_s) for a, b in zip(js, py))
+                    ds = max(abs(a[1] - b.strength) for a, b in zip(js, py))
+                    assert dt <= 1e-3 and ds <= 0.02, f"{where}: |dt| {dt * 1e3:.3f} ms, |ds| {ds:.4f}"
+                felt[p["id"], name] = py
+                if p["id"] == "weave-granite":
+                    # Its micro-roughness is felt: without it the events would be others.
+                    bare = replay_stroke(dataclasses.replace(surface, micro=None), samples)
+                    assert [e.t_s for e in bare] != [e.t_s for e in py], where
+    finally:
+        page.close()
+    names = ("straight", "curved", "reversing", "varying")
+    for name in names:
+        knit, granite = felt["weave-knit", name], felt["weave-granite", name]
+        assert len(knit) >= 5 and len(granite) >= 5, name
+        assert len(knit) != len(granite) or max(abs(a.strength - b.strength) for a, b in zip(knit, granite)) > 0.1, name
+        assert felt["sheet-polished", name] == [] and len(felt["sheet-alone", name]) >= 5, name
+    # Under a finger on the phone: the polished sheet's page renders no event, the sheet alone's does.
+    ctx = phone(pw)
+    try:
+        counts = {}
+        for ident in ("sheet-polished", "sheet-alone"):
+            slug = next(p["slug"] for p in summary.products if p["id"] == ident)
+            pg = ctx.new_page()
+            pg.goto(f"{url}/p/{slug}.html")
+            ready(pg)
+            b = pg.locator("tactile-surface .pic").bounding_box()
+            Finger(pg).stroke(b["x"] + 20, b["y"] + 0.5 * b["height"], b["x"] + b["width"] - 20, 0.6)
+            pg.wait_for_timeout(100)
+            counts[ident] = pg.evaluate("[document.querySelector('tactile-surface').stats.batches, "
+                                        "document.querySelector('tactile-surface').stats.events]")
+            pg.close()
+    finally:
+        ctx.close()
+    assert counts["sheet-polished"][0] > 5 and counts["sheet-polished"][1] == 0, counts
+    assert counts["sheet-alone"][1] > 0, counts
 
 
 def test_inflate_equals_zlib(site, base, pw):

@@ -51,6 +51,12 @@ def test_preset_matches_the_facts_sheet():
 def test_bad_wire_requests_raise_one_error_type():
     with pytest.raises(WireError):
         WireSpec.preset("33um")
+    with pytest.raises(WireError, match="75um"):  # a change of a field the wire does not have
+        WireSpec.preset("75um", colour="red")
+    with pytest.raises(WireError, match="aa-resistor"):  # ...nor the circuit
+        Circuit.preset("aa-resistor", colour="red")
+    assert WireSpec.preset("75um", length_m=0.05).length_m == 0.05
+    assert Circuit.preset("aa-resistor", supply_v=2.5).supply_v == 2.5
     with pytest.raises(WireError):
         WireSpec(length_m=-1.0)
     with pytest.raises(WireError):

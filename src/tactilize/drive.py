@@ -16,7 +16,7 @@ from typing import Any
 
 from .errors import DriveError, check_finite
 
-__all__ = ["Drive", "JITTER_MAX_PERIODS", "jitter_periods", "jitter_offset"]
+__all__ = ["Drive", "JITTER_MAX_PERIODS", "jitter_periods", "jitter_offset", "interval_cv"]
 
 
 @dataclass(frozen=True)
@@ -172,3 +172,17 @@ def jitter_periods(drive: Drive, period_samples: float, width_samples: int) -> f
         return 0.0
     room = 1.0 - (width_samples + 1) / period_samples
     return max(0.0, min(JITTER_MAX_PERIODS * (1.0 - regularity), room))
+
+
+def interval_cv(drive: Drive) -> float:
+    """Coefficient of variation of a drive's inter-pulse intervals (0 for an even train or an off drive).
+
+    Each pulse moves by ``j u_k`` periods (``u_k`` uniform on [-1/2, 1/2), ``j`` of
+    :func:`jitter_periods`), so an interval varies by ``j (u_{k+1} - u_k)``, whose standard
+    deviation is ``j / sqrt(6)`` periods.
+    """
+    if drive.is_off:
+        return 0.0
+    # At 1 MHz (the wire's schedule) the one-sample margin of jitter_periods is negligible.
+    fs = 1e6
+    return jitter_periods(drive, fs / drive.pulse_frequency_hz, max(1, round(drive.pulse_width_s * fs))) / math.sqrt(6)

@@ -6,18 +6,20 @@ images) and steady strokes at 10 .. 160 mm/s, plays every drive on the simulated
 wire (:func:`tactilize.actuators.felt.feel`), and compares every pair of textures at
 equal speed.  ``tactilize profile report`` prints it and draws it.
 
-Two drives are told apart (:func:`distinguishable`) when their pulse frequencies
-differ by at least one frequency JND (Weber fraction 0.2, docs/references.md,
-section 3 (frequency discrimination)), or when one train is clearly irregular and
-the other is not: their intervals' coefficients of variation differ by at least
-:data:`REGULARITY_JND_CV` (at that difference successive intervals of the
-irregular train typically differ by one frequency JND).  Strength is not counted.
+Every rendering is judged by what it gives a straight stroke
+(:meth:`tactilize.surface.rendering.Rendering.straight`): the pulses' rate, interval CV
+and strength are the row, the stroke's Drive is what the wire plays.  A steady
+rendering's are its law's Drive (its frequency, :func:`interval_cv` and strength); a
+surface rendering's are measured on the events of the stroke over each texture's
+surface (docs/surfaces.md).
 
-A profile whose rendering is ``surface`` is judged by what it produces for a
-stroke (docs/surfaces.md): each texture's surface is stroked straight at each
-speed, and the pulses' rate, interval CV and strength are the row; two textures
-are told apart by the same rule on the measured rate and CV
-(:func:`distinguishable_measured`).
+Two pulse trains are told apart (:func:`distinguishable_measured`, on the rate and CV;
+:func:`distinguishable`, on two drives) when their rates differ by at least one
+frequency JND (Weber fraction 0.2, docs/references.md, section 3 (frequency
+discrimination)), or when one train is clearly irregular and the other is not: their
+intervals' coefficients of variation differ by at least :data:`REGULARITY_JND_CV` (at
+that difference successive intervals of the irregular train typically differ by one
+frequency JND).  Strength is not counted.
 """
 
 from __future__ import annotations
@@ -25,9 +27,10 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import asdict, dataclass, field
-from typing import TYPE_CHECKING, Any, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
-from .drive import Drive
+from .drive import Drive, interval_cv
+from .errors import TactilizeError
 from .mapping import FeaturesForDrive, Profile
 
 if TYPE_CHECKING:
@@ -46,25 +49,14 @@ FREQUENCY_JND = 0.2
 REGULARITY_JND_CV = 0.14
 
 
-def interval_cv(drive: Drive) -> float:
-    """Coefficient of variation of a drive's inter-pulse intervals (0 for an even train)."""
-    from .synthesis import jitter_periods
-
-    if drive.is_off:
-        return 0.0
-    # At 1 MHz the one-sample margin of jitter_periods is negligible.
-    fs = 1e6
-    return jitter_periods(drive, fs / drive.pulse_frequency_hz, max(1, round(drive.pulse_width_s * fs))) / math.sqrt(6)
-
-
 def distinguishable(a: Drive, b: Drive) -> bool:
-    """True when the finger tells the two drives apart (see the module docstring)."""
-    if a.is_off or b.is_off:
-        return a.is_off != b.is_off
-    lo, hi = sorted((a.pulse_frequency_hz, b.pulse_frequency_hz))
-    if hi >= lo * (1.0 + FREQUENCY_JND):
-        return True
-    return abs(interval_cv(a) - interval_cv(b)) >= REGULARITY_JND_CV
+    """True when the finger tells the two drives' trains apart (see the module docstring)."""
+    return distinguishable_measured(_train_of(a), _train_of(b))
+
+
+def _train_of(d: Drive) -> tuple[float, float]:
+    """A drive's train as (rate [1/s], interval CV): an off drive has no pulses."""
+    return (0.0 if d.is_off else d.pulse_frequency_hz), interval_cv(d)
 
 
 def distinguishable_measured(a: tuple[float, float], b: tuple[float, float]) -> bool:
@@ -84,8 +76,9 @@ class ProfileReport:
     ----------
     profile : str
     rows : list of dict
-        ``texture``, ``speed_mm_s``, ``frequency_hz``, ``pulse_width_ms`` (the
-        profile's), ``strength``, ``regularity``, ``interval_cv``, ``follows``,
+        ``texture``, ``speed_mm_s``, ``frequency_hz`` (pulses per second of the straight
+        stroke), ``pulse_width_ms``, ``strength``, ``regularity`` (the stroke's Drive's),
+        ``interval_cv``, ``pulses`` (over the stroke), ``clamped``, ``follows``,
         ``displacement_pp_um``, ``first_follow_ms`` (the simulated wire, from standby).
     close_pairs : list of dict
         ``speed_mm_s``, ``a``, ``b``, ``frequency_ratio``: pairs the finger cannot tell apart.
@@ -131,7 +124,8 @@ def profile_report(
     ----------
     profile : Profile
     textures : dict of name -> features, optional
-        Anything :meth:`Profile.drive` takes; the built-in textures by default.
+        Anything :meth:`Profile.drive` takes, one per texture reported; by default the
+        features of ``images``.
     speeds_mm_s : sequence of float
         Steady stroking speeds [mm/s] (no direction: full speed).
     wire : WireSpec or str, optional
@@ -139,80 +133,90 @@ def profile_report(
     simulate_wire : bool
         Play every drive on the simulated wire (a few hundredths of a second each).
     images : dict of name -> TextureImage, optional
-        The pictures of ``textures`` (a surface rendering strokes them); the
-        built-in textures' by default.
+        The pictures of ``textures`` (a surface rendering strokes them); a texture not
+        among them is the built-in one of that name.  The built-in textures by default.
     material : MaterialChoice, optional
         What a surface rendering renders every picture as (:class:`tactilize.materials.MaterialChoice`);
         the picture alone by default.
+
+    Raises
+    ------
+    TactilizeError
+        A rendering that strokes the pictures is given a texture without one (neither in
+        ``images`` nor built in).
     """
+    from .surface.rendering import rendering_for
 
-    if getattr(profile, "rendering", "steady") == "surface":
-        return _surface_report(profile, images, speeds_mm_s, wire, simulate_wire, material)
-
-    if textures is None:
-        from .data import get_texture, texture_ids
-        from .features import extract_features
-
-        textures = {tid: extract_features(get_texture(tid).image) for tid in texture_ids()}
-    report = ProfileReport(profile.name)
-    for v in speeds_mm_s:
-        drives = {name: profile.drive(feat, v / 1e3) for name, feat in textures.items()}
-        for name, d in drives.items():
-            row = {
-                "texture": name,
-                "speed_mm_s": float(v),
-                "frequency_hz": d.pulse_frequency_hz,
-                "pulse_width_ms": d.pulse_width_s * 1e3,
-                "strength": d.strength,
-                "regularity": d.regularity,
-                "interval_cv": interval_cv(d),
-                "clamped": list(d.clamped),
-            }
-            row.update(_felt_columns(d, wire, simulate_wire))
-            report.rows.append(row)
-        for a, b in itertools.combinations(drives, 2):
-            report.pairs += 1
-            if not distinguishable(drives[a], drives[b]):
-                report.close_pairs.append(_close_pair(v, a, b, drives[a].pulse_frequency_hz, drives[b].pulse_frequency_hz))
-    return report
-
-
-def _surface_report(profile: Profile, images: dict[str, Any] | None, speeds_mm_s: Sequence[float], wire: Any,
-                    simulate_wire: bool, material: Any = None) -> ProfileReport:
-    """The report of a surface rendering: what a straight stroke at each speed produces."""
-    from .surface.model import surface_model
-    from .surface.straight import surface_stroke_drive
-
-    if images is None:
-        from .data import get_texture, texture_ids
-
-        images = {tid: get_texture(tid).image for tid in texture_ids()}
     kw = {} if material is None else material.surface_kwargs()
-    surfaces = {name: surface_model(img, tip_radius_m=profile.tip_radius_m, **kw) for name, img in images.items()}
+    pictures = _pictures(textures, images)
+    renderings = {name: (feat, rendering_for(profile, image=picture, **kw)) for name, (feat, picture) in pictures.items()}
     report = ProfileReport(profile.name)
     for v in speeds_mm_s:
         measured: dict[str, tuple[float, float]] = {}
-        for name, sm in surfaces.items():
-            d, events, stats = surface_stroke_drive(sm, profile, v / 1e3)
-            measured[name] = (stats.rate_hz, stats.interval_cv)
+        for name, (feat, rendering) in renderings.items():
+            st = rendering.straight(feat, v / 1e3)
+            measured[name] = (st.rate_hz, st.interval_cv)
             row = {
                 "texture": name,
                 "speed_mm_s": float(v),
-                "frequency_hz": stats.rate_hz,
-                "pulse_width_ms": d.pulse_width_s * 1e3,
-                "strength": stats.strength,
-                "regularity": d.regularity,
-                "interval_cv": stats.interval_cv,
-                "pulses": stats.pulses,
-                "clamped": sorted({c for e in events for c in e.clamped}),
+                "frequency_hz": st.rate_hz,
+                "pulse_width_ms": st.drive.pulse_width_s * 1e3,
+                "strength": st.strength,
+                "regularity": st.drive.regularity,
+                "interval_cv": st.interval_cv,
+                "pulses": st.pulses,
+                "clamped": list(st.clamped),
             }
-            row.update(_felt_columns(d, wire, simulate_wire))
+            row.update(_felt_columns(st.drive, wire, simulate_wire))
             report.rows.append(row)
         for a, b in itertools.combinations(measured, 2):
             report.pairs += 1
             if not distinguishable_measured(measured[a], measured[b]):
                 report.close_pairs.append(_close_pair(v, a, b, measured[a][0], measured[b][0]))
     return report
+
+
+def _pictures(textures: Mapping[str, FeaturesForDrive] | None,
+              images: dict[str, Any] | None) -> dict[str, tuple[Any, Callable[[], Any]]]:
+    """Per texture reported, its features and its picture (a callable: read only by a rendering
+    that strokes it).  Features not given are extracted only when a rendering reads them."""
+    from .data import texture_ids
+
+    given = images or {}
+
+    def picture(name: str) -> Callable[[], Any]:
+        def load() -> Any:
+            if name in given:
+                return given[name]
+            from .data import get_texture
+
+            try:
+                return get_texture(name).image
+            except KeyError:
+                raise TactilizeError(name, "no picture of this texture to stroke (give it in images)") from None
+
+        return load
+
+    if textures is not None:
+        return {name: (feat, picture(name)) for name, feat in textures.items()}
+    return {name: (_LazyFeatures(picture(name)), picture(name)) for name in (images if images is not None else texture_ids())}
+
+
+class _LazyFeatures:
+    """A picture's features (:func:`tactilize.features.extract_features`), extracted when first read."""
+
+    def __init__(self, picture: Callable[[], Any]) -> None:
+        self._picture = picture
+        self._features: Any = None
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("__"):
+            raise AttributeError(name)
+        if self._features is None:
+            from .features import extract_features
+
+            self._features = extract_features(self._picture())
+        return getattr(self._features, name)
 
 
 def _felt_columns(d: Any, wire: Any, simulate_wire: bool) -> dict[str, Any]:

@@ -165,7 +165,7 @@ def _play_events(board: Any, host: Any, profile: Any, surface: Any, speed_m_s: f
     from .actuators.clock_sync import ClockSync
     from .actuators.serial_events import EventSender, plan_pulses
     from .surface.clock import StrokeClock
-    from .surface.events import stroke_events
+    from .surface.rendering import stroke_events
     from .surface.stroke import LOOKAHEAD_S
     from .surface.straight import MirroredSurface
     from .surface.equivalent import equivalent_drive

@@ -22,17 +22,29 @@ as the event; the steady pulse train is silent meanwhile.
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, NamedTuple, Sequence
 
 import numpy as np
 
 from ..errors import OutputError
 from ..drive import Drive
 from ..synthesis import PulseScheduler, PulseStream
-from ..synthesis.wavelets import WaveletPlayer, event_wavelets
+from ..synthesis.wavelets import FrameWavelet, WaveletPlayer, event_wavelets
 from .base import OutputBase
 
+if TYPE_CHECKING:
+    from ..surface.rendering import Frame
+
 __all__ = ["AudioOutput", "import_sounddevice"]
+
+
+class _Scheduled(NamedTuple):
+    """What the audio thread is to play of a rendering's events."""
+
+    version: int  # one more with every update, so the audio thread sees each once
+    wavelets: tuple[tuple[FrameWavelet, ...], ...] | None  # per channel; None clears them
+    fired_before: float  # the frame of the batch's newest sample (:meth:`WaveletPlayer.replace`)
+
 
 def import_sounddevice() -> Any:
     """The sounddevice module, or an OutputError telling how to get it
@@ -95,10 +107,8 @@ class AudioOutput(OutputBase):
         self._streams = [PulseStream(self.sample_rate_hz) for _ in range(self.channels)]
         self._wavelets = [WaveletPlayer(self.sample_rate_hz) for _ in range(self.channels)]
         self.block_frames = int(block_frames)
-        # Wavelets cross to the audio thread as one (version, per-channel triples) tuple, as drives do.
-        # (version, per channel (centre frame, amplitude, sigma frames) or None to clear, the
-        # frame of the batch's newest sample)
-        self._scheduled: tuple[int, tuple[tuple[tuple[float, float, float], ...], ...] | None, float] = (0, None, 0.0)
+        # Wavelets cross to the audio thread as one tuple, as drives do.
+        self._scheduled = _Scheduled(0, None, 0.0)
         self._scheduled_version = 0
         self._offset_frames: float | None = None
         # Drives cross to the audio thread as one (version, drives) tuple:
@@ -134,11 +144,11 @@ class AudioOutput(OutputBase):
             self._playing_version = version
         version, wanted, fired_before = self._scheduled
         if version != self._scheduled_version:
-            for player, triples in zip(self._wavelets, wanted or ((),) * self.channels):
+            for player, wavelets in zip(self._wavelets, wanted or ((),) * self.channels):
                 if wanted is None:
                     player.clear()
                 else:
-                    player.replace(triples, fired_before)
+                    player.replace(wavelets, fired_before)
             self._scheduled_version = version
         outdata.fill(0.0)
         for c, stream in enumerate(self._streams):
@@ -155,11 +165,11 @@ class AudioOutput(OutputBase):
             # refuse in the audio thread (e.g. pulses so wide they touch).
             PulseScheduler(self.sample_rate_hz).set_drive(d)
         self._publish(drives)
-        self._scheduled = (self._scheduled[0] + 1, None, 0.0)  # a steady drive: no events left to play
+        self._scheduled = _Scheduled(self._scheduled.version + 1, None, 0.0)  # a steady drive: no events left to play
         self._offset_frames = None
         return drives
 
-    def play(self, frame: Any, now_s: float, channels: Sequence[Drive]) -> list[Drive]:
+    def play(self, frame: Frame, now_s: float, channels: Sequence[Drive]) -> list[Drive]:
         """Play one rendered frame (the Output interface): a regular train (a steady rendering's)
         as its Drive's pulse train, the synthesiser's exact train; other events as wavelets."""
         if frame.regular:
@@ -181,22 +191,22 @@ class AudioOutput(OutputBase):
         # The pen's two-channel split (the phantom sensation by stroke direction) scales each
         # channel as it scales the equivalent drives.
         loudest = max((d.amplitude for d in applied), default=0.0)
-        per_channel = []
+        per_channel: list[tuple[FrameWavelet, ...]] = []
         for c, events in enumerate(list(channels)[: self.channels]):
             share = applied[c].amplitude / loudest if loudest > 0 else 1.0
             per_channel.append(tuple(
-                (frame + (w.t_s - now_s) * fs, share * min(1.0, max(0.0, w.amplitude)), w.sigma_s * fs)
+                FrameWavelet(frame + (w.t_s - now_s) * fs, share * min(1.0, max(0.0, w.amplitude)), w.sigma_s * fs)
                 for w in event_wavelets(events)
             ))
         per_channel += [()] * (self.channels - len(per_channel))
         self._publish([Drive.off()] * self.channels)
-        self._scheduled = (self._scheduled[0] + 1, tuple(per_channel), frame)
+        self._scheduled = _Scheduled(self._scheduled.version + 1, tuple(per_channel), frame)
         return applied
 
     def stop(self) -> None:
         """Silence every channel (the stream keeps running, playing zeros)."""
         self._publish([Drive.off()] * self.channels)
-        self._scheduled = (self._scheduled[0] + 1, None, 0.0)
+        self._scheduled = _Scheduled(self._scheduled.version + 1, None, 0.0)
         self._offset_frames = None
 
     def _publish(self, drives: Sequence[Drive]) -> None:

@@ -39,7 +39,7 @@ import itertools
 import math
 import threading
 import time
-from typing import Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 from ..drive import Drive
 from ..errors import OutputError
@@ -52,6 +52,9 @@ from .serial_events import EventSender, board_limits, plan_pulses
 from .serial_link import PortLost as _PortLost
 from .serial_link import SerialLink
 from .sma import Circuit, SafetyEnvelope, WireController, WireSpec, default_envelope
+
+if TYPE_CHECKING:
+    from ..surface.rendering import Frame
 
 __all__ = ["SerialOutput"]
 
@@ -259,7 +262,7 @@ class SerialOutput(SerialLink, OutputBase):
             except _PortLost:
                 return
 
-    def play(self, frame: Any, now_s: float, channels: Sequence[Drive]) -> list[Drive]:
+    def play(self, frame: Frame, now_s: float, channels: Sequence[Drive]) -> list[Drive]:
         """Play one rendered frame (the Output interface): a regular train (a steady rendering's)
         as its Drive, with SET (the board's own train); other events as scheduled pulses on a
         board that schedules them (:attr:`schedules_pulses`), else their operating point."""

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 
@@ -42,6 +42,9 @@ from .base import OutputBase
 from .sma import Circuit, SafetyEnvelope, WireController, WireSpec, build_envelope
 from .sma.controller import STATES, ControllerState
 from .simulated_events import EventPlayer, WireChannel, relative_events
+
+if TYPE_CHECKING:
+    from ..surface.rendering import Frame
 
 __all__ = ["SimulatedOutput"]
 
@@ -190,7 +193,7 @@ class SimulatedOutput(OutputBase):
         self._drives = applied
         return applied
 
-    def play(self, frame: Any, now_s: float, channels: Sequence[Drive]) -> list[Drive]:
+    def play(self, frame: Frame, now_s: float, channels: Sequence[Drive]) -> list[Drive]:
         """One frame (the Output interface): a regular train from its Drive, other events each a bounded pulse."""
         if frame.regular:
             return self.apply(channels)

@@ -173,11 +173,11 @@ def _row_from_image(img: TextureImage, settings: AnalysisSettings, material: str
             row[key] = value
     for key, value in tmap.summary().items():
         row[f"map_{key}"] = value
-    if material is not None and settings.profile.rendering != "surface":
-        # A material changes the surface rendering only: a steady profile's drives would ignore it.
-        raise CatalogError(material, f"a material needs a surface profile (this one's rendering is "
-                                     f"{settings.profile.rendering!r})")
     rendering = rendering_for(settings.profile, image=img, material=material)  # made once per picture
+    if material is not None and not rendering.reads_surface:
+        # A rendering that does not read the picture as a surface would ignore the material.
+        raise CatalogError(material, f"a material needs a surface profile (this one's rendering is "
+                                     f"{rendering.name!r})")
     for speed in settings.speeds_m_s:
         # What every command renders for this picture stroked steadily at this speed.
         drv = rendering.steady_drive(feat, speed)

@@ -15,6 +15,11 @@ Routes (prefix ``/api/catalog``)
 ``GET  /api/catalog/products/{id}/export/wav``           the pulse train as 16-bit PCM WAV
 ``GET  /api/catalog/products/{id}/export/{format}``      any other format of the export registry (hjif, haptic, ...)
 
+A product's row names what its picture is rendered as (``material``, from the manifest):
+with a surface profile its drive at any speed and its exports are that material's, as
+``--material`` renders the picture (:meth:`~tactilize.catalog.Catalog.drive`), like the
+drives the batch stored.
+
 Ids may contain ``/`` (a folder catalog's ids are relative paths).  A product
 whose image could not be analysed has a profile with ``status == "error"`` and
 its reason; its drive and exports answer 409.
@@ -30,7 +35,7 @@ from fastapi.responses import Response
 from pydantic import BaseModel, Field
 
 from ..drive import Drive
-from ..errors import RequestError
+from ..errors import MaterialError, RequestError
 from ..http import ErrorAnsweringRoute
 from .reader import Catalog
 
@@ -82,6 +87,8 @@ class TactileProfile(BaseModel):
     status: Literal["ok", "error"]
     error: str | None = Field(None, description="Why the image could not be analysed (status 'error').")
     profile: str = Field(description="Profile of the stored drives.")
+    material: str | None = Field(None, description="The library material the picture is rendered as (null: the picture alone).")
+    rendered_as: str | None = Field(None, description="What the picture is rendered as, in words (null when the row's material is not in the library).")
     tactilize_version: str | None = Field(None, description="tactilize version that computed the row (null in catalogs of format 2 and earlier).")
     analysis_version: int | None = Field(None, description="Version of the analysis that computed the row (null in catalogs of format 2 and earlier).")
     image: dict[str, Any] = Field(default_factory=dict, description="width_px, height_px, width_mm, height_mm, pitch_m, decode_scale.")
@@ -107,7 +114,8 @@ class ErrorMessage(BaseModel):
 
 
 _IMAGE_KEYS = ("width_px", "height_px", "width_mm", "height_mm", "pitch_m", "decode_scale")
-_ROW_KEYS = {"id", "path", "status", "error", "profile", "seconds", "tactilize_version", "analysis_version"}
+_ROW_KEYS = {"id", "path", "status", "error", "profile", "material", "relief_rms_m", "seconds", "tactilize_version",
+             "analysis_version"}
 
 
 def _profile_doc(catalog: Catalog, row: dict[str, Any]) -> TactileProfile:
@@ -119,11 +127,18 @@ def _profile_doc(catalog: Catalog, row: dict[str, Any]) -> TactileProfile:
         if k not in _ROW_KEYS and k not in _IMAGE_KEYS and not k.startswith(("map_", "drive_"))
     }
     drives = [_drive_doc(drv, speed) for speed, drv in catalog.stored_drives(row)]
+    try:
+        choice = catalog.choice_of(row)
+        material, rendered_as = choice.name, choice.label()
+    except MaterialError:  # an error row of a name the library does not hold: said as written
+        material, rendered_as = str(row.get("material")), None
     return TactileProfile(
         id=str(row["id"]),
         status=row.get("status") or "error",
         error=row.get("error"),
         profile=str(row.get("profile") or catalog.profile.name),
+        material=material,
+        rendered_as=rendered_as,
         tactilize_version=row.get("tactilize_version"),
         analysis_version=row.get("analysis_version"),
         image=image,

@@ -2,8 +2,9 @@
 
 :class:`Catalog` is what the web API (:mod:`tactilize.catalog.api`) and scripts
 use: counts, pages of ids, a product's row, its stored drives and its drive at
-any speed from the stored features, without the image.  A catalog written by
-an earlier version reads as it is; only a batch refuses to add to it.
+any speed from the stored features, without the image, or from its picture rendered
+as the row's material (:meth:`Catalog.choice_of`) for a surface profile.  A catalog
+written by an earlier version reads as it is; only a batch refuses to add to it.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from ..errors import CatalogError
 from ..extras import require
 from ..drive import Drive
 from ..mapping import DriveFeatures, Profile
+from ..materials import MaterialChoice
 from .analysis import DEFAULT_SPEEDS_M_S, speed_label
 from .stores import META_FILE, PART_PREFIX, is_sql_url, safe_url
 
@@ -205,6 +207,20 @@ class Catalog:
             float(row["periodicity"]) if row.get("periodicity") is not None else 1.0,
         )
 
+    @staticmethod
+    def choice_of(row: dict[str, Any]) -> MaterialChoice:
+        """What a row's picture is rendered as: its ``material`` (empty or absent: the picture
+        alone) and its ``relief_rms_m`` [m] when the row carries one, as ``--material`` and
+        ``--relief-mm`` name them.
+
+        Raises
+        ------
+        MaterialError
+            A material the library does not hold (such a row is an error row of the batch).
+        """
+        rms = row.get("relief_rms_m")
+        return MaterialChoice.of(row.get("material") or None, None if rms is None else float(rms))
+
     def stored_drives(self, row: dict[str, Any]) -> list[tuple[float, Drive]]:
         """(speed [m/s], drive) at the catalog's reference speeds, as the batch stored them."""
         out: list[tuple[float, Drive]] = []
@@ -233,15 +249,17 @@ class Catalog:
     def drive(self, row: dict[str, Any], speed_m_s: float, profile: Profile | None = None) -> Drive:
         """The drive of a stored product at any speed [m/s] (the catalog's profile by default): what
         the profile renders for the picture stroked steadily, as the batch stores it.  A surface
-        rendering reads the picture again (its bumps are not in the row)."""
+        rendering reads the picture again (its bumps are not in the row) and renders it as the
+        row's material (:meth:`choice_of`)."""
         prof = profile or self.profile
         from ..image import METRES_PER_INCH, load_image
-        from ..surface.rendering import rendered_drive
+        from ..surface.rendering import rendering_for
 
         pitch = row.get("pitch_m")
         # Read only by a rendering that needs the picture itself (its bumps are not in the row).
         picture = lambda: load_image(row["path"], dpi=METRES_PER_INCH / float(pitch) if pitch else None)  # noqa: E731
-        return rendered_drive(prof, picture, self.features_of(row), speed_m_s)
+        rendering = rendering_for(prof, image=picture, **self.choice_of(row).surface_kwargs())
+        return rendering.steady_drive(self.features_of(row), speed_m_s)
 
     def close(self) -> None:
         """Release the database connections (nothing to do for Parquet)."""

@@ -125,13 +125,19 @@ def _from_folder(root: Path) -> list[CatalogItem]:
     out = []
     for p in root.rglob("*"):
         rel = p.relative_to(root)
-        if p.suffix.lower() in IMAGE_SUFFIXES and _visible(rel):
-            if p.is_file():
-                out.append(CatalogItem(rel.as_posix(), os.path.abspath(p)))
-            elif (special := special_file_fault(p)) is not None:
-                # Named in its own error row, not left out without a word (nor read: it may never end).
-                out.append(CatalogItem(rel.as_posix(), os.path.abspath(p), problem=special))
+        if p.suffix.lower() in IMAGE_SUFFIXES and _visible(rel) and (item := _item(rel.as_posix(), p)) is not None:
+            out.append(item)
     return out
+
+
+def _item(item_id: str, p: Path) -> CatalogItem | None:
+    """What a folder's or a glob's entry ``p`` lists: a file as an item; a FIFO, device or
+    socket named in its own error row, not left out without a word (nor read: it may never
+    end); nothing for a folder or a dangling link."""
+    if p.is_file():
+        return CatalogItem(item_id, os.path.abspath(p))
+    special = special_file_fault(p)
+    return None if special is None else CatalogItem(item_id, os.path.abspath(p), problem=special)
 
 
 def _from_glob(pattern: str) -> list[CatalogItem]:
@@ -147,8 +153,8 @@ def _from_glob(pattern: str) -> list[CatalogItem]:
     out = []
     for match in glob.glob(pattern, recursive=True):
         p = Path(match)
-        if p.is_file():
-            out.append(CatalogItem(Path(os.path.relpath(p, root)).as_posix(), os.path.abspath(p)))
+        if (item := _item(Path(os.path.relpath(p, root)).as_posix(), p)) is not None:
+            out.append(item)
     return out
 
 

@@ -203,23 +203,19 @@ def drive(
         raise TactilizeError("--hold", "needs --output and a number of seconds >= 0")
     profile = Profile.resolve(profile_name)
     choice = choice_of(material_name, relief_mm)
-    surface_only(choice, profile.rendering)
+    surface_only(choice, profile)
     img = load_image(image, dpi=dpi, width_mm=width_mm)
     feat = extract_features(img)
     direction = math.radians(direction_deg) if direction_deg is not None else None
-    from ..surface.rendering import rendered_drive
+    from ..surface.rendering import rendering_for
 
-    surface = None
-    if not choice.picture_only:
-        from ..surface import surface_model
-
-        surface = surface_model(img, tip_radius_m=profile.tip_radius_m, **choice.surface_kwargs())
-    drv = rendered_drive(profile, img, feat, speed_mm_s / 1e3, direction, surface=surface)
+    rendering = rendering_for(profile, image=img, **choice.surface_kwargs())
+    drv = rendering.steady_drive(feat, speed_mm_s / 1e3, direction)
     doc = {
         "image": image,
         "profile": profile.name,
-        "rendering": profile.rendering,
-        **({} if choice.picture_only else describe_relief(surface, choice)),
+        "rendering": rendering.name,
+        **({} if choice.picture_only else describe_relief(rendering.surface, choice)),
         "speed_mm_s": speed_mm_s,
         "spatial_frequency_per_m": feat.spatial_frequency_per_m,
         "spectral_intensity": feat.spectral_intensity,
@@ -235,7 +231,7 @@ def drive(
         return
     clamp = ", ".join(drv.clamped) if drv.clamped else "none"
     click.echo(
-        f"{image} at {speed_mm_s:g} mm/s, profile {profile.name} ({profile.rendering} rendering"
+        f"{image} at {speed_mm_s:g} mm/s, profile {profile.name} ({rendering.name} rendering"
         f"{'' if choice.picture_only else ', rendered as ' + choice.label()})\n"
         f"  pulse frequency  {drv.pulse_frequency_hz:.1f} Hz\n"
         f"  pulse width      {drv.pulse_width_s * 1e3:.3f} ms\n"

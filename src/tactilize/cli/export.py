@@ -37,12 +37,13 @@ def export_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     direction = check_finite(opt["direction_deg"], "--direction", unit="deg")
     profile = Profile.resolve(opt["profile_name"])
     choice = choice_of(opt.get("material_name"), opt.get("relief_mm"))
-    surface_only(choice, profile.rendering)
+    surface_only(choice, profile)
     img = load_image(opt["image"], dpi=opt["dpi"], width_mm=opt["width_mm"])
     tmap = texture_map(img)
     # The picture's surface, made only by a rendering that reads it.
-    surface = cast("SurfaceModel | None", rendering_for(profile, image=img, **choice.surface_kwargs()).surface)
-    extra: dict[str, Any] = {"image": opt["image"], "profile": profile.name, "rendering": profile.rendering}
+    rendering = rendering_for(profile, image=img, **choice.surface_kwargs())
+    surface = cast("SurfaceModel | None", rendering.surface)
+    extra: dict[str, Any] = {"image": opt["image"], "profile": profile.name, "rendering": rendering.name}
     if not choice.picture_only:
         extra.update(describe_relief(surface, choice))
     if opt["stroke_path"] is not None:

@@ -66,12 +66,17 @@ def describe_relief(surface: Any, choice: Any = None) -> dict[str, Any]:
     return doc
 
 
-def surface_only(choice: Any, rendering: str) -> None:
-    """A material or a relief changes the surface rendering only; with a steady profile it
-    would be ignored (``choice``: a :class:`~tactilize.materials.MaterialChoice`)."""
-    if not choice.picture_only and rendering != "surface":
+def surface_only(choice: Any, profile: Any) -> None:
+    """A material or a relief changes only a rendering that reads the picture as a surface; with
+    another it would be ignored (``choice``: a :class:`~tactilize.materials.MaterialChoice`; the
+    profile's rendering is asked, :func:`~tactilize.surface.rendering.rendering_kind`, before any
+    picture is read)."""
+    from ..surface.rendering import rendering_kind
+
+    rendering = rendering_kind(profile)
+    if not choice.picture_only and not rendering.reads_surface:
         which = "--material" if choice.material is not None else "--relief-mm"
-        raise TactilizeError(which, f"needs a surface profile (this one's rendering is {rendering!r})")
+        raise TactilizeError(which, f"needs a surface profile (this one's rendering is {rendering.name!r})")
 
 
 @click.command("materials")

@@ -38,8 +38,8 @@ def report_cmd(profile_name: str, images: tuple[str, ...], dpi: float | None, wi
                no_wire: bool, plot_path: str | None, as_json: bool, audio: bool = False, serial: bool = False,
                circuit: str = "aa-resistor", material_name: str | None = None, relief_mm: float | None = None) -> None:
     """The drive each texture gets at 10 .. 160 mm/s, whether the wire follows, and the pairs
-    closer than one JND at equal speed.  A surface rendering (the default) is judged by what
-    it produces for a straight stroke: pulse rate, interval CV and strength.
+    closer than one JND at equal speed.  Every rendering is judged by what it gives a straight
+    stroke: pulse rate, interval CV and strength (a steady rendering's: its law's drive).
 
     --serial plays each stroke over the serial protocol to the controller firmware running on a
     virtual board in simulated time (not the real-time emulator: the figures are the same every
@@ -54,7 +54,7 @@ def report_cmd(profile_name: str, images: tuple[str, ...], dpi: float | None, wi
 
     prof = Profile.resolve(profile_name)
     choice = choice_of(material_name, relief_mm)
-    surface_only(choice, prof.rendering)
+    surface_only(choice, prof)
     material = None if choice.picture_only else choice
     if plot_path:
         from .plots import plot_option
@@ -65,18 +65,15 @@ def report_cmd(profile_name: str, images: tuple[str, ...], dpi: float | None, wi
         from ..actuators.sma import WireSpec
 
         circuit = _circuit_option(circuit, WireSpec.resolve(None)).name
-    textures = pictures = None
+    pictures = None
     if images:
-        from ..features import extract_features
         from ..image import load_image
 
         if dpi is not None and width_mm is not None:
             raise TactilizeError("--dpi/--width-mm", "give one of them, not both")
-        textures, pictures = {}, {}
-        for path in images:
-            pictures[path] = load_image(path, dpi=dpi, width_mm=width_mm)
-            textures[path] = extract_features(pictures[path])
-    rep = profile_report(prof, textures, simulate_wire=not no_wire, images=pictures, material=material)
+        pictures = {path: load_image(path, dpi=dpi, width_mm=width_mm) for path in images}
+    # The features of each picture are extracted by a rendering that reads them (a steady one).
+    rep = profile_report(prof, simulate_wire=not no_wire, images=pictures, material=material)
     doc = rep.to_dict()
     if material is not None:
         doc.update(choice.to_dict())
@@ -110,21 +107,17 @@ def report_cmd(profile_name: str, images: tuple[str, ...], dpi: float | None, wi
 def _table(rep: Any, speeds: tuple[float, ...]) -> str:
     names = list(dict.fromkeys(r["texture"] for r in rep.rows))
     width = max(10, *(len(n) for n in names))
-    measured = bool(rep.rows) and "pulses" in rep.rows[0]
-    what = "pulse rate [1/s] a straight stroke produces" if measured else "pulse frequency [Hz]"
-    lines = [f"profile {rep.profile}: {what} per texture and speed (* = the wire does not follow)",
-             f"  {'texture':{width}}" + "".join(f"{v:>9g}" for v in speeds)
-             + ("   interval CV, strength (mean over speeds)" if measured else "   regularity")]
+    lines = [f"profile {rep.profile}: pulse rate [1/s] a straight stroke produces per texture and speed "
+             "(* = the wire does not follow)",
+             f"  {'texture':{width}}" + "".join(f"{v:>9g}" for v in speeds) + "   interval CV, strength (mean over speeds)"]
     for n in names:
         rows = [r for r in rep.rows if r["texture"] == n]
         cells = "".join(f"{r['frequency_hz']:>8.1f}{'' if r['follows'] else '*'}{' ' if r['follows'] else ''}" for r in rows)
-        if measured:
-            cv = sum(r["interval_cv"] for r in rows) / len(rows)
-            st = sum(r["strength"] for r in rows) / len(rows)
-            lines.append(f"  {n:{width}}{cells}   {cv:.2f}, {st:.2f}")
-            continue
-        reg = rows[0]["regularity"]
-        lines.append(f"  {n:{width}}{cells}   {'even' if reg is None else f'{reg:.2f}'}")
+        cv = sum(r["interval_cv"] for r in rows) / len(rows)
+        # A law without a felt band places no strength.
+        placed = [r["strength"] for r in rows if r["strength"] is not None]
+        st = f"{sum(placed) / len(placed):.2f}" if placed else "-"
+        lines.append(f"  {n:{width}}{cells}   {cv:.2f}, {st}")
     lines.append(f"  told apart at equal speed: {rep.pairs - len(rep.close_pairs)}/{rep.pairs} pairs "
                  f"({rep.distinct_share * 100:.1f} %); followed by the wire: "
                  f"{sum(r['follows'] for r in rep.rows)}/{len(rep.rows)}")

@@ -62,24 +62,20 @@ def simulate_stroke(opt: dict[str, Any]) -> tuple[dict[str, Any], str]:
     spec, circuit = _wire_and_circuit(opt)
     profile = Profile.resolve(opt["profile_name"])
     choice = choice_of(opt.get("material_name"), opt.get("relief_mm"))
-    surface_only(choice, profile.rendering)
+    surface_only(choice, profile)
     feat = extract_features(img)
     direction = None if opt["direction_deg"] is None else math.radians(opt["direction_deg"])
-    from ..surface.rendering import rendered_drive
+    from ..surface.rendering import rendering_for
 
-    surface = None
-    if not choice.picture_only:
-        from ..surface import surface_model
-
-        surface = surface_model(img, tip_radius_m=profile.tip_radius_m, **choice.surface_kwargs())
-    drive = rendered_drive(profile, img, feat, opt["speed_mm_s"] / 1e3, direction, surface=surface)
+    rendering = rendering_for(profile, image=img, **choice.surface_kwargs())
+    drive = rendering.steady_drive(feat, opt["speed_mm_s"] / 1e3, direction)
     report = feel(drive, spec, circuit, standby=opt["standby"], duration_s=opt["duration_s"],
                   closed_loop=not opt["open_loop"])
     doc = {
         "source": source,
         "profile": profile.name,
-        "rendering": profile.rendering,
-        **({} if choice.picture_only else describe_relief(surface, choice)),
+        "rendering": rendering.name,
+        **({} if choice.picture_only else describe_relief(rendering.surface, choice)),
         "speed_mm_s": opt["speed_mm_s"],
         "wire": spec.name,
         "circuit": circuit.name,

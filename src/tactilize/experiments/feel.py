@@ -112,9 +112,10 @@ class TrialPen:
             )
         return r
 
-    def track(self, key: tuple[int, str], features: FeaturesForDrive, profile: Profile, samples: list[PenSample]) -> list[Taken]:
+    def track(self, key: tuple[int, str], features: FeaturesForDrive, profile: Profile, samples: list[PenSample],
+              surface: SurfaceModel | None = None) -> list[Taken]:
         """Follow a batch that is logged, not felt (its trial was answered); the states per sample."""
-        self._renderer(key, features, profile, None)
+        self._renderer(key, features, profile, surface)
         tracker = self._trackers[key]
         tracker.extend(samples)
         return list(tracker.taken)

@@ -42,6 +42,7 @@ from typing import Any, Callable
 
 from ..actuators.base import Output
 from ..drive import Drive
+from ..surface.rendering import Rendering
 from ..web.rows import PenMessageError, pen_batch
 from .errors import FlowError
 from .feel import TrialPen
@@ -171,20 +172,18 @@ class StrokeHandler:
         if len(self.pen.renderers) > 16:  # strokes of trials long answered
             self.pen.keep(lambda k: current is None or k[0] >= current - 1)
         key = (idx, image_id)
+        # The picture's surface (made once per picture): the profile's rendering reads it or not.
+        surface = self.flow.image_surface(image_id)
         if idx != current:  # logged under its own trial, not felt: the page has moved on
-            taken = self.pen.track(key, feats, profile, batch_samples)
-            rows = partial(_logged_rows, profile, feats, image_id, taken, None)
+            taken = self.pen.track(key, feats, profile, batch_samples, surface)
+            rows = partial(_logged_rows, self.pen.renderers[key].rendering, feats, image_id, taken, None)
             return None, writer_for(self.flow.store).submit(self.session.id, trial.id, batch, rows)
-        surface = self.flow.image_surface(image_id) if profile.rendering == "surface" else None
         taken, drive, result = self.pen.feel(key, feats, profile, surface, batch_samples)
-        # The stroke's state after each sample is logged with it; the drive for
-        # the latest only is computed here (the page feels one drive per
-        # message); the other samples' drives are computed by the writer's
-        # thread (:func:`_logged_rows`) with the same call, so they are the same
-        # numbers.  The surface rendering's drive is the window's equivalent,
-        # not the law's for that sample, so the writer computes every row then.
-        steady = profile.rendering != "surface"
-        rows = partial(_logged_rows, profile, feats, image_id, taken, drive if steady else None)
+        # The stroke's state after each sample is logged with it; the drive the
+        # batch's frame rendered is computed here (the page feels one drive per
+        # message), the drives the rendering gives the other samples by the
+        # writer's thread (:func:`_logged_rows`), off the socket's path.
+        rows = partial(_logged_rows, self.pen.renderers[key].rendering, feats, image_id, taken, drive)
         future = writer_for(self.flow.store).submit(self.session.id, trial.id, batch, rows)
         if drive is None:
             drive = Drive.off()
@@ -213,21 +212,22 @@ class StrokeHandler:
         return {**reply, "stored": status}
 
 
-def _logged_rows(profile, feats, image_id: str, taken: list, last_drive) -> list[dict[str, Any]]:
-    """The stroke log's rows of one batch: each sample with its speed and the drive for it.
+def _logged_rows(rendering: Rendering, feats, image_id: str, taken: list, frame_drive: Drive | None) -> list[dict[str, Any]]:
+    """The stroke log's rows of one batch: each sample with its speed and the drive rendered for it.
 
     Runs in the writer's thread (:meth:`.SampleWriter.submit` takes a callable),
     off the socket's path.  ``taken`` holds ``(sample, speed_m_s, direction_rad)``
-    per sample; the last sample's drive was computed for the reply and is
-    ``last_drive`` (None: computed here too); the others are computed here by the same
-    :meth:`~tactilize.mapping.Profile.drive` call the reply's was, so the log holds
-    what answering every sample would have given, exactly.
+    per sample; ``frame_drive`` is the drive the batch's frame rendered (the
+    reply's; None: the batch was not rendered).  The rendering gives each
+    sample's (:meth:`~tactilize.surface.rendering.Rendering.sample_drives`): a
+    steady one its law at that sample, by the call the frame's was made with,
+    so the log holds what answering every sample would have given, exactly; the
+    surface one the frame's, its operating point over the batch.
     """
     rows = []
-    n = len(taken)
-    for k, (ps, speed, direction) in enumerate(taken):
-        drive = last_drive if k == n - 1 and last_drive is not None else profile.drive(feats, speed_m_s=speed, direction_rad=direction,
-                                                             pressure=ps.pressure)
+    states = [(speed, direction, ps.pressure) for ps, speed, direction in taken]
+    drives = rendering.sample_drives(feats, states, frame_drive)
+    for (ps, speed, direction), drive in zip(taken, drives):
         rows.append({"image_id": image_id, "t_s": ps.t_s, "x_m": ps.x_m, "y_m": ps.y_m, "pressure": ps.pressure,
                      "speed_m_s": speed, "pulse_frequency_hz": drive.pulse_frequency_hz,
                      "pulse_width_s": drive.pulse_width_s, "amplitude": drive.amplitude})

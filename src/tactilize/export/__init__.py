@@ -33,7 +33,7 @@ from pathlib import Path
 from ..drive import Drive
 from .ahap import AHAP_MAX_CURVE_POINTS, AHAP_MAX_EVENT_S, ahap_document, ahap_pattern
 from .android import ANDROID_LIMITS, android_document, android_waveform
-from .events import BumpEvent, EventPlan, plan_events, stroke_bump_events
+from .events import BumpEvent, EventPlan, bump_events, plan_events
 from .haptic import haptic_document
 from .hjif import hjif_document
 from .readers import HapticTrack, read_ahap, read_haptic, read_hjif
@@ -58,7 +58,7 @@ __all__ = [
     "ahap_pattern", "ahap_document", "android_waveform", "android_document", "hjif_document", "haptic_document",
     "read_ahap", "read_hjif", "read_haptic", "HapticTrack",
     "DriveTimeline", "ControlPoint", "control_points",
-    "BumpEvent", "EventPlan", "plan_events", "stroke_bump_events",
+    "BumpEvent", "EventPlan", "plan_events", "bump_events",
     "Stroke", "StrokeError", "read_stroke", "parse_stroke", "synthetic_stroke", "run_stroke", "stroke_csv", "stroke_json",
     "sharpness_from_frequency", "intensity_from_drive",
     "SHARPNESS_LOW_HZ", "SHARPNESS_HIGH_HZ", "FULL_INTENSITY_DUTY", "AHAP_MAX_EVENT_S", "AHAP_MAX_CURVE_POINTS",

@@ -1,11 +1,11 @@
 """A stroke's bumps as the parametric exports play them: a transient per bump, or a continuous stretch.
 
 A profile whose rendering is ``surface`` fires one pulse per bump the tip crosses
-(docs/surfaces.md).  An export knows the whole stroke, so it takes those events
-from the whole path at once (:func:`stroke_bump_events`: the pure path of
-:func:`tactilize.surface.events.stroke_events`, with each crossing's own pressure),
-not from the pen server's prediction ahead.  Each event also carries the bump's
-own frequency, from how long the tip takes to cross it.
+(docs/surfaces.md).  An export plays the events the stroke's rendering fired along the
+one whole-stroke path (:func:`tactilize.surface.playback.play_stroke`, in
+:func:`~.stroke.run_stroke`), the ones its wire column played (:func:`bump_events`).
+Each event also carries the bump's own frequency, from how long the tip takes to cross
+it, read on the profile along the stroke's path.
 
 :func:`plan_events` splits the events for a format whose player has a shortest
 interval between two transients it can play apart (``min_interval_s``): bumps
@@ -39,17 +39,20 @@ References
 from __future__ import annotations
 
 import math
-from typing import Any, NamedTuple, Protocol, Sequence, TypeVar
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, Sequence, TypeVar
 
 import numpy as np
 
 from .timeline import CONTROL_STEP_S, ControlPoint, _simplify
 
+if TYPE_CHECKING:  # the surfaces load scipy: not at import
+    from ..surface.model import SurfaceLike
+
 __all__ = [
     "BumpEvent",
     "Run",
     "EventPlan",
-    "stroke_bump_events",
+    "bump_events",
     "plan_events",
     "run_points",
     "event_intensity",
@@ -125,57 +128,68 @@ def event_intensity(strength: float) -> float:
     return 0.0 if s <= 0.0 else INTENSITY_FLOOR ** (1.0 - s)
 
 
-def _pressures(stroke: Any, t: np.ndarray) -> list[float | None]:
-    """Each crossing's pressure, interpolated between the samples that have one (None where none do)."""
-    known = [(ts, p) for ts, p in zip(stroke.t_s, stroke.pressure) if p is not None]
-    if not known:
-        return [None] * len(t)
-    kt, kp = np.array([k[0] for k in known]), np.array([k[1] for k in known])
-    return [float(v) for v in np.interp(t, kt, kp)]
+class StrokePath(Protocol):
+    """What :func:`bump_events` reads of a stroke (a :class:`~.stroke.Stroke` is one): sample
+    times [s] and positions [display m]."""
+
+    @property
+    def t_s(self) -> Sequence[float]: ...
+
+    @property
+    def x_m(self) -> Sequence[float]: ...
+
+    @property
+    def y_m(self) -> Sequence[float]: ...
 
 
-def stroke_bump_events(stroke: Any, surface: Any, *, origin_s: float = 0.0,
-                       end_s: float = math.inf) -> tuple[BumpEvent, ...]:
-    """Every bump ``stroke`` crosses on ``surface``, timed from ``origin_s`` [s], those in [0, ``end_s``).
+def bump_events(events: Sequence[Any], stroke: StrokePath, surface: SurfaceLike | None, *, origin_s: float = 0.0,
+                end_s: float = math.inf) -> tuple[BumpEvent, ...]:
+    """The pulse ``events`` a stroke's surface rendering fired, timed from ``origin_s`` [s], those in
+    [0, ``end_s``), each with its bump's own frequency read along the stroke's path.
 
     Parameters
     ----------
+    events : sequence of PulseEvent
+        What the rendering fired (:func:`tactilize.surface.playback.play_stroke`), stroke clock [s].
     stroke : Stroke
-        Samples: times [s], positions [display m], pressures or None.
-    surface : SurfaceModel, CompositeSurface or a mirrored one
-        Anything :func:`tactilize.surface.crossings_along` reads.
+        Samples: times [s], positions [display m].
+    surface : SurfaceModel, CompositeSurface or a mirrored one, or None
+        What the stroke crossed (None: no frequency, 0).
     origin_s : float
         Stroke time [s] of the export's 0.
     end_s : float
         Length of the export [s].
     """
+    kept = [e for e in events if 0.0 <= e.t_s - origin_s < end_s]
+    freq = _bump_frequencies([e.t_s for e in kept], stroke, surface) if kept and surface is not None else [0.0] * len(kept)
+    return tuple(BumpEvent(e.t_s - origin_s, e.strength, f, e.clamped) for e, f in zip(kept, freq))
+
+
+def _bump_frequencies(times_s: Sequence[float], stroke: StrokePath, surface: SurfaceLike) -> list[float]:
+    """Each event's bump frequency [Hz]: 1 / (2 x the time the tip spends above half the bump's
+    prominence), read on the profile along the stroke's path at the crest nearest the event's time
+    (an event handed late is a little after its crest)."""
     from scipy.signal import peak_widths
 
-    from ..surface.bumps import crossings_along, resample_path
-    from ..surface.events import full_prominence, place_events, strengths
+    from ..surface.bumps import resample_path
 
     if len(stroke.t_s) < 2:
-        return ()
-    path = resample_path(stroke.t_s, stroke.x_m, stroke.y_m, surface.step_m)
-    c = crossings_along(surface, *path)
-    if c.t_s.size == 0:
-        return ()
-    press = _pressures(stroke, c.t_s)
-    full = full_prominence(surface)
-    strength = [strengths([p], [f], pr, full)[0] for p, f, pr in zip(c.prominence.tolist(), c.floor.tolist(), press)]
-    # Each bump's time above half its prominence, read on the same profile the crossings came from.
-    h = surface.regions(path[1], path[2])[0]
-    idx = np.searchsorted(path[3], c.s_m)
-    _, _, left, right = peak_widths(h, idx, rel_height=0.5)
+        return [0.0] * len(times_s)
+    t, x, y, _ = resample_path(stroke.t_s, stroke.x_m, stroke.y_m, surface.step_m)
+    h = surface.regions(x, y)[0]
+    if h.size < 3:
+        return [0.0] * len(times_s)
+    idx = np.clip(np.searchsorted(t, np.asarray(times_s, dtype=float)), 1, h.size - 2)
+    crest = []
+    for i in idx.tolist():
+        # climb to the crest the event's time falls beside
+        while 0 < i < h.size - 1 and max(h[i - 1], h[i + 1]) > h[i]:
+            i = i - 1 if h[i - 1] > h[i + 1] else i + 1
+        crest.append(min(max(i, 1), h.size - 2))
+    _, _, left, right = peak_widths(h, np.array(crest), rel_height=0.5)
     grid = np.arange(h.size)
-    half_s = np.interp(right, grid, path[0]) - np.interp(left, grid, path[0])
-    freq = {float(t): 1.0 / (2.0 * d) if d > 0 else 0.0 for t, d in zip(c.t_s.tolist(), half_s.tolist())}
-    out = []
-    for ev in place_events(c.t_s.tolist(), strength):
-        t = ev.t_s - origin_s
-        if 0.0 <= t < end_s:
-            out.append(BumpEvent(t, ev.strength, freq.get(ev.t_s, 0.0), ev.clamped))
-    return tuple(out)
+    half_s = np.interp(right, grid, t) - np.interp(left, grid, t)
+    return [1.0 / (2.0 * d) if d > 0 else 0.0 for d in half_s.tolist()]
 
 
 def close_groups(items: Sequence[_Timed], min_interval_s: float) -> list[list[_Timed]]:

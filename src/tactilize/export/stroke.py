@@ -8,10 +8,11 @@ them.  :func:`read_stroke` refuses an empty stroke, times that do not increase,
 values that are not finite and points outside the picture, in one line.
 
 :func:`run_stroke` feeds the samples, a display frame at a time (as the page
-sends them), through :class:`tactilize.pen.PenRenderer` with the pen server's
-tracker, the texture map, the profile and an output (by default the simulated
-SMA wire, advanced by the stroke's own clock, not the wall clock), and records
-one row per frame: a :class:`~.timeline.DriveTimeline`.  The renderer is asked
+sends them), along the one whole-stroke path (:func:`tactilize.surface.playback.play_stroke`)
+with a :class:`tactilize.pen.PenRenderer`'s tracker, texture map, profile's rendering, and
+output (by default the simulated SMA wire, advanced by the stroke's own clock, not the wall
+clock), and records one row per frame: a :class:`~.timeline.DriveTimeline`, whose events are
+those the rendering fired.  The renderer is asked
 to send every frame's drive (``resend_rel=0``): on the server a drive within
 0.5 % of the last is skipped for up to 0.1 s of *wall-clock* time, which an
 offline run would make depend on the machine's speed.
@@ -29,6 +30,7 @@ from typing import TYPE_CHECKING, Any, Literal, Sequence
 
 from ..errors import SignalError
 from ..pen import PenRenderer, PenSample
+from ..surface.playback import play_stroke
 from .timeline import DriveTimeline
 
 if TYPE_CHECKING:  # types only: the export package loads none of them until a stroke runs
@@ -279,8 +281,8 @@ def run_stroke(stroke: Stroke, texture_map: FeatureLookup, profile: Profile,
         The picture as a surface, for a profile whose rendering is ``surface``
         (docs/surfaces.md): the simulated wire plays its pulse events, the
         rows hold the equivalent drive of each frame's window, and the result's
-        ``events`` every bump the whole stroke crosses (:func:`.events.stroke_bump_events`),
-        which the parametric formats play.
+        ``events`` the events the rendering fired (:func:`.events.bump_events`), which the
+        parametric formats play.
     """
     from ..actuators.recording import RecordingOutput
 
@@ -306,27 +308,29 @@ def run_stroke(stroke: Stroke, texture_map: FeatureLookup, profile: Profile,
     renderer = PenRenderer(_Mirrored(texture_map) if mirror else texture_map, profile, out, resend_rel=0.0,
                            splitter=_same_drive, surface=felt)
     samples = stroke.samples()
-    t0 = samples[0].t_s
-    origin = t0 if start_s is None else start_s
+    origin = samples[0].t_s if start_s is None else start_s
     rows: list[tuple[float, tuple, tuple, float, float, float]] = []
     advance = getattr(out, "advance", None)
+    clock = [samples[0].t_s]
+    irregular = [False]  # a frame's events were not its drive's regular train
+
+    def show(batch: list[Any], state: Any, features: Any, frame: Any, arrival_s: float) -> None:
+        # The output's clock follows the stroke's, batch by batch (the wire plays what is due).
+        t = batch[-1].t_s
+        if advance is not None and t > clock[0]:
+            advance(t - clock[0])
+        clock[0] = t
+        irregular[0] = irregular[0] or (frame is not None and not frame.regular)
+        res = renderer.show(state, features, frame)
+        st = res.state
+        rows.append((t - origin, tuple(res.requested), tuple(res.applied),
+                     st.speed_m_s if st else 0.0, st.x_m if st else math.nan, st.y_m if st else math.nan))
+
     try:
-        i, n = 0, len(samples)
-        clock = t0
-        while i < n:
-            frame_end = t0 + (math.floor((samples[i].t_s - t0) / frame_s) + 1) * frame_s
-            j = i + 1  # at least one sample, whatever the rounding of frame_end
-            while j < n and samples[j].t_s < frame_end:
-                j += 1
-            t = samples[j - 1].t_s
-            if advance is not None and t > clock:
-                advance(t - clock)
-            clock = t
-            res = renderer.feed(samples[i:j])
-            st = res.state
-            rows.append((t - origin, tuple(res.requested), tuple(res.applied),
-                         st.speed_m_s if st else 0.0, st.x_m if st else math.nan, st.y_m if st else math.nan))
-            i = j
+        # The one whole-stroke path, with the renderer's rendering, tracker and picture: the
+        # events it fired are the ones the wire column played.
+        played = play_stroke(renderer.rendering, samples, renderer.texture_map, batch_s=frame_s, transport_s=0.0,
+                             tracker=renderer.tracker, on_frame=show)
         renderer.lift()
     finally:
         if owned:
@@ -346,10 +350,12 @@ def run_stroke(stroke: Stroke, texture_map: FeatureLookup, profile: Profile,
         dedup[r[0]] = r
     kept = sorted(dedup.values(), key=lambda r: r[0])
     events = None
-    if surface is not None and getattr(profile, "rendering", "steady") == "surface":
-        from .events import stroke_bump_events
+    if irregular[0]:
+        from .events import bump_events
 
-        events = stroke_bump_events(stroke, surface, origin_s=origin, end_s=end)
+        # The events the stroke's rendering fired, when they are not its drives' regular trains
+        # (those the formats read from the rows, DriveTimeline.pulses).
+        events = bump_events(played.events, stroke, felt, origin_s=origin, end_s=end)
     return DriveTimeline(
         tuple(r[0] for r in kept), end,
         tuple(r[1] for r in kept), tuple(r[2] for r in kept),

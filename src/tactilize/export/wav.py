@@ -16,9 +16,14 @@ Units: SI (s, m, Hz).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from ..surface.model import SurfaceModel
+    from .stroke import Stroke
+    from .timeline import DriveTimeline
 
 
 __all__ = ["StrokeAcceleration", "stroke_wav_source"]
@@ -43,8 +48,8 @@ class StrokeAcceleration:
         Multiplies the signal before the full-scale clip.
     """
 
-    stroke: Any
-    surface: Any
+    stroke: Stroke
+    surface: SurfaceModel
     start_s: float
     end_s: float
     mirror: bool = False
@@ -59,17 +64,18 @@ class StrokeAcceleration:
         return np.repeat(x[:, None], channels, axis=1), clipped
 
     def _render(self, sample_rate_hz: float) -> tuple[np.ndarray, int]:
-        from ..synthesis.acceleration import Mirrored, full_scale_of, tip_acceleration, to_full_scale
+        from ..surface.straight import MirroredSurface
+        from ..synthesis.acceleration import full_scale_of, tip_acceleration, to_full_scale
 
-        surface = Mirrored(self.surface) if self.mirror else self.surface
+        surface = MirroredSurface(self.surface) if self.mirror else self.surface
         pressure = self.stroke.pressure if any(p is not None for p in self.stroke.pressure) else None
         sig = tip_acceleration(surface, self.stroke.t_s, self.stroke.x_m, self.stroke.y_m, pressure,
                                sample_rate_hz=sample_rate_hz, start_s=self.start_s, end_s=self.end_s)
         return to_full_scale(sig, self.gain, full_scale_of(self.surface))
 
 
-def stroke_wav_source(timeline: Any, stroke: Any, surface: Any, drive: str = "profile", *,
-                      synthetic: bool = False) -> Any:
+def stroke_wav_source(timeline: DriveTimeline, stroke: Stroke, surface: SurfaceModel | None, drive: str = "profile", *,
+                      synthetic: bool = False) -> DriveTimeline | StrokeAcceleration:
     """What a WAV of a stroke carries: the tip's acceleration for a surface profile's own
     drive, else the timeline's pulse train.  The CLI's ``export`` and the page's "Export
     this stroke" both ask here, so the two write the same file for the same stroke.

@@ -86,6 +86,32 @@ class MicroRoughness:
         """RMS height of the roughness the tip follows [m]."""
         return self.rms_m * 0.5 * self.correlation_length_m / self.sigma_m
 
+    @property
+    def spacing_m(self) -> float:
+        """Spacing of the lattice of bumps [m] (see the module docstring)."""
+        return self.sigma_m
+
+    @property
+    def node_weight_m(self) -> float:
+        """Height of a node's bump [m] per unit of its normal number: the field's RMS is then
+        :attr:`felt_rms_m` (unit Gaussians of standard deviation sigma on a lattice of spacing
+        a sum to a variance of pi sigma^2 / a^2)."""
+        return self.felt_rms_m * self.spacing_m / (math.sqrt(math.pi) * self.sigma_m)
+
+    @property
+    def seed_word(self) -> int:
+        """The 64-bit word every node's hash is mixed with (from :attr:`seed`)."""
+        return (self.seed * int(_GOLDEN)) & 0xFFFFFFFFFFFFFFFF
+
+    def to_dict(self) -> dict[str, Any]:
+        """Everything :meth:`height_m` reads, for a renderer in another language: the attributes,
+        the lattice (``spacing_m``, ``sigma_m``, ``node_weight_m`` [m], ``reach`` nodes either
+        side) and ``seed_word`` as 16 hexadecimal digits."""
+        return {"rms_m": self.rms_m, "correlation_length_m": self.correlation_length_m,
+                "filter_sigma_m": self.filter_sigma_m, "seed": self.seed, "spacing_m": self.spacing_m,
+                "sigma_m": self.sigma_m, "node_weight_m": self.node_weight_m, "reach": _REACH,
+                "seed_word": f"{self.seed_word:016x}"}
+
     def height_m(self, x_m: Any, y_m: Any) -> np.ndarray:
         """Height of the felt roughness [m] at positions on the real surface [m]."""
         x = np.asarray(x_m, dtype=np.float64)
@@ -94,14 +120,12 @@ class MicroRoughness:
         if self.rms_m <= 0 or out.size == 0:
             return out
         sigma = self.sigma_m
-        spacing = sigma  # see the module docstring
-        # Weight of a node so that the field's RMS is felt_rms_m: a sum of unit Gaussians of
-        # standard deviation sigma on a lattice of spacing a has variance pi sigma^2 / a^2.
-        weight = self.felt_rms_m * spacing / (math.sqrt(math.pi) * sigma)
+        spacing = self.spacing_m
+        weight = self.node_weight_m
         u, v = x / spacing, y / spacing
         iu, iv = np.floor(u).astype(np.int64), np.floor(v).astype(np.int64)
         fu, fv = u - iu, v - iv
-        seed = np.uint64((self.seed * int(_GOLDEN)) & 0xFFFFFFFFFFFFFFFF)
+        seed = np.uint64(self.seed_word)
         k = -0.5 * (spacing / sigma) ** 2
         with np.errstate(over="ignore"):  # the node hashes wrap modulo 2^64 by design
             for du in range(-_REACH, _REACH + 1):

@@ -17,6 +17,7 @@ from ..actuators.base import Output
 from ..drive import Drive
 from ..mapping import FeaturesForDrive, Profile
 from ..surface.clock import StrokeClock
+from ..surface.model import SurfaceLike
 from ..surface.rendering import Frame, Rendering, rendering_for
 from ..synthesis import pen_channels
 from ..synthesis.wavelets import wavelet_rows
@@ -192,7 +193,7 @@ class PenRenderer:
         splitter: Callable[[Drive, int, StrokeState | None], list[Drive]] | None = None,
         resend_rel: float = 0.005,
         refresh_s: float = 0.1,
-        surface: Any = None,
+        surface: SurfaceLike | None = None,
         clock: Callable[[], float] | None = None,
     ) -> None:
         self.texture_map = texture_map
@@ -216,7 +217,7 @@ class PenRenderer:
         """The latest result."""
         return self._last
 
-    def set_texture(self, texture_map: PictureLookup, surface: Any = None) -> RenderResult:
+    def set_texture(self, texture_map: PictureLookup, surface: SurfaceLike | None = None) -> RenderResult:
         """Show another picture (and its surface, for the surface rendering): the
         stroke restarts and the output stops."""
         self.texture_map = texture_map
@@ -224,7 +225,7 @@ class PenRenderer:
         return self.lift()
 
     @property
-    def surface(self) -> Any:
+    def surface(self) -> SurfaceLike | None:
         """The picture's surface model, or None."""
         return self.rendering.surface
 
@@ -288,19 +289,29 @@ class PenRenderer:
     def _render(self, state: StrokeState | None, batch: list[PenSample]) -> RenderResult:
         # No state: every sample so far was rejected, nothing is known about the pen.
         feat = None if state is None else self.texture_map.lookup(state.x_m, state.y_m)
-        if state is None or feat is None:
+        frame = None
+        if state is not None and feat is not None:
+            # A batch held up arrives after the output played some of what the last one handed
+            # out: the rendering is told, so a bump found again a little elsewhere is not played twice.
+            played = self._stroke_clock.played_until_s(state.t_s, self._clock())
+            frame = self.rendering.frame(state, feat, batch, played)
+        return self.show(state, feat, frame)
+
+    def show(self, state: StrokeState | None, features: FeaturesForDrive | None, frame: Frame | None) -> RenderResult:
+        """Play a batch's ``frame`` (rendered for ``state`` over ``features``) on the output: the
+        real-time loop's second half, which a whole stroke replayed offline
+        (:func:`~tactilize.surface.playback.play_stroke`) calls for each frame it renders with this
+        renderer's rendering, tracker and picture.  None (no state, off the picture): the
+        rendering forgets the stroke and the output stops."""
+        if state is None or features is None or frame is None:
             self.rendering.reset()
             self._handed = None
             self._stop()
             self._last = RenderResult(True, False, state, None, self._off, self._off)
             return self._last
-        # A batch held up arrives after the output played some of what the last one handed
-        # out: the rendering is told, so a bump found again a little elsewhere is not played twice.
-        played = self._stroke_clock.played_until_s(state.t_s, self._clock())
-        frame = self.rendering.frame(state, feat, batch, played)
         requested = self.splitter(frame.drive, self.channels, state)
         applied = self._play(frame, requested, state.t_s)
-        self._last = RenderResult(True, True, state, feat, requested, applied, frame.events,
+        self._last = RenderResult(True, True, state, features, requested, applied, frame.events,
                                   self.rendering.newly_fired, frame.regular)
         return self._last
 

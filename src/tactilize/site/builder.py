@@ -18,6 +18,13 @@ size, then seen through the stylus tip as :func:`tactilize.surface.model.surface
 does.  A model whose file would pass ``max_model_bytes`` is made again at 85 % of the
 resolution until it fits.
 
+A product of a material (a manifest's or a catalogue row's ``material``, docs/surfaces.md,
+"Materials") is rendered as ``--material`` renders its picture: the relief scale is the whole
+picture's (:func:`tactilize.materials.relief_for` at its own resolution, as the server's
+surface has it), and the averaged picture is seen through the tip and the material's contact
+at that scale, so its heights are the server's in metres; the micro-roughness goes into the
+model file as parameters (:mod:`.model_file`).
+
 Units: SI (m); sizes in bytes.
 """
 
@@ -35,9 +42,10 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..catalog.sources import CatalogItem, _csv_rows, _jsonl_rows, discover
+from ..catalog.sources import CatalogItem, discover
 from ..errors import CatalogError, TactilizeError
 from ..image import load_image
+from ..materials import MaterialChoice, relief_for
 from ..surface.model import TIP_RADIUS_M, surface_model
 from .model_file import encode_model
 
@@ -82,24 +90,6 @@ def _slug(ident: str) -> str:
     return f"{base}-{hashlib.sha1(ident.encode('utf-8')).hexdigest()[:6]}"
 
 
-def _materials(source: str) -> dict[str, str]:
-    """A manifest's ``material`` column by id (the ids as :func:`discover` gives them)."""
-    path = Path(source)
-    suffix = path.suffix.lower()
-    if not path.is_file() or suffix not in (".csv", ".jsonl", ".ndjson"):
-        return {}
-    rows = _csv_rows(path) if suffix == ".csv" else _jsonl_rows(path)
-    out = {}
-    for _, row in rows:
-        raw_path = next((row[k] for k in ("path", "file", "image", "filename") if row.get(k) not in (None, "")), None)
-        raw_id = row.get("id")
-        ident = str(raw_id).strip() if raw_id not in (None, "") else (str(raw_path) if raw_path is not None else None)
-        material = row.get("material")
-        if ident is not None and material not in (None, ""):
-            out[ident] = str(material).strip()
-    return out
-
-
 def _downsampled(pixels: np.ndarray, pitch: tuple[float, float], long_px: int) -> tuple[np.ndarray, tuple[float, float]]:
     """``pixels`` averaged down to at most ``long_px`` on the long side, and the pitch [m] of the result."""
     from PIL import Image
@@ -116,14 +106,34 @@ def _downsampled(pixels: np.ndarray, pitch: tuple[float, float], long_px: int) -
 
 def model_bytes(pixels: np.ndarray, pitch: tuple[float, float], *, model_px: int = MODEL_PX,
                 max_bytes: int = MAX_MODEL_BYTES, tip_radius_m: float = TIP_RADIUS_M,
-                material: str | None = None, product_id: str | None = None) -> bytes:
+                material: MaterialChoice | str | None = None, product_id: str | None = None) -> bytes:
     """The model file of a picture (grey levels 0 .. 1 at ``pitch`` [m]) at the page's resolution,
-    at most ``max_bytes`` long."""
+    at most ``max_bytes`` long.
+
+    Parameters
+    ----------
+    material : MaterialChoice or str, optional
+        What the picture is rendered as (a library name, or a choice with its relief); None or
+        ``"picture only"``: the picture alone, heights in luminance units.
+
+    Raises
+    ------
+    MaterialError
+        An unknown material name.
+    """
+    choice = material if isinstance(material, MaterialChoice) else MaterialChoice.of(material)
+    kw: dict[str, Any] = {}
+    if not choice.picture_only:
+        # The whole picture's relief scale: averaging it down must not deepen its relief.
+        relief = relief_for(pixels, pitch, choice.material, relief_rms_m=choice.relief_rms_m)
+        assert relief is not None
+        kw = {"material": choice.material, "relief_scale_m": relief.scale_m}
+    label = None if choice.picture_only else choice.label()
     long_px = model_px
     while True:
         small, p = _downsampled(pixels, pitch, long_px)
-        data = encode_model(surface_model(small, pitch_m=p, tip_radius_m=tip_radius_m),
-                            material=material, product_id=product_id)
+        data = encode_model(surface_model(small, pitch_m=p, tip_radius_m=tip_radius_m, **kw),
+                            product_id=product_id, rendered_as=label)
         if len(data) <= max_bytes or long_px <= 16:
             return data
         long_px = int(long_px * 0.85)
@@ -201,7 +211,8 @@ def build_site(source: str, out: str | Path, *, title: str = "Products", model_p
     ----------
     source : str
         A folder, glob or manifest (``.csv``/``.jsonl``), as ``tactilize batch`` takes;
-        a manifest's ``width_mm``/``dpi`` set the real size, its ``material`` goes into the model.
+        a manifest's ``width_mm``/``dpi`` set the real size, its ``material`` what the picture is
+        rendered as (the product's heights in metres, its hardness and micro-roughness).
     out : str or path
         The folder to write (made if missing; files it already holds are replaced).
     model_px, photo_px : int
@@ -218,12 +229,16 @@ def build_site(source: str, out: str | Path, *, title: str = "Products", model_p
     CatalogError
         The source cannot be read, or the output is not a folder that can be written.
     """
-    return _build(discover(source), _materials(source), out, title=title, model_px=model_px, photo_px=photo_px,
+    items = discover(source)
+    # discover() has checked each row's material: an unknown name is that product's problem.
+    choices = {it.id: MaterialChoice.of(it.material) for it in items if not it.problem}
+    return _build(items, choices, out, title=title, model_px=model_px, photo_px=photo_px,
                   max_model_bytes=max_model_bytes, progress=progress)
 
 
-def _build(items: list[CatalogItem], materials: dict[str, str], out: str | Path, *, title: str, model_px: int,
-           photo_px: int, max_model_bytes: int, progress: Callable[[str], None] | None) -> SiteSummary:
+def _build(items: list[CatalogItem], choices: dict[str, MaterialChoice], out: str | Path, *, title: str,
+           model_px: int, photo_px: int, max_model_bytes: int,
+           progress: Callable[[str], None] | None) -> SiteSummary:
     target = Path(out)
     if target.exists() and not target.is_dir():
         raise CatalogError(str(target), "exists and is not a folder")
@@ -243,14 +258,15 @@ def _build(items: list[CatalogItem], materials: dict[str, str], out: str | Path,
             summary.failed.append((item.id, exc.fault))
             continue
         slug = _slug(item.id)
-        material = materials.get(item.id)
+        choice = choices.get(item.id, MaterialChoice())
         data = model_bytes(img.pixels, img.pitch_m, model_px=model_px, max_bytes=max_model_bytes,
-                           material=material, product_id=item.id)
+                           material=choice, product_id=item.id)
         (target / "models" / f"{slug}.tsf").write_bytes(data)
         _photo(item.path, target / "img" / f"{slug}.jpg", photo_px)
         rows, cols = img.pixels.shape
         summary.products.append({
-            "id": item.id, "slug": slug, "material": material, "model_bytes": len(data),
+            "id": item.id, "slug": slug, "material": choice.name, "rendered_as": choice.label(),
+            "model_bytes": len(data),
             "width_mm": cols * img.pitch_m[0] * 1e3, "height_mm": rows * img.pitch_m[1] * 1e3,
         })
         if progress is not None:

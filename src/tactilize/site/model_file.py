@@ -8,6 +8,12 @@ their real-world scale, and every parameter of the rule the page runs
 of :mod:`tactilize.surface` and :mod:`tactilize.pen.tracker`, so the page never has a
 copy of its own.
 
+A surface of a material (docs/surfaces.md, "Materials") is written as it is rendered:
+its heights in metres (the material's relief scale and hardness already in them), its
+prominence floor and full prominence in metres, and its micro-roughness as the
+parameters of :class:`~tactilize.materials.MicroRoughness`, which the page draws where
+the pen is as Python does (it lies below the model's pixels, so it is not in the heights).
+
 Layout (little-endian)::
 
     b"TSF1"                      magic
@@ -21,7 +27,7 @@ Height of a pixel = ``offset + q * scale`` (float64 arithmetic), rounded to floa
 Python (:func:`read_model`) and JavaScript compute it the same way, so both renderers
 see the same heights to the bit.
 
-Units: SI (m, s, Hz); heights in luminance units.
+Units: SI (m, s, Hz); heights in luminance units, or metres for a material.
 """
 
 from __future__ import annotations
@@ -36,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ImageError
+from ..materials import MicroRoughness, Relief, material as library_material
 from ..pen.tracker import StrokeTracker
 from ..surface import events as _events
 from ..surface import stroke as _stroke
@@ -48,7 +55,7 @@ __all__ = ["MAGIC", "FORMAT_VERSION", "ModelFile", "rule_parameters", "encode_mo
            "read_model", "write_model"]
 
 MAGIC = b"TSF1"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 _PREDICTORS = ("left", "gradient")
 
 
@@ -64,7 +71,6 @@ def rule_parameters() -> dict[str, Any]:
         "max_ahead_m": _stroke.MAX_AHEAD_M,
         "fired_kept": _stroke.FIRED_KEPT,
         "history_m": HISTORY_M,
-        "full_prominence": _events.FULL_PROMINENCE,
         "rate_only_hz": _events.RATE_ONLY_HZ,
         "min_interval_s": _events.MIN_INTERVAL_S,
         "cluster_interval_s": _events.CLUSTER_INTERVAL_S,
@@ -97,21 +103,30 @@ class ModelFile:
 
     @property
     def heights(self) -> np.ndarray:
-        """Heights [luminance units], float32, as the page computes them."""
+        """Heights [luminance units, or m for a material], float32, as the page computes them."""
         h = self.header
         return (float(h["offset"]) + self.levels.astype(np.float64) * float(h["scale"])).astype(np.float32)
 
     def surface(self, display_pitch_m: float | tuple[float, float] | None = None) -> SurfaceModel:
-        """The :class:`SurfaceModel` the page renders: these heights (already tip-filtered, so not
-        filtered again), the file's prominence floor, shown at ``display_pitch_m`` [m per model
-        pixel] (the file's own by default); the real scale stays the file's."""
+        """The :class:`SurfaceModel` the page renders: these heights (already tip-filtered and
+        scaled, so used as they are; not for :meth:`SurfaceModel.at_scale`), the file's prominence
+        floor, relief and micro-roughness, shown at ``display_pitch_m`` [m per model pixel] (the
+        file's own by default); the real scale stays the file's."""
         h = self.header
         disp = h["display_pitch_m"] if display_pitch_m is None else display_pitch_m
         vals = [float(v) for v in np.broadcast_to(np.asarray(disp, dtype=np.float64), (2,))]
         pair = (vals[0], vals[1])
         surf = (float(h["surface_pitch_m"][0]), float(h["surface_pitch_m"][1]))
         heights = self.heights
-        return SurfaceModel(heights, pair, surf, float(h["tip_radius_m"]), float(h["prominence_floor"]), heights)
+        relief = None
+        if h.get("relief_scale_m") is not None:
+            mat = library_material(h["material"]) if h.get("material") else None
+            relief = Relief(float(h["relief_scale_m"]), "given", mat)
+        m = h.get("micro")
+        micro = None if m is None else MicroRoughness(float(m["rms_m"]), float(m["correlation_length_m"]),
+                                                      float(m["filter_sigma_m"]), int(m["seed"]))
+        return SurfaceModel(heights, pair, surf, float(h["tip_radius_m"]), float(h["prominence_floor"]), heights,
+                            relief, micro)
 
 
 def _residuals(q: np.ndarray, predictor: str) -> np.ndarray:
@@ -140,23 +155,27 @@ def _undo(r: np.ndarray, predictor: str) -> np.ndarray:
     return out.astype(np.uint8)
 
 
-def encode_model(surface: SurfaceModel, *, material: str | None = None, product_id: str | None = None) -> bytes:
+def encode_model(surface: SurfaceModel, *, product_id: str | None = None, rendered_as: str | None = None) -> bytes:
     """The model file of ``surface`` (its tip-filtered heights quantised to 8 bits over their range).
 
     Parameters
     ----------
     surface : SurfaceModel
-        At the resolution the page renders at.
-    material : str, optional
-        Passed through into the header (a manifest's ``material`` column).
+        At the resolution the page renders at; of a material or a relief scale, its heights
+        are in metres, and the header says so (``material``, ``relief_scale_m`` [m per
+        luminance unit], ``full_prominence`` [m], ``micro``).
     product_id : str, optional
         The catalogue id, for the header.
+    rendered_as : str, optional
+        What the surface is rendered as, in words
+        (:meth:`~tactilize.materials.MaterialChoice.label`), for the header.
 
     Returns
     -------
     bytes
     """
     h = np.asarray(surface.height, dtype=np.float64)
+    relief = surface.relief
     lo, hi = float(h.min()), float(h.max())
     scale = (hi - lo) / 255.0 if hi > lo else 1.0 / 255.0
     q = np.clip(np.round((h - lo) / scale), 0, 255).astype(np.uint8)
@@ -180,7 +199,12 @@ def encode_model(surface: SurfaceModel, *, material: str | None = None, product_
         "surface_pitch_m": list(surface.surface_pitch_m),
         "tip_radius_m": surface.tip_radius_m,
         "prominence_floor": surface.prominence_floor,
-        "material": material,
+        # Strength is the bump's place from the floor to this (luminance units, or m for a material).
+        "full_prominence": _events.full_prominence(surface),
+        "material": None if relief is None or relief.material is None else relief.material.name,
+        "relief_scale_m": None if relief is None else relief.scale_m,
+        "micro": None if surface.micro is None else surface.micro.to_dict(),
+        "rendered_as": rendered_as,
         "rule": rule_parameters(),
     }
     text = json.dumps(header, separators=(",", ":")).encode("utf-8")

@@ -17,9 +17,9 @@ from __future__ import annotations
 
 from .bumps import Crossings, crossings_along, resample_path
 from .composite import CompositeSurface
-from .events import EventStatistics, PulseEvent, event_statistics, place_events, stroke_events, strength_of
+from .events import EventStatistics, PulseEvent, event_statistics, place_events, strength_of
 from .model import TIP_RADIUS_M, SurfaceLike, SurfaceModel, surface_model
-from .rendering import Frame, Rendering, rendered_drive, rendering_for
+from .rendering import Frame, Rendering, rendered_drive, rendering_for, stroke_events
 from .straight import straight_stroke
 from .stroke import SurfaceStroke
 

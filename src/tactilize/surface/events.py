@@ -5,8 +5,8 @@
 strength is the prominence on a log scale between the picture's prominence
 floor (0) and :data:`FULL_PROMINENCE` (1), scaled by pressure; clustered bumps
 get weaker pulses; above :data:`RATE_ONLY_HZ` only the rate is rendered; no two
-pulses are closer than :data:`MIN_INTERVAL_S`.  :func:`stroke_events` is the whole
-pure path: a stroke's samples and a surface in, events out.
+pulses are closer than :data:`MIN_INTERVAL_S`.  :func:`stroke_events` is a whole
+stroke's events: the one whole-stroke path (:mod:`.playback`) through a surface rendering.
 
 Units: SI (s, Hz); strength in [0, 1].
 """
@@ -19,12 +19,10 @@ from typing import Any, NamedTuple, Sequence
 
 import numpy as np
 
-from .bumps import crossings_along, resample_path
 
 __all__ = [
     "PulseEvent",
     "place_events",
-    "stroke_events",
     "strength_of",
     "strengths",
     "FULL_PROMINENCE",
@@ -185,34 +183,6 @@ def place_events(
         out.append(PulseEvent(ti, si, clamped))
         last = ti
     return out
-
-
-def stroke_events(
-    surface: Any,
-    t_s: Sequence[float] | np.ndarray,
-    x_m: Sequence[float] | np.ndarray,
-    y_m: Sequence[float] | np.ndarray,
-    pressure: float | None = None,
-) -> list[PulseEvent]:
-    """Every pulse of a whole stroke, offline: the pure path of the surface rendering.
-
-    Parameters
-    ----------
-    surface : SurfaceModel or CompositeSurface
-    t_s : sequence of float
-        Sample times [s], increasing.
-    x_m, y_m : sequence of float
-        Sample positions [display m] from the picture's top-left, y down.
-    pressure : float, optional
-        Pen pressure in [0, 1] for the whole stroke; None when unknown.
-    """
-    if len(t_s) < 2:
-        return []
-    path = resample_path(t_s, x_m, y_m, surface.step_m)
-    c = crossings_along(surface, *path)
-    if c.t_s.size == 0:
-        return []
-    return place_events(c.t_s, strength_of(c.prominence, c.floor, pressure, full_prominence(surface)))
 
 
 class EventStatistics(NamedTuple):

@@ -6,11 +6,15 @@ pen and returns a :class:`Frame`: the pulse events from the newest sample on and
 point (a :class:`~tactilize.drive.Drive`) they imply.  A steady rendering's frame is a regular
 train (one event per period of its Drive, ``regular`` True: an output that synthesises trains may
 play the Drive, which describes them exactly); the surface rendering's are the bumps the tip
-crosses (docs/surfaces.md).  :meth:`Rendering.steady_drive` is what the rendering gives a picture
-stroked steadily (the commands, the report and the catalogue's rows).
+crosses (docs/surfaces.md).  :meth:`Rendering.straight` is what the rendering gives a picture
+stroked steadily in a straight line (the report's rows), :meth:`Rendering.steady_drive` its Drive (the
+commands and the catalogue's rows), :meth:`Rendering.sample_drives` the drive it rendered at each sample
+of a batch (a stroke log), and :attr:`Rendering.reads_surface` whether a material or a relief changes
+what it renders.
 
 Switching renderings changes the frames, not the code that plays them: the pen's renderer, the
-exports, the reports and the catalogue call these methods alone.
+exports, the reports, the experiments' stroke log and the catalogue call these methods alone; none of
+them reads the profile's ``rendering`` (:func:`rendering_kind` and :func:`rendering_for` do).
 
 Units: SI (s, m, Hz).
 """
@@ -20,13 +24,15 @@ from __future__ import annotations
 import math
 from typing import Any, NamedTuple, Protocol, Sequence
 
-from ..drive import Drive, jitter_offset, jitter_periods
-from .events import PulseEvent
-from .model import SurfaceLike
-from .straight import surface_stroke_drive
+import numpy as np
 
-__all__ = ["Frame", "Rendering", "SteadyRendering", "SurfaceRendering", "rendering_for", "rendered_drive",
-           "train_events", "HORIZON_S"]
+from ..drive import Drive, interval_cv, jitter_offset, jitter_periods
+from .events import EventStatistics, PulseEvent, event_statistics
+from .model import SurfaceLike
+from .straight import STROKE_S, MirroredSurface, straight_stroke
+
+__all__ = ["Frame", "Straight", "Rendering", "SteadyRendering", "SurfaceRendering", "rendering_for",
+           "rendering_kind", "rendered_drive", "train_events", "HORIZON_S", "surface_stroke_drive", "stroke_events"]
 
 #: How far ahead a frame's events reach [s]: the surface stroke's prediction horizon.
 HORIZON_S = 0.025
@@ -48,6 +54,44 @@ class Frame(NamedTuple):
     events: tuple[PulseEvent, ...]
     drive: Drive
     regular: bool
+
+
+class Straight(NamedTuple):
+    """What a rendering gives a picture stroked steadily in a straight line
+    (:func:`~.straight.straight_stroke`, :data:`~.straight.STROKE_S` long).
+
+    Attributes
+    ----------
+    drive : Drive
+        The stroke's operating point: the steady rendering's law, the surface rendering's
+        equivalent Drive of the stroke's events.
+    events : tuple of PulseEvent
+        The pulses over the stroke [s from its start].
+    rate_hz : float
+        Pulses per second [1/s] (0 when none).
+    interval_cv : float
+        Coefficient of variation of the intervals between them.
+    strength : float or None
+        Mean strength in the felt band [0, 1] (a steady drive's own, None where its width law
+        places none).
+    pulses : int
+        How many pulses the stroke has.
+    clamped : tuple of str
+        The limits that clamped the pulses (a steady rendering's: its drive's).
+    """
+
+    drive: Drive
+    events: tuple[PulseEvent, ...]
+    rate_hz: float
+    interval_cv: float
+    strength: float | None
+    pulses: int
+    clamped: tuple[str, ...]
+
+
+#: Per sample of a batch, what the stroke's tracker had: (speed [m/s], direction [rad] or None,
+#: pressure or None).
+SampleState = tuple[float, "float | None", "float | None"]
 
 
 class TrackedPen(Protocol):
@@ -84,6 +128,11 @@ class Rendering(Protocol):
         """The picture as a surface, or None."""
         ...
 
+    @property
+    def reads_surface(self) -> bool:
+        """The rendering renders the picture's surface: a material or a relief changes what it renders."""
+        ...
+
     profile: Any
 
     def frame(self, state: TrackedPen, features: Any, batch: Sequence[Any],
@@ -96,8 +145,19 @@ class Rendering(Protocol):
         """Forget the stroke (a lift, a new picture)."""
         ...
 
+    def straight(self, features: Any, speed_m_s: float, direction_rad: float | None = None,
+                 pressure: float | None = None) -> Straight:
+        """The picture (``features`` under the pen) stroked steadily in a straight line at ``speed_m_s``
+        [m/s] in ``direction_rad`` [rad] (None: the laws' full speed, the stroke along +x) at ``pressure``."""
+        ...
+
     def steady_drive(self, features: Any, speed_m_s: float, direction_rad: float | None = None) -> Drive:
-        """The drive of the picture stroked steadily at ``speed_m_s`` [m/s]."""
+        """The drive of the picture stroked steadily at ``speed_m_s`` [m/s]: :meth:`straight`'s."""
+        ...
+
+    def sample_drives(self, features: Any, states: Sequence[SampleState], frame_drive: Drive | None) -> list[Drive]:
+        """The drive rendered at each sample of a batch (a stroke log's), given the tracker's
+        ``states`` after each sample and the batch's frame drive (None: the batch made no frame)."""
         ...
 
 
@@ -126,11 +186,23 @@ def train_events(drive: Drive, anchor_s: float, from_s: float, span_s: float = H
     return tuple(out)
 
 
-class SteadyRendering:
+class _SteadyDriveOfStraight:
+    """:meth:`Rendering.steady_drive` for both renderings: the straight stroke's Drive."""
+
+    def straight(self, features: Any, speed_m_s: float, direction_rad: float | None = None,
+                 pressure: float | None = None) -> Straight:
+        raise NotImplementedError
+
+    def steady_drive(self, features: Any, speed_m_s: float, direction_rad: float | None = None) -> Drive:
+        return self.straight(features, speed_m_s, direction_rad).drive
+
+
+class SteadyRendering(_SteadyDriveOfStraight):
     """The profile's laws: one Drive from the features under the pen and the stroke's speed."""
 
     name = "steady"
     newly_fired = 0
+    reads_surface = False
 
     def __init__(self, profile: Any, surface: SurfaceLike | None = None) -> None:
         self.profile = profile
@@ -151,8 +223,22 @@ class SteadyRendering:
             self._anchor_s = state.t_s
         return Frame(train_events(drive, self._anchor_s, state.t_s), drive, True)
 
-    def steady_drive(self, features: Any, speed_m_s: float, direction_rad: float | None = None) -> Drive:
-        return self.profile.drive(features, speed_m_s, direction_rad)
+    def straight(self, features: Any, speed_m_s: float, direction_rad: float | None = None,
+                 pressure: float | None = None) -> Straight:
+        """The law's Drive at that speed and its regular train over the stroke: rate, interval CV and
+        strength are the drive's own (:func:`~tactilize.drive.interval_cv`)."""
+        drive = self.profile.drive(features, speed_m_s, direction_rad, pressure)
+        events = train_events(drive, 0.0, 0.0, STROKE_S)
+        rate = 0.0 if drive.is_off else drive.pulse_frequency_hz
+        return Straight(drive, events, rate, interval_cv(drive), drive.strength, len(events), drive.clamped)
+
+    def sample_drives(self, features: Any, states: Sequence[SampleState], frame_drive: Drive | None) -> list[Drive]:
+        """The law at each sample's state: a steady frame's drive is the law at the batch's last state,
+        so the last sample takes ``frame_drive`` when there is one."""
+        n = len(states)
+        return [frame_drive if k == n - 1 and frame_drive is not None
+                else self.profile.drive(features, speed_m_s=v, direction_rad=d, pressure=p)
+                for k, (v, d, p) in enumerate(states)]
 
 
 #: The window's Drive is made again when its rate moves by more than this share (the 0.5 %
@@ -164,11 +250,12 @@ SAME_CV = 0.005
 SAME_STRENGTH = 0.01
 
 
-class SurfaceRendering:
+class SurfaceRendering(_SteadyDriveOfStraight):
     """A pulse per bump the stylus tip crosses, predicted ahead (:class:`~.stroke.SurfaceStroke`);
     the operating point is the equivalent Drive of the last :data:`~.equivalent.WINDOW_S`."""
 
     name = "surface"
+    reads_surface = True
 
     def __init__(self, profile: Any, surface: SurfaceLike) -> None:
         from .stroke import SurfaceStroke
@@ -207,8 +294,18 @@ class SurfaceRendering:
             self._stats, self._drive_of = stats, self.profile
         return Frame(tuple(events), self._drive, False)
 
-    def steady_drive(self, features: Any, speed_m_s: float, direction_rad: float | None = None) -> Drive:
-        return surface_stroke_drive(self.surface, self.profile, speed_m_s, direction_rad)[0]
+    def straight(self, features: Any, speed_m_s: float, direction_rad: float | None = None,
+                 pressure: float | None = None) -> Straight:
+        """The events of the straight stroke over the surface (:func:`surface_stroke_drive`),
+        measured over the whole stroke, and their equivalent Drive; ``features`` are not read."""
+        drive, events, stats = surface_stroke_drive(self.surface, self.profile, speed_m_s, direction_rad, pressure)
+        return Straight(drive, tuple(events), stats.rate_hz, stats.interval_cv, stats.strength, stats.pulses,
+                        stats.clamped)
+
+    def sample_drives(self, features: Any, states: Sequence[SampleState], frame_drive: Drive | None) -> list[Drive]:
+        """The frame's drive at every sample: the operating point is the window's, one per batch
+        (off for a batch that made no frame: nothing was rendered)."""
+        return [frame_drive or Drive.off()] * len(states)
 
 
 def _same_statistics(a: Any, b: Any) -> bool:
@@ -216,6 +313,12 @@ def _same_statistics(a: Any, b: Any) -> bool:
     :data:`SAME_RATE_REL`, CV within :data:`SAME_CV`, mean strength within :data:`SAME_STRENGTH`."""
     return (a.pulses == b.pulses and a.clamped == b.clamped and abs(a.rate_hz - b.rate_hz) <= SAME_RATE_REL * b.rate_hz
             and abs(a.interval_cv - b.interval_cv) <= SAME_CV and abs(a.strength - b.strength) <= SAME_STRENGTH)
+
+
+def rendering_kind(profile: Any) -> type[SteadyRendering] | type[SurfaceRendering]:
+    """The rendering ``profile`` names for a picture (its class: :attr:`~Rendering.name` and
+    :attr:`~Rendering.reads_surface` are known before any picture is read)."""
+    return SurfaceRendering if getattr(profile, "rendering", "steady") == "surface" else SteadyRendering
 
 
 def rendering_for(profile: Any, surface: SurfaceLike | None = None, *, image: Any = None,
@@ -226,7 +329,7 @@ def rendering_for(profile: Any, surface: SurfaceLike | None = None, *, image: An
     Parameters
     ----------
     profile : Profile
-        Its ``rendering`` (``steady`` or ``surface``) picks the rendering: the one place it is read.
+        Its ``rendering`` (``steady`` or ``surface``) picks the rendering (:func:`rendering_kind`).
     surface : SurfaceLike, optional
         The picture as a surface, when the caller has it.
     image : TextureImage or callable, optional
@@ -243,15 +346,14 @@ def rendering_for(profile: Any, surface: SurfaceLike | None = None, *, image: An
     Rendering
         A surface profile given neither a surface nor an image renders steadily (its laws).
     """
-    if getattr(profile, "rendering", "steady") == "surface":
-        if surface is None and image is not None:
-            from .model import surface_model
+    kind = rendering_kind(profile)
+    if kind.reads_surface and surface is None and image is not None:
+        from .model import surface_model
 
-            surface = surface_model(image() if callable(image) else image, tip_radius_m=profile.tip_radius_m,
-                                    material=material, relief_rms_m=relief_rms_m)
-    kind: type[SteadyRendering] | type[SurfaceRendering] = SteadyRendering
-    if getattr(profile, "rendering", "steady") == "surface" and surface is not None:
-        kind = SurfaceRendering
+        surface = surface_model(image() if callable(image) else image, tip_radius_m=profile.tip_radius_m,
+                                material=material, relief_rms_m=relief_rms_m)
+    if surface is None:
+        kind = SteadyRendering
     if type(previous) is kind and previous.surface is surface:
         previous.profile = profile
         return previous
@@ -264,3 +366,50 @@ def rendered_drive(profile: Any, image: Any, features: Any, speed_m_s: float,
     :meth:`Rendering.steady_drive` of :func:`rendering_for` the picture (``image``, or its
     ``surface`` when the caller has it)."""
     return rendering_for(profile, surface, image=image).steady_drive(features, speed_m_s, direction_rad)
+
+
+def surface_stroke_drive(surface: SurfaceLike, profile: Any, speed_m_s: float, direction_rad: float | None = None,
+                         pressure: float | None = None) -> tuple[Drive, list[PulseEvent], EventStatistics]:
+    """The events the pen fires over a steady :func:`~.straight.straight_stroke` on ``surface``
+    (mirrored beyond its edges; the one whole-stroke path, :func:`~.playback.play_stroke`,
+    through the profile's surface rendering), their statistics over the whole stroke and their
+    equivalent Drive (:func:`~.equivalent.drive_of_statistics`)."""
+    from .equivalent import drive_of_statistics
+    from .playback import play_stroke
+    from .samples import PenSample
+
+    if speed_m_s <= 0:
+        return Drive.off(), [], event_statistics([])
+    t, x, y = straight_stroke(surface.width_m, surface.height_m, speed_m_s, direction_rad or 0.0)
+    samples = [PenSample(a, b, c, pressure) for a, b, c in zip(t.tolist(), x.tolist(), y.tolist())]
+    events = list(play_stroke(SurfaceRendering(profile, MirroredSurface(surface)), samples).events)
+    stats = event_statistics(events, float(t[-1]))
+    return drive_of_statistics(stats, profile), events, stats
+
+
+def stroke_events(
+    surface: Any,
+    t_s: Sequence[float] | np.ndarray,
+    x_m: Sequence[float] | np.ndarray,
+    y_m: Sequence[float] | np.ndarray,
+    pressure: float | None = None,
+) -> list[PulseEvent]:
+    """Every pulse the surface rendering fires over a whole stroke: the one whole-stroke path
+    (:func:`~.playback.play_stroke`) with the page's batches, through a surface rendering of
+    ``surface`` without a profile.
+
+    Parameters
+    ----------
+    surface : SurfaceModel or CompositeSurface
+    t_s : sequence of float
+        Sample times [s], increasing.
+    x_m, y_m : sequence of float
+        Sample positions [display m] from the picture's top-left, y down.
+    pressure : float, optional
+        Pen pressure in [0, 1] for the whole stroke; None when unknown.
+    """
+    from .playback import play_stroke
+    from .samples import PenSample
+
+    samples = [PenSample(float(t), float(x), float(y), pressure) for t, x, y in zip(t_s, x_m, y_m)]
+    return list(play_stroke(SurfaceRendering(None, surface), samples).events)

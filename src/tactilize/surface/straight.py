@@ -1,4 +1,4 @@
-"""A steady straight stroke over a picture, and what the surface rendering gives it.
+"""A steady straight stroke over a picture.
 
 One rule for every steady straight stroke (the commands that take a picture and
 a speed: ``drive``, ``simulate``, ``profile report``, the exports' synthetic
@@ -9,9 +9,7 @@ the picture; beyond an edge the picture is continued by its mirror image
 would stop and reverse, which a tracker sees as a slow-down at every turn; over
 mirror images the speed and direction stay steady however long the stroke.
 
-The events of such a stroke, summarised by rate, interval CV and strength
-(docs/surfaces.md, "Where it is measured"), give its equivalent Drive;
-:meth:`tactilize.surface.rendering.SurfaceRendering.steady_drive` reads it.
+What a rendering gives such a stroke is :func:`tactilize.surface.rendering.surface_stroke_drive`.
 
 Units: SI (m, s, Hz).
 """
@@ -23,12 +21,9 @@ from typing import Any
 
 import numpy as np
 
-from ..drive import Drive
-from .equivalent import drive_of_statistics
-from .events import EventStatistics, PulseEvent, event_statistics, stroke_events
 from .model import SurfaceLike
 
-__all__ = ["straight_stroke", "fold_into", "MirroredSurface", "surface_stroke_drive", "STROKE_S", "STROKE_RATE_HZ"]
+__all__ = ["straight_stroke", "fold_into", "MirroredSurface", "STROKE_S", "STROKE_RATE_HZ"]
 
 #: Length of the steady stroke [s].
 STROKE_S = 2.0
@@ -115,16 +110,3 @@ class MirroredSurface:
         regions: tuple[np.ndarray, np.ndarray, np.ndarray] = self.surface.regions(fold_into(x_m, self.w),
                                                                                    fold_into(y_m, self.h))
         return regions
-
-
-def surface_stroke_drive(surface: SurfaceLike, profile: Any, speed_m_s: float, direction_rad: float | None = None,
-                         pressure: float | None = None) -> tuple[Drive, list[PulseEvent], EventStatistics]:
-    """The events of a steady :func:`straight_stroke` on ``surface`` (mirrored beyond its
-    edges), their statistics over the whole stroke and their equivalent Drive
-    (:func:`~.equivalent.drive_of_statistics`)."""
-    if speed_m_s <= 0:
-        return Drive.off(), [], event_statistics([])
-    t, x, y = straight_stroke(surface.width_m, surface.height_m, speed_m_s, direction_rad or 0.0)
-    events = stroke_events(MirroredSurface(surface), t, x, y, pressure)
-    stats = event_statistics(events, float(t[-1]))
-    return drive_of_statistics(stats, profile), events, stats

@@ -68,10 +68,13 @@ class TimedPosition(Protocol):
 
 
 class _Handed(NamedTuple):
-    """An event handed out, with the arc [m] of its bump along the stroke."""
+    """An event handed out, with the arcs [m] along the stroke of its bump and of the last
+    crossing merged into it (:func:`~.events.place_events`): every crossing between them is
+    this pulse's."""
 
     event: PulseEvent
     arc_m: float
+    last_arc_m: float
 
 
 class SurfaceStroke:
@@ -158,7 +161,12 @@ class SurfaceStroke:
         previous, self.now_s = self.now_s, now
         self._fire_due(now if played_until_s is None else max(now, played_until_s))
         moving = direction_rad is not None and speed_m_s > STILL_SPEED_M_S
-        w = path.window(speed_m_s, direction_rad if moving else None, self.lookahead_s, MAX_AHEAD_M)
+        # The profile is read HISTORY_M beyond the look-ahead, as far as it is kept behind: a bump's
+        # prominence needs both its sides, so a bump handed out is judged on as much profile ahead
+        # of it as behind (the same bumps, the same strengths, whichever way a spot is stroked);
+        # only the look-ahead's crossings are handed out.
+        ahead_s = self.lookahead_s + HISTORY_M / speed_m_s if moving else self.lookahead_s
+        w = path.window(speed_m_s, direction_rad if moving else None, ahead_s, MAX_AHEAD_M)
         if w is None:
             return []
         idx, prom = w.bumps()
@@ -167,10 +175,11 @@ class SurfaceStroke:
         late = now - LATE_S if previous is None else now - min(LOOKAHEAD_S, max(LATE_S, now - previous))
         start_m = w.s_at(0) - self._same_m
         found: list[tuple[float, float, float, float]] = []  # (time [s], arc [m], prominence, floor)
+        horizon = now + self.lookahead_s
         for i, p in zip(idx.tolist(), prom.tolist()):
             t = w.t_at(i)
-            if t <= late:
-                continue  # too late to be felt as this bump
+            if t <= late or t > horizon:
+                continue  # too late to be felt as this bump, or not yet due to be handed out
             arc = w.s_at(i)
             if not self._played(arc, start_m):
                 found.append((max(t, now), arc, p, float(w.floors[i])))
@@ -180,12 +189,21 @@ class SurfaceStroke:
         placed = place_events([c[0] for c in found],
                               strengths([c[2] for c in found], [c[3] for c in found], pressure, self._full),
                               previous_t_s=self._last_fired_t)
-        # A placed event keeps its crossing's time; crossings at one instant merge into the first.
-        arc_of: dict[float, float] = {}
+        # A placed event keeps its crossing's time; a crossing place_events dropped merged into the
+        # pulse before it (this batch's, or the last one fired): its arc joins that pulse's, so a later
+        # batch that finds it again, its predecessor played, does not play it as a pulse of its own.
+        handed: list[_Handed] = []
+        k = 0
         for c in found:
-            arc_of.setdefault(c[0], c[1])
-        self._pending = [_Handed(e._replace(clamped=e.clamped + ("late",)) if e.t_s <= now else e, arc_of[e.t_s])
-                         for e in placed]
+            if k < len(placed) and c[0] == placed[k].t_s:
+                e = placed[k]
+                handed.append(_Handed(e._replace(clamped=e.clamped + ("late",)) if e.t_s <= now else e, c[1], c[1]))
+                k += 1
+            elif handed:
+                handed[-1] = handed[-1]._replace(last_arc_m=c[1])
+            elif self._fired:
+                self._fired[-1] = self._fired[-1]._replace(last_arc_m=max(self._fired[-1].last_arc_m, c[1]))
+        self._pending = handed
         return [h.event for h in self._pending]
 
     def _fire_due(self, played_s: float) -> None:
@@ -201,14 +219,15 @@ class SurfaceStroke:
             self._pending = []
 
     def _played(self, arc_m: float, start_m: float) -> bool:
-        """A fired pulse's bump is within :data:`SAME_BUMP_SHARE` of the tip radius of ``arc_m``."""
+        """``arc_m`` is within :data:`SAME_BUMP_SHARE` of the tip radius of a fired pulse's arcs (its
+        bump's, and those of the crossings merged into it)."""
         same = self._same_m
         # Newest first: fired arcs grow along the stroke, so none behind ``start_m`` (the window's
         # start) can be this bump, nor any older one.
         for h in reversed(self._fired):
-            if h.arc_m < start_m:
+            if h.last_arc_m < start_m:
                 return False
-            if -same < h.arc_m - arc_m < same:
+            if h.arc_m - same < arc_m < h.last_arc_m + same:
                 return True
         return False
 

@@ -49,12 +49,15 @@ from __future__ import annotations
 import functools
 import math
 import weakref
-from typing import Any, NamedTuple, Sequence
+from typing import TYPE_CHECKING, Any, NamedTuple, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import SignalError
+
+if TYPE_CHECKING:  # the surface package loads scipy, which this module loads on first use
+    from ..surface.model import SurfaceLike, SurfaceModel
 
 __all__ = [
     "VOICE_COIL_BAND_HZ",
@@ -63,7 +66,6 @@ __all__ = [
     "tip_acceleration",
     "band_limited_acceleration",
     "heights_along",
-    "Mirrored",
     "audio_rows",
     "to_full_scale",
     "full_scale_of",
@@ -93,7 +95,7 @@ _CHUNK = 1 << 19
 _MAX_OVERSAMPLE = 8
 
 # Spline coefficients per surface, made on first use and kept while the surface lives.
-_COEFFS: "weakref.WeakKeyDictionary[Any, np.ndarray]" = weakref.WeakKeyDictionary()
+_COEFFS: "weakref.WeakKeyDictionary[SurfaceModel, np.ndarray]" = weakref.WeakKeyDictionary()
 
 
 class AccelerationSignal(NamedTuple):
@@ -121,7 +123,7 @@ class AccelerationSignal(NamedTuple):
         return self.samples.size / self.sample_rate_hz
 
 
-def _coefficients(surface: Any) -> np.ndarray:
+def _coefficients(surface: SurfaceModel) -> np.ndarray:
     """Cubic B-spline coefficients of the surface's tip-filtered height (cached per surface)."""
     try:
         return _COEFFS[surface]
@@ -137,48 +139,36 @@ def _coefficients(surface: Any) -> np.ndarray:
     return c
 
 
-def _base(surface: Any) -> tuple[Any, float, float]:
-    """The SurfaceModel under a mirrored view (export's synthetic strokes), and the view's
-    folding width and height [m] (0 when not mirrored)."""
-    inner = getattr(surface, "surface", None)
-    if inner is not None and hasattr(inner, "height"):
-        return inner, float(surface.w), float(surface.h)
-    if not hasattr(surface, "height") or not hasattr(surface, "display_pitch_m"):
+def _base(surface: SurfaceLike) -> tuple[SurfaceModel, float, float]:
+    """The SurfaceModel under a mirrored view (:class:`~tactilize.surface.straight.MirroredSurface`),
+    and the view's folding width and height [m] (0 when not mirrored)."""
+    from ..surface.model import SurfaceModel
+    from ..surface.straight import MirroredSurface
+
+    inner, w, h = (surface.surface, surface.w, surface.h) if isinstance(surface, MirroredSurface) else (surface, 0.0, 0.0)
+    if not isinstance(inner, SurfaceModel):
         raise SignalError("<surface>", "the acceleration signal needs a SurfaceModel (one picture's height field)")
-    return surface, 0.0, 0.0
+    return inner, float(w), float(h)
 
 
-class Mirrored:
-    """A surface continued beyond its edges by mirror images of itself (a straight stroke
-    longer than the picture keeps its speed instead of turning back)."""
-
-    def __init__(self, surface: Any) -> None:
-        self.surface = surface
-        self.w, self.h = float(surface.width_m), float(surface.height_m)
-
-
-def _fold(v: np.ndarray, span: float) -> np.ndarray:
-    if span <= 0:
-        return v
-    u = np.mod(v, 2 * span)
-    return np.where(u <= span, u, 2 * span - u)
-
-
-def heights_along(surface: Any, x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
+def heights_along(surface: SurfaceLike, x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
     """Tip-filtered height at display positions [m] by cubic B-spline interpolation
-    (mirrored beyond the picture's edges) [luminance units]."""
+    (mirrored beyond the picture's edges under a
+    :class:`~tactilize.surface.straight.MirroredSurface`) [luminance units]."""
     from scipy.ndimage import map_coordinates
 
+    from ..surface.straight import fold_into
+
     base, w, h = _base(surface)
-    x = _fold(np.asarray(x_m, dtype=np.float64), w)
-    y = _fold(np.asarray(y_m, dtype=np.float64), h)
+    x = fold_into(x_m, w)
+    y = fold_into(y_m, h)
     px, py = base.display_pitch_m
     # Pixel centres sit at (i + 0.5) pitch.
     coords = np.stack([y / py - 0.5, x / px - 0.5])
-    h = map_coordinates(_coefficients(base), coords, order=3, mode="mirror", prefilter=False)
-    if getattr(base, "micro", None) is not None:  # a material's roughness below the pixels
-        h = h + base.micro_at(x, y)
-    return h
+    heights: np.ndarray = map_coordinates(_coefficients(base), coords, order=3, mode="mirror", prefilter=False)
+    if base.micro is not None:  # a material's roughness below the pixels
+        heights = heights + base.micro_at(x, y)
+    return heights
 
 
 def _path_spline(t: np.ndarray, xy: np.ndarray) -> Any:
@@ -188,7 +178,7 @@ def _path_spline(t: np.ndarray, xy: np.ndarray) -> Any:
 
 
 def tip_acceleration(
-    surface: Any,
+    surface: SurfaceLike,
     t_s: ArrayLike,
     x_m: ArrayLike,
     y_m: ArrayLike,
@@ -203,7 +193,7 @@ def tip_acceleration(
 
     Parameters
     ----------
-    surface : SurfaceModel
+    surface : SurfaceModel or MirroredSurface
         The picture's tip-filtered height field (or a mirrored view of one).
     t_s, x_m, y_m : sequence of float
         Pen samples: times [s], strictly increasing; display positions [m] from the
@@ -314,11 +304,13 @@ def _pressure_scale(pressure: Any, t: np.ndarray, grid: np.ndarray) -> np.ndarra
     return np.minimum(1.0, np.maximum(0.0, pk) / REFERENCE_PRESSURE)
 
 
-def full_scale_of(surface: Any) -> float:
+def full_scale_of(surface: SurfaceLike) -> float:
     """Acceleration at full scale for ``surface`` [m/s^2 on a surface in metres, else luminance
     units / s^2]: its own (``SurfaceModel.full_scale_acceleration``) or
     :data:`FULL_SCALE_ACCELERATION`."""
-    base = getattr(surface, "surface", surface)  # a Mirrored view
+    from ..surface.straight import MirroredSurface
+
+    base = surface.surface if isinstance(surface, MirroredSurface) else surface
     own = getattr(base, "full_scale_acceleration", None)
     return FULL_SCALE_ACCELERATION if own is None else float(own)
 
@@ -359,13 +351,15 @@ def spectral_centroid_hz(freqs: np.ndarray, power: np.ndarray,
     return float((freqs[sel] * power[sel]).sum() / total) if total > 0 else 0.0
 
 
-def audio_rows(surface: Any, speeds_mm_s: Sequence[float], duration_s: float = 1.0,
+def audio_rows(surface: SurfaceModel, speeds_mm_s: Sequence[float], duration_s: float = 1.0,
                sample_rate_hz: float = 48_000.0) -> list[dict[str, float]]:
     """The signal of a straight stroke (along +x, from the picture's centre, mirrored beyond
     its edges) at each speed: spectral peak and centroid [Hz] in the band, RMS and peak
     [share of full scale], the share of samples clipped (``profile report --audio``)."""
+    from ..surface.straight import MirroredSurface
+
     rows = []
-    view = Mirrored(surface)
+    view = MirroredSurface(surface)
     for v in speeds_mm_s:
         t = np.arange(0.0, duration_s + 0.2, 1 / 240.0) - 0.1
         x = surface.width_m / 2 + v * 1e-3 * t

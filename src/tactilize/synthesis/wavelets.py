@@ -42,7 +42,7 @@ import numpy as np
 from ..surface.events import MIN_INTERVAL_S
 from .acceleration import VOICE_COIL_BAND_HZ
 
-__all__ = ["Wavelet", "SPAN_SIGMAS", "ricker", "event_wavelets", "wavelet_rows", "render_wavelets", "WaveletPlayer",
+__all__ = ["Wavelet", "FrameWavelet", "SPAN_SIGMAS", "ricker", "event_wavelets", "wavelet_rows", "render_wavelets", "WaveletPlayer",
            "SAME_S", "GLIDE_S", "LATE_SIGMAS"]
 
 #: The wavelet is drawn over +- this many standard deviations.
@@ -56,6 +56,15 @@ class Wavelet(NamedTuple):
     t_s: float
     amplitude: float
     sigma_s: float
+
+
+class FrameWavelet(NamedTuple):
+    """A :class:`Wavelet` on a :class:`WaveletPlayer`'s frame clock: centre [frame], amplitude
+    [0, 1], width (standard deviation) [frames]."""
+
+    centre_frame: float
+    amplitude: float
+    sigma_frames: float
 
 
 def ricker(tau: np.ndarray) -> np.ndarray:
@@ -209,8 +218,8 @@ class WaveletPlayer:
         self.started = 0
         self._items: list[_Item] = []  # by start
 
-    def replace(self, wavelets: Sequence[tuple[float, float, float]], fired_before: float = -math.inf) -> None:
-        """Schedule ``(centre frame, amplitude, sigma [frames])`` triples, replacing those not started.
+    def replace(self, wavelets: Sequence[FrameWavelet], fired_before: float = -math.inf) -> None:
+        """Schedule wavelets on this clock, replacing those not started.
 
         ``fired_before`` [frame]: where the batch's newest sample falls on this clock.  A
         wavelet asked for before it belongs to an event that has fired on the stroke's clock

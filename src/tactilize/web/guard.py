@@ -26,7 +26,7 @@ from __future__ import annotations
 import logging
 import re
 import socket
-from typing import Any, Iterable
+from typing import Any, Iterable, NamedTuple
 from urllib.parse import urlsplit
 
 from .limits import MAX_REQUESTS
@@ -158,6 +158,22 @@ class Guard:
         self.refused: dict[str, int] = {"host": 0, "origin": 0, "sockets": 0, "requests": 0}
 
 
+class _Cap(NamedTuple):
+    """How many of one kind of connection a :class:`Guard` admits at once."""
+
+    counter: str  # the Guard's attribute counting those open now (and its refusals' kind)
+    limit: str  # the Guard's attribute holding the most it admits
+    too_many: str  # what a refusal says...
+    retry: str  # ...and when to try again
+
+
+#: One cap for each kind of ASGI connection.
+_CAPS = {
+    "http": _Cap("requests", "max_requests", "too many requests at once", "in a moment"),
+    "websocket": _Cap("sockets", "max_sockets", "too many open connections", "later"),
+}
+
+
 class RequestGuard:
     """ASGI middleware: refuse requests and sockets that fail the checks above,
     WebSockets beyond ``guard.max_sockets`` open at once and HTTP requests
@@ -175,7 +191,7 @@ class RequestGuard:
 
     async def __call__(self, scope: dict[str, Any], receive: Any, send: Any) -> None:
         g = self.guard
-        if scope["type"] not in ("http", "websocket"):
+        if scope["type"] not in _CAPS:  # lifespan: nothing to check
             await self.app(scope, receive, send)
             return
         bad = _refusal(scope, g.hosts)
@@ -184,28 +200,17 @@ class RequestGuard:
             log.warning("refused %s %s: %s", scope["type"], scope.get("path", ""), bad[1])
             await _refuse(scope, receive, send, *bad)
             return
-        if scope["type"] == "http":
-            if g.requests >= g.max_requests:
-                g.refused["requests"] += 1
-                await _refuse(scope, receive, send, 503,
-                              f"too many requests at once ({g.requests}, limit {g.max_requests}); try again in a moment")
-                return
-            g.requests += 1
-            try:
-                await self.app(scope, receive, send)
-            finally:
-                g.requests -= 1
+        cap = _CAPS[scope["type"]]
+        n, limit = getattr(g, cap.counter), getattr(g, cap.limit)
+        if n >= limit:
+            g.refused[cap.counter] += 1
+            await _refuse(scope, receive, send, 503, f"{cap.too_many} ({n}, limit {limit}); try again {cap.retry}")
             return
-        if g.sockets >= g.max_sockets:
-            g.refused["sockets"] += 1
-            await _refuse(scope, receive, send, 503,
-                          f"too many open connections ({g.sockets}, limit {g.max_sockets}); try again later")
-            return
-        g.sockets += 1
+        setattr(g, cap.counter, n + 1)
         try:
             await self.app(scope, receive, send)
         finally:
-            g.sockets -= 1
+            setattr(g, cap.counter, getattr(g, cap.counter) - 1)
 
 
 def install(app: Any, hosts: Iterable[str] | None = None, max_sockets: int = DEFAULT_MAX_SOCKETS) -> Guard:

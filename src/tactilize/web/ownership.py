@@ -28,11 +28,14 @@ from __future__ import annotations
 import itertools
 import threading
 import time
-from typing import Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 from ..actuators.base import Output
 from ..drive import Drive
 from .state import ServerState
+
+if TYPE_CHECKING:
+    from ..surface.rendering import Frame
 
 __all__ = ["PEN", "TRIAL", "IDLE_RELEASE_S", "OutputLease", "LeasedOutput", "page_output", "lease_of", "close_outputs"]
 
@@ -184,7 +187,7 @@ class LeasedOutput:
             self.notify(self.lease.status(self))
         return [Drive.off()] * int(self.output.channels)
 
-    def play(self, frame: Any, now_s: float, channels: Sequence[Drive]) -> list[Drive]:
+    def play(self, frame: Frame, now_s: float, channels: Sequence[Drive]) -> list[Drive]:
         # A frame is a stroke: it claims the lease as apply() does (else a page could replace
         # the holder's events, and its after_batch() would never reach the output).
         if self.lease.claim(self):

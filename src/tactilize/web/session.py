@@ -89,21 +89,26 @@ import logging
 import math
 import time
 from collections import deque
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fastapi import WebSocket
 from starlette.websockets import WebSocketDisconnect, WebSocketState
 
 from ..actuators.base import Output
 from ..errors import TactilizeError
-from ..pen import PenRenderer
+from ..pen import PenRenderer, PenSample
 from ..encode import dumps
-from ..pen.samples import PenSample
 from ..pen.display import MM_PER_PX_RANGE  # the one display-scale rule, shared with the experiments
+from ..surface.rendering import rendering_kind
 from .limits import MessageRate
 from .rows import MAX_BATCH, PenMessageError, batch_id, pen_batch
 from .state import ServerState
 from .wire_trace import WIRE_PERIOD_S, trace_text as _trace_text, wire_source as _wire_source
+
+if TYPE_CHECKING:  # the maps and the surfaces load the FFT stack: not at import
+    from ..maps.composite import CompositeMap
+    from ..surface.composite import CompositeSurface
+    from ..surface.model import SurfaceModel
 
 __all__ = ["websocket_endpoint", "PenSession", "MAX_BATCH", "MAX_PENDING", "MAX_MESSAGE_CHARS", "IDLE_S", "MAX_COMPOSITE"]
 
@@ -315,7 +320,7 @@ class PenSession:
             "texture": self.texture_id,
             "mm_per_px": self.m_per_px * 1e3,
             "profile": p.name,
-            "rendering": p.rendering,
+            "rendering": rendering_kind(p).name,
             "limits": p.limits.to_dict(),
             "output": self.state.output_name,
             "channels": self.renderer.channels,
@@ -360,7 +365,7 @@ class PenSession:
     def _drive_msg(self, res: Any) -> dict[str, Any]:
         d = res.to_dict()
         d["type"] = "drive"
-        d["rendering"] = self.renderer.profile.rendering
+        d["rendering"] = rendering_kind(self.renderer.profile).name
         d["batch"] = self.batch
         d["resting"] = False
         # Why the output cannot be trusted now (a faulty sense path, a stopped
@@ -387,13 +392,14 @@ class PenSession:
         self.renderer.lift()
 
 
-def _composite_surface(surfaces: list[Any], cols: int, cmap: Any) -> Any:
+def _composite_surface(surfaces: list[SurfaceModel | None], cols: int, cmap: CompositeMap) -> CompositeSurface | None:
     """The surfaces laid out as the composite map lays the pictures (None if one is missing)."""
-    if any(s is None for s in surfaces):
+    present = [s for s in surfaces if s is not None]
+    if len(present) < len(surfaces):
         return None
     from ..surface import CompositeSurface
 
-    return CompositeSurface.of(surfaces, cols, cmap.cell_m)
+    return CompositeSurface.of(present, cols, cmap.cell_m)
 
 
 class _NoPicture:

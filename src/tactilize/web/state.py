@@ -27,8 +27,10 @@ from ..materials import MaterialChoice
 from .limits import MAX_UPLOAD_PIXELS
 from .rows import DEFAULT_M_PER_CSS_PX
 
-if TYPE_CHECKING:  # the maps load the FFT stack: not at import
+if TYPE_CHECKING:  # the maps and the surfaces load the FFT stack: not at import
+    from ..data import BuiltinTexture
     from ..maps.texturemap import TextureMap
+    from ..surface.model import SurfaceModel
 
 __all__ = ["ServerState", "TextureEntry", "MAX_UPLOADS", "MAX_RENDERINGS"]
 
@@ -73,7 +75,7 @@ class TextureEntry:
         builtin: bool,
         make_png: Callable[[], bytes],
         make_map: Callable[[], TextureMap],
-        make_surface: Callable[[], Any] | None = None,
+        make_surface: Callable[[], SurfaceModel] | None = None,
         material: MaterialChoice | None = None,
         make_image: Callable[[], Any] | None = None,
         base: str | None = None,
@@ -87,7 +89,7 @@ class TextureEntry:
         self.builtin = builtin
         self._make_png, self._make_map = make_png, make_map
         self._make_surface = make_surface
-        self._surface: Any = None
+        self._surface: SurfaceModel | None = None
         self._png: bytes | None = None
         self._map: TextureMap | None = None
         self._lock = threading.Lock()
@@ -111,7 +113,7 @@ class TextureEntry:
         return self._map
 
     @property
-    def surface(self):
+    def surface(self) -> SurfaceModel | None:
         """The :class:`~tactilize.surface.SurfaceModel` at the displayed size (None when the
         entry has no picture to make one from)."""
         if self._surface is None and self._make_surface is not None:
@@ -340,7 +342,7 @@ class ServerState:
         }
 
 
-def _builtin_entry(t: Any, tip_radius_m: float, material: MaterialChoice) -> TextureEntry:
+def _builtin_entry(t: BuiltinTexture, tip_radius_m: float, material: MaterialChoice) -> TextureEntry:
     from ..data import TEXTURE_SIZE_PX, builtin_map
 
     return TextureEntry(
@@ -350,7 +352,7 @@ def _builtin_entry(t: Any, tip_radius_m: float, material: MaterialChoice) -> Tex
     )
 
 
-def _surface_of(t: Any, tip_radius_m: float, material: MaterialChoice) -> Any:
+def _surface_of(t: BuiltinTexture, tip_radius_m: float, material: MaterialChoice) -> SurfaceModel:
     from ..surface import surface_model
 
     return surface_model(t.image, tip_radius_m=tip_radius_m, **material.surface_kwargs())

@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import WireError, check_finite
-from .wire import WireSpec
+from .wire import WireSpec, changed_preset
 
 __all__ = ["Circuit", "circuit_names", "SWITCH_OHM", "SENSE_OHM"]
 
@@ -136,12 +136,7 @@ class Circuit:
             c = cls(key, "voltage", AA_PAIR_V, AA_PAIR_OHM + SWITCH_OHM)
         else:
             raise WireError(str(name), f"no such circuit (known: {', '.join(circuit_names())})")
-        if changes:
-            try:
-                c = dataclasses.replace(c, **changes)
-            except TypeError as exc:
-                raise WireError(str(name), str(exc)) from None
-        return c
+        return changed_preset(c, name, changes)
 
     @classmethod
     def resolve(cls, circuit: "Circuit | str | None", wire: WireSpec | str | None = None) -> "Circuit":

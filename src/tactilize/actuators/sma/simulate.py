@@ -78,6 +78,16 @@ class SimulationResult:
     spec: WireSpec = field(repr=False)
     pulse_edges_m: np.ndarray | None = field(default=None, repr=False)
 
+    @classmethod
+    def of_run(cls, model: WireModel, time_s: np.ndarray, current_a: np.ndarray, temperature_c: np.ndarray,
+               martensite_fraction: np.ndarray, pulse_starts_s: np.ndarray,
+               pulse_edges_m: np.ndarray | None = None) -> "SimulationResult":
+        """The traces of a run of ``model`` (its wire, displacement and energy accounts)."""
+        spec = model.spec
+        return cls(time_s, current_a, temperature_c, martensite_fraction, spec.displacement_m(martensite_fraction),
+                   pulse_starts_s, model.electrical_j, model.stored_j, model.convected_j, model.latent_j, spec,
+                   pulse_edges_m)
+
     @property
     def duration_s(self) -> float:
         return float(self.time_s[-1])
@@ -220,19 +230,7 @@ def simulate(
     t, T, xi = _sample(model, rec, n, dt)
     nonzero = levels != 0
     onset = nonzero & np.concatenate(([True], ~nonzero[:-1]))
-    return SimulationResult(
-        time_s=t,
-        current_a=cur,
-        temperature_c=T,
-        martensite_fraction=xi,
-        displacement_m=spec.displacement_m(xi),
-        pulse_starts_s=bounds[:-1][onset] * dt,
-        electrical_j=model.electrical_j,
-        stored_j=model.stored_j,
-        convected_j=model.convected_j,
-        latent_j=model.latent_j,
-        spec=spec,
-    )
+    return SimulationResult.of_run(model, t, cur, T, xi, bounds[:-1][onset] * dt)
 
 
 def _drive_circuit(spec: WireSpec, circuit: Circuit | str | None, current_a: float | None) -> Circuit:
@@ -326,20 +324,9 @@ def simulate_drive(
         on_grid = np.cumsum(steps[:n]).astype(float)
     level_grid = np.where(on_grid > 0, drive.amplitude, bias_level)
     current = level_grid * circ.currents_at(spec.resistance_at(xi[:-1]))
-    return SimulationResult(
-        time_s=t,
-        current_a=current,
-        temperature_c=T,
-        martensite_fraction=xi,
-        displacement_m=spec.displacement_m(xi),
-        pulse_starts_s=np.asarray(starts[: (len(pulse_edges) if pulse_edges is not None else len(starts))]),
-        electrical_j=model.electrical_j,
-        stored_j=model.stored_j,
-        convected_j=model.convected_j,
-        latent_j=model.latent_j,
-        spec=spec,
-        pulse_edges_m=pulse_edges,
-    )
+    return SimulationResult.of_run(
+        model, t, current, T, xi,
+        np.asarray(starts[: (len(pulse_edges) if pulse_edges is not None else len(starts))]), pulse_edges)
 
 
 @dataclass(frozen=True)

@@ -22,9 +22,12 @@ import json
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from ...errors import WireError, check_finite
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
 
 __all__ = ["WireSpec", "wire_names", "MODEL_VERSION"]
 
@@ -135,12 +138,7 @@ class WireSpec:
         spec = _PRESETS[key]
         if length_m is not None:
             changes["length_m"] = length_m
-        if changes:
-            try:
-                spec = dataclasses.replace(spec, **changes)
-            except TypeError as exc:
-                raise WireError(str(name), str(exc)) from None
-        return spec
+        return changed_preset(spec, name, changes)
 
     @classmethod
     def resolve(cls, wire: "WireSpec | str | None") -> "WireSpec":
@@ -263,6 +261,20 @@ _PRESETS: dict[str, WireSpec] = {
     "75um": WireSpec(),
     "100um": _scaled_preset("100um", 100e-6),
 }
+
+
+_Preset = TypeVar("_Preset", bound="DataclassInstance")
+
+
+def changed_preset(preset: _Preset, name: str, changes: dict[str, Any]) -> _Preset:
+    """The preset ``name`` (a dataclass: a wire or a circuit) with ``changes`` made; a field it
+    does not have is a :class:`WireError` naming the preset."""
+    if not changes:
+        return preset
+    try:
+        return dataclasses.replace(preset, **changes)
+    except TypeError as exc:
+        raise WireError(str(name), str(exc)) from None
 
 
 def wire_names() -> list[str]:

@@ -7,9 +7,11 @@
 // (surface/path.py), the heights by bilinear lookup and the bumps by prominence
 // (surface/_kernels.py), and the stroke's bookkeeping: too late, already played,
 // strengths, clusters, rate only (surface/_stroke_kernels.py, surface/stroke.py).
+// A material's micro-roughness is drawn where the pen is as materials/roughness.py draws it
+// (MicroRoughness.height_m: the same hashed lattice of Gaussian bumps, the same numbers).
 // Every parameter comes from the model file, written by Python
 // (tactilize.site.model_file), so the two cannot drift apart silently;
-// tests/test_site_parity.py runs both on the same strokes in headless Chromium.
+// tests/test_site_browser.py runs both on the same strokes in headless Chromium.
 // Arithmetic follows the Python order step by step, so heights and times agree
 // to rounding, not just to a tolerance.
 //
@@ -165,6 +167,66 @@ export function decodeModel(buffer) {
 /** decodeModel, for callers holding a promise of the bytes. */
 export async function parseModel(buffer) { return decodeModel(buffer); }
 
+const MASK64 = (1n << 64n) - 1n;
+const NODE_CACHE = 128;  // nodes per side of the table of normal numbers (a power of two)
+const M1 = 0xBF58476D1CE4E5B9n, M2 = 0x94D049BB133111EBn, NODE_U = 0x9E3779B1n, NODE_V = 0x85EBCA77n;
+
+/** The splitmix64 finaliser on a 64-bit word (BigInt), wrapping modulo 2^64 as numpy's uint64 does. */
+function mix(z) {
+  z = ((z ^ (z >> 30n)) * M1) & MASK64;
+  z = ((z ^ (z >> 27n)) * M2) & MASK64;
+  return z ^ (z >> 31n);
+}
+
+/** A material's micro-roughness as the tip follows it (materials/roughness.py's MicroRoughness),
+ *  from the model header's `micro`: heights [m] at points of the real surface [m]. */
+export class MicroRoughness {
+  constructor(p) {
+    this.spacing = p.spacing_m;
+    this.weight = p.node_weight_m;
+    this.reach = p.reach;
+    const r = p.spacing_m / p.sigma_m;
+    this.k = -0.5 * (r * r);
+    this.seed = BigInt("0x" + p.seed_word);
+    // A node's normal number, kept in a direct-mapped table by its low bits: a stroke meets each
+    // node for many points in a row, and hashing in BigInt is the slow part.
+    this.tagU = new Int32Array(NODE_CACHE * NODE_CACHE).fill(-0x80000000);
+    this.tagV = new Int32Array(NODE_CACHE * NODE_CACHE);
+    this.value = new Float64Array(NODE_CACHE * NODE_CACHE);
+    this.gv = new Float64Array(2 * p.reach + 1);
+  }
+
+  /** The standard normal number of lattice node (iu, iv) (Box-Muller on its hash's two halves). */
+  normal(iu, iv) {
+    const slot = ((iu & (NODE_CACHE - 1)) * NODE_CACHE) | (iv & (NODE_CACHE - 1));
+    if (this.tagU[slot] === iu && this.tagV[slot] === iv) return this.value[slot];
+    const h = mix((BigInt.asUintN(64, BigInt(iu)) * NODE_U & MASK64) ^ (BigInt.asUintN(64, BigInt(iv)) * NODE_V & MASK64) ^ this.seed);
+    const lo = (Number(h & 0xFFFFFFFFn) + 0.5) / 4294967296.0, hi = (Number(h >> 32n) + 0.5) / 4294967296.0;
+    const n = Math.sqrt(-2.0 * Math.log(lo)) * Math.cos(2.0 * Math.PI * hi);
+    this.tagU[slot] = iu; this.tagV[slot] = iv; this.value[slot] = n;
+    return n;
+  }
+
+  /** Height [m] at (x, y) [m on the real surface]: the nodes within `reach` either side, in Python's order. */
+  height(x, y) {
+    const u = x / this.spacing, v = y / this.spacing;
+    const iu = Math.floor(u), iv = Math.floor(v), fu = u - iu, fv = v - iv, R = this.reach, k = this.k;
+    const gv = this.gv;  // the row factors, the same for every du
+    for (let dv = -R; dv <= R; dv++) gv[dv + R] = Math.exp(k * ((fv - dv) * (fv - dv)));
+    const tagU = this.tagU, tagV = this.tagV, value = this.value, M = NODE_CACHE - 1;
+    let out = 0;
+    for (let du = -R; du <= R; du++) {
+      const gu = Math.exp(k * ((fu - du) * (fu - du))), nu = iu + du, row = (nu & M) * NODE_CACHE;
+      for (let dv = -R; dv <= R; dv++) {
+        const nv = iv + dv, slot = row | (nv & M);
+        const n = tagU[slot] === nu && tagV[slot] === nv ? value[slot] : this.normal(nu, nv);
+        out += n * gu * gv[dv + R];
+      }
+    }
+    return out * this.weight;
+  }
+}
+
 /** Map coordinates' bilinear lookup (order 1, mode "nearest") at row cy, column cx of the padded
  *  levels q, each level's height h[level]. */
 function bilinear(q, h, R, C, cy, cx) {
@@ -313,6 +375,10 @@ export class SurfaceStroke {
     this.step = Math.min(0.25 * h.tip_radius_m / spd, 0.5 * Math.min(displayPitch[0], displayPitch[1]));
     this.same = r.same_bump_share * (h.tip_radius_m / Math.max(spd, 1e-12));
     this.floor = h.prominence_floor;
+    this.full = h.full_prominence;
+    // The micro-roughness is drawn on the real surface: display metres times real per display.
+    this.micro = h.micro ? new MicroRoughness(h.micro) : null;
+    this.real = [h.surface_pitch_m[0] / displayPitch[0], h.surface_pitch_m[1] / displayPitch[1]];
     this.reset();
   }
 
@@ -357,8 +423,9 @@ export class SurfaceStroke {
 
   _height(x, y) {
     const m = this.model, px = x * this.inv[0], py = y * this.inv[1];
-    if (px >= 0 && px < m.cols && py >= 0 && py < m.rows) return bilinear(m.levels, m.heightOf, m.rows + 2, m.cols + 2, py + 0.5, px + 0.5);
-    return NaN;
+    if (!(px >= 0 && px < m.cols && py >= 0 && py < m.rows)) return NaN;
+    const h = bilinear(m.levels, m.heightOf, m.rows + 2, m.cols + 2, py + 0.5, px + 0.5);
+    return this.micro === null ? h : h + this.micro.height(x * this.real[0], y * this.real[1]);
   }
 
   /** A batch [{t, x, y, p}] with the tracker's speed [m/s] and direction [rad, y up] (null: still).
@@ -406,7 +473,8 @@ export class SurfaceStroke {
     const h = this.ph.slice(a, end), times = this.pt.slice(a, end);
     if (moving) {
       const k1 = Math.floor(s0 / step) + 1;
-      const k2 = Math.floor((s0 + Math.min(speed * this.lookahead(), r.max_ahead_m)) / step);
+      // Read history_m beyond the look-ahead (a bump handed out has as much profile ahead as behind).
+      const k2 = Math.floor((s0 + Math.min(speed * this.lookahead() + r.history_m, r.max_ahead_m)) / step);
       const ux = Math.cos(direction), uy = -Math.sin(direction);  // y up -> y down
       for (let k = k1; k <= k2; k++) {
         const d = k * step - s0;
@@ -440,12 +508,14 @@ export class SurfaceStroke {
   _place(idx, prom, tc, k0, late, now, scale) {
     const r = this.r, step = this.step, floor = this.floor, ring = this.ring;
     let c = [];
+    const horizon = now + r.lookahead_s;
     for (let i = 0; i < idx.length; i++) {
       const ti = tc[idx[i]];
-      if (ti <= late) continue;
+      if (ti <= late || ti > horizon) continue;
       const si = (k0 + idx[i]) * step;
-      if (ring.some((f) => { const d = f.arc - si; return -this.same < d && d < this.same; })) continue;
-      const span = Math.log(Math.max(r.full_prominence / floor, 1 + 1e-9));
+      // A fired pulse's arcs: its bump's and those of the crossings merged into it.
+      if (ring.some((f) => f.arc - this.same < si && si < f.lastArc + this.same)) continue;
+      const span = Math.log(Math.max(this.full / floor, 1 + 1e-9));
       c.push({ t: ti > now ? ti : now, arc: si, s: Math.min(1, Math.max(0, Math.log(Math.max(prom[i], 1e-12) / floor) / span)) * scale });
     }
     const n = c.length;
@@ -483,13 +553,15 @@ export class SurfaceStroke {
       if (hasPrev || out.length) {
         const gap = ti - last;
         if (gap < r.min_interval_s) {
-          if (out.length) out[out.length - 1].f |= MERGED;
+          // Merged into the pulse before (this batch's, or the last fired): its arc is that pulse's.
+          if (out.length) { out[out.length - 1].f |= MERGED; out[out.length - 1].lastArc = c[i].arc; }
+          else if (ring.length) ring[ring.length - 1].lastArc = Math.max(ring[ring.length - 1].lastArc, c[i].arc);
           continue;
         }
         if (gap < r.cluster_interval_s && !fast[i]) { si *= gap / r.cluster_interval_s; f |= CLUSTER; }
       }
       if (ti <= now) f |= LATE;
-      out.push({ t: ti, s: si, f, arc: c[i].arc });
+      out.push({ t: ti, s: si, f, arc: c[i].arc, lastArc: c[i].arc });
       last = ti;
     }
     return out;
@@ -515,28 +587,34 @@ export class SurfaceRenderer {
   lift() { this.tracker.reset(); this.stroke.reset(); }
 }
 
-/** What an event-playing output fires for a whole stroke, cut into batches of batchS [s] each
- *  arriving transportS [s] after its newest sample (pen/replay.py's replay_stroke): [{t, s, f}]. */
+/** What an event-playing output fires for a whole stroke, cut into batches of batchS [s] on a grid
+ *  from the first sample, each arriving transportS [s] after its newest sample (surface/playback.py's
+ *  play_stroke): [{t, s, f}], t on the stroke's clock. */
 export function replayStroke(model, displayPitch, samples, batchS = 0.004, transportS = 0.001) {
   const rd = new SurfaceRenderer(model, displayPitch);
   const fired = [];
   let schedule = [];
   const batches = [];
-  for (const smp of samples) {
-    if (batches.length && smp.t < batches[batches.length - 1][0].t + batchS) batches[batches.length - 1].push(smp);
-    else batches.push([smp]);
+  if (samples.length) {
+    const t0 = samples[0].t;
+    const slot = (t) => Math.floor((t - t0) / batchS + 1e-6);  // a sample on a boundary opens the next
+    for (const smp of samples) {
+      const b = batches[batches.length - 1];
+      if (b && slot(b[0].t) === slot(smp.t)) b.push(smp);
+      else batches.push([smp]);
+    }
   }
+  let now = -Infinity;
   for (const batch of batches) {
-    const arrival = batch[batch.length - 1].t + transportS;
-    for (const ev of schedule) if (ev.t + transportS <= arrival) fired.push({ ...ev, t: ev.t + transportS });
+    now = batch[batch.length - 1].t;
+    // Due by the time this batch arrives (the output's clock, transportS behind the host's): fired.
+    for (const ev of schedule) if (ev.t <= now) fired.push(ev);
     for (const s of batch) rd.tracker.add(s);
     const st = rd.tracker.estimate;
-    if (st === null) { schedule = []; continue; }
+    if (st === null) { schedule = []; rd.stroke.reset(); continue; }
     schedule = rd.stroke.update(batch, st.speed, st.direction, st.pressure);
-    schedule = schedule.filter((ev) => ev.t + transportS > arrival)
-      .concat(schedule.filter((ev) => ev.t + transportS <= arrival).map((ev) => ({ ...ev, t: arrival - transportS })));
   }
-  for (const ev of schedule) fired.push({ ...ev, t: ev.t + transportS });
+  for (const ev of schedule) if (ev.t <= now) fired.push(ev);
   fired.sort((p, q) => p.t - q.t);
   return fired;
 }
