@@ -17,8 +17,8 @@ const $ = (sel) => document.querySelector(sel);
 // A readout is written only when its text changes: every write is a style,
 // layout and paint of the page, and readouts follow a pen 10 .. 20 times a second.
 // A readout's one text node is rewritten in place: replacing it (textContent) made
-// the node leave and rejoin the layout tree, a style recalculation and a layout of
-// its box that the next pen event's hit test had to do first.
+// the node leave and rejoin the layout tree, a style recalculation the next pen
+// event's hit test had to do first; rewritten, only its text is laid out again.
 const setText = (el, text) => {
   const node = el.firstChild;
   if (node && node === el.lastChild && node.nodeType === Node.TEXT_NODE) { if (node.data !== text) node.data = text; }
