@@ -71,11 +71,13 @@ Server to page
 
 Floods
 ------
-A reader task parses messages as fast as they come and keeps at most
-:data:`MAX_PENDING` samples waiting; a render task renders whatever is waiting
-in one go.  When the page sends faster than the server renders, old samples
-fall off the front of the queue (counted, never queued without bound) and the
-newest always wins.  A lift discards whatever samples were waiting before it.
+The reader renders each batch and sends its drive itself, as soon as the
+batch is read.  While a drive is held up on the way out (a page that does not
+read its socket), it only parses what comes and keeps at most
+:data:`MAX_PENDING` samples waiting, and a render task renders whatever is
+waiting in one go once the drive is out.  When the page sends faster than the
+server renders, old samples fall off the front of the queue (counted, never
+queued without bound) and the newest always wins.  A lift discards whatever samples were waiting before it.
 Messages beyond a socket's budget (:class:`.limits.MessageRate`) are dropped unread; a flood closes it (1008).
 """
 
@@ -101,6 +103,7 @@ from ..surface.rendering import rendering_kind
 from .limits import MessageRate
 from .rows import MAX_BATCH, PenMessageError, batch_id, pen_batch
 from .state import ServerState
+from .wire_trace import WIRE_PERIOD_S, trace_text as _trace_text, wire_source as _wire_source
 
 if TYPE_CHECKING:  # the maps and the surfaces load the FFT stack: not at import
     from ..maps.composite import CompositeMap
@@ -122,8 +125,6 @@ IDLE_S = 0.08
 MAX_COMPOSITE = 12
 #: Copies of a repeated picture, at most.
 MAX_REPEAT = 64
-#: Period of the wire trace messages [s].
-WIRE_PERIOD_S = 0.05
 
 
 #: A malformed message: reported to the page, connection kept.
@@ -158,6 +159,8 @@ class PenSession:
         self.msg_ns = 0
         #: arrival of the newest message the waiting samples came in (for the latency record)
         self.arrival_ns = 0
+        #: samples or a lift wait for a render; ``wake`` calls the render task
+        self.due = False
         self.wake = asyncio.Event()
         self._idle: asyncio.TimerHandle | None = None
         self._idle_due = False
@@ -335,7 +338,7 @@ class PenSession:
 
     def _wake(self) -> None:
         self.arrival_ns = self.msg_ns
-        self.wake.set()
+        self.due = True
 
     # ------------------------------------------------------------- rendering
 
@@ -452,26 +455,31 @@ async def websocket_endpoint(ws: WebSocket, state: ServerState) -> None:
                 closed.set()
                 session.wake.set()
 
+    async def deliver() -> None:
+        """Render whatever is waiting and send its drive."""
+        # Taken now: messages arriving while this batch is sent belong to the next.
+        arrival, session.arrival_ns = session.arrival_ns, 0
+        try:
+            msg = session.render_pending()
+        except TactilizeError as exc:  # e.g. a profile law refusing a value
+            await send({"type": "error", "message": str(exc)})
+            return
+        if msg is None:
+            return
+        await send(msg)
+        if arrival:
+            state.latency_ns.append(time.perf_counter_ns() - arrival)
+        after_batch()
+        drive_sent.set()
+        state.counters["drives_sent"] += 1
+        session.schedule_idle(loop)
+
     async def renderer_task() -> None:
         while not closed.is_set():
             await session.wake.wait()
             session.wake.clear()
-            # Taken now: messages arriving while this batch is sent belong to the next.
-            arrival, session.arrival_ns = session.arrival_ns, 0
-            try:
-                msg = session.render_pending()
-            except TactilizeError as exc:  # e.g. a profile law refusing a value
-                await send({"type": "error", "message": str(exc)})
-                continue
-            if msg is None:
-                continue
-            await send(msg)
-            if arrival:
-                state.latency_ns.append(time.perf_counter_ns() - arrival)
-            after_batch()
-            drive_sent.set()
-            state.counters["drives_sent"] += 1
-            session.schedule_idle(loop)
+            session.due = False
+            await deliver()
 
     async def wire_task() -> None:
         source = _wire_source(output)
@@ -522,15 +530,28 @@ async def websocket_endpoint(ws: WebSocket, state: ServerState) -> None:
                 continue
             if reply is not None:
                 await send(reply)
-            # Let the renderer run between messages of a burst, so that a
-            # steady stream is rendered batch by batch, not only at the end.
-            if session.wake.is_set():
-                await asyncio.sleep(0)
-            failed = [t for t in tasks if t.done() and not t.cancelled() and t.exception() is not None]
+            # Rendered here, not handed to the render task: a hand-over is one more turn of
+            # the event loop on the batch's path, and at each turn the simulated wire's thread
+            # may take the interpreter's lock for a switch interval.  Only while a drive is
+            # held up on its way out (a page not reading) does the render task take over.
+            failed: list[BaseException] = []
+            if session.due:
+                session.due = False
+                if send_lock.locked():
+                    session.wake.set()
+                    await asyncio.sleep(0)
+                else:
+                    try:
+                        await deliver()
+                    except Exception as exc:  # a bug: ended as in a helper task, below
+                        failed.append(exc)
+            for t in tasks:
+                if t.done() and not t.cancelled() and (err := t.exception()) is not None:
+                    failed.append(err)
             if failed:
                 # A bug or a dead socket in a helper task: end this connection
                 # (the output is stopped below); the page reconnects.
-                log.error("pen session ended: %r", failed[0].exception())
+                log.error("pen session ended: %r", failed[0])
                 try:
                     await ws.close(code=1011)
                 except Exception:  # already gone
@@ -550,51 +571,3 @@ async def websocket_endpoint(ws: WebSocket, state: ServerState) -> None:
             t.cancel()
         await asyncio.gather(*tasks, return_exceptions=True)
 
-
-def _trace_text(source: Any) -> str | None:
-    trace = source()
-    return None if trace is None else dumps(trace, compact=True)
-
-
-def _wire_source(output: Any):
-    """A callable returning the newest wire trace message, or None when the
-    output keeps no trace (serial, audio).
-
-    The simulated output's ``traces(seconds)`` gives ``time_s`` and, per channel,
-    ``displacement_um``; this sends what is new since the previous call,
-    thinned to about 1 kHz (the wire is a low-pass filter; the page's plot is
-    720 px wide for 0.5 s).
-    """
-    if output.traces(0.0) is None:
-        return None
-    fn = output.traces
-    last_t = [-math.inf]
-    span_s = 2 * WIRE_PERIOD_S
-
-    def pull() -> dict[str, Any] | None:
-        tr = fn(span_s)
-        t = tr.get("time_s") or []
-        chans = tr.get("channels") or []
-        if getattr(output, "fault", None) and not getattr(output, "connected", True):
-            # A stopped simulation makes no new points: its legend must not keep its last state.
-            return {"type": "wire", "t_s": [], "displacement_um": [[] for _ in chans], "state": ["failed"] * len(chans)}
-        if not t or not chans:
-            return None
-        first = 0
-        while first < len(t) and t[first] <= last_t[0]:
-            first += 1
-        if first >= len(t):
-            return None
-        last_t[0] = t[-1]
-        rate = (len(t) - 1) / (t[-1] - t[0]) if t[-1] > t[0] else 1000.0
-        step = max(1, int(rate // 1000))
-        idx = range(first, len(t), step)
-        return {
-            "type": "wire",
-            "t_s": [t[i] for i in idx],
-            "displacement_um": [[c["displacement_um"][i] for i in idx] for c in chans],
-            # Each wire's controller state at the newest point (the page's legend).
-            "state": [(c.get("state") or ["off"])[-1] for c in chans],
-        }
-
-    return pull

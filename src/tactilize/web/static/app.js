@@ -16,7 +16,14 @@ import { onOutputMessage } from "./output-lease.js";
 const $ = (sel) => document.querySelector(sel);
 // A readout is written only when its text changes: every write is a style,
 // layout and paint of the page, and readouts follow a pen 10 .. 20 times a second.
-const setText = (el, text) => { if (el.textContent !== text) el.textContent = text; };
+// A readout's one text node is rewritten in place: replacing it (textContent) made
+// the node leave and rejoin the layout tree, a style recalculation the next pen
+// event's hit test had to do first; rewritten, only its text is laid out again.
+const setText = (el, text) => {
+  const node = el.firstChild;
+  if (node && node === el.lastChild && node.nodeType === Node.TEXT_NODE) { if (node.data !== text) node.data = text; }
+  else if (el.textContent !== text) el.textContent = text;
+};
 const HISTORY = 1000;
 
 // Scripting handle (for users' scripts and the browser tests).
@@ -322,9 +329,16 @@ function onDrive(msg) {
   msg.page_ms = performance.now();  // when it arrived, in the page's clock (outputs and tests line up on it)
   T.lastDrive = msg;
   if (msg.pulses) T.pulses = (T.pulses || 0) + msg.pulses;
-  const fault = $("#output-fault");  // a faulty sense path, a stopped simulation
-  fault.hidden = !msg.output_fault;
-  fault.textContent = msg.output_fault || "";
+  // A faulty sense path, a stopped simulation.  Written only when it changes: setting
+  // `hidden` again, even to the same value, is an attribute change the page's style
+  // is recalculated for, once a drive (250 times a second) and before the next pen event.
+  const faultText = msg.output_fault || "";
+  if (faultText !== shownFault) {
+    shownFault = faultText;
+    const fault = $("#output-fault");
+    fault.hidden = !faultText;
+    fault.textContent = faultText;
+  }
   T.drives.push(msg);
   if (T.drives.length > HISTORY) T.drives.splice(0, T.drives.length - HISTORY);
   const chans = msg.channels && msg.channels.length ? msg.channels : [{}, {}];
@@ -338,6 +352,7 @@ function onDrive(msg) {
   if (!showTimer) showTimer = setTimeout(() => { showTimer = 0; showNow(T.lastDrive); }, Math.max(0, shownAt + READOUT_MS - performance.now()));
 }
 const READOUT_MS = 100;
+let shownFault = "";  // the #output-fault text shown (the page starts with it hidden and empty)
 let showTimer = 0, shownAt = -Infinity;
 let shownOn = false;
 function showNow(msg) { shownAt = performance.now(); showDrive(msg); }
