@@ -130,3 +130,79 @@ def test_one_trial_in_headless_chromium(server):
     strokes = store.stroke_rows()
     assert max(s["speed_m_s"] for s in strokes) > 0.01
     assert all(s["pulse_frequency_hz"] <= 300 for s in strokes)
+
+
+@pytest.mark.browser
+def test_the_picture_box_is_laid_out_before_the_picture_loads(server):
+    # The picture's response is held until the test lets it go: the box must not move
+    # when it arrives, and a stroke on the picture before it is shown logs nothing.
+    import json
+
+    from playwright.sync_api import expect, sync_playwright
+
+    url, db = server
+    with sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_ARGS)
+        try:
+            page = browser.new_page(viewport={"width": 1200, "height": 900})
+            errors, held, sent = [], [], []
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.route("**/api/images/**", lambda route: held.append(route))
+            page.on("websocket", lambda ws: ws.on("framesent", lambda payload: sent.append(payload)))
+            page.goto(url)
+            page.fill("#participant-id", "B02")
+            page.check("#consent")
+            page.click("#start")
+            expect(page.locator("#view-calibration")).to_be_visible()
+            page.locator("#scale").evaluate("(el) => { el.value = '400'; el.dispatchEvent(new Event('input')); }")
+            page.check("#felt")
+            page.click("#calibrate")
+            expect(page.locator("#view-trial")).to_be_visible()
+            page.wait_for_function("document.body.dataset.pen === 'live'", timeout=30_000)
+            page.wait_for_function("document.getElementById('texture').src !== ''")
+            assert held and not page.locator("#texture").evaluate("(im) => im.complete && im.naturalWidth > 0")
+
+            before = page.locator("#surface").bounding_box()
+            mm_per_px = 85.6 / 400
+            # The stand-in pictures are 600 x 400 px at 0.1 mm a pixel: 60 x 40 mm at true size.
+            assert before["width"] == pytest.approx(60.0 / mm_per_px, abs=1)
+            assert before["height"] == pytest.approx(40.0 / mm_per_px, abs=1)
+
+            def stroke(box):
+                y = box["y"] + box["height"] / 2
+                page.mouse.move(box["x"] + 20, y)
+                page.mouse.down()
+                for k in range(1, 31):
+                    page.mouse.move(box["x"] + 20 + 3 * k, y)
+                    page.wait_for_timeout(16)
+                page.mouse.up()
+
+            def samples():
+                docs = [json.loads(f) for f in sent if isinstance(f, str)]
+                return [s for d in docs if d.get("type") == "samples" for s in d["samples"]]
+
+            stroke(before)  # before the picture is shown
+            page.wait_for_function("Number(document.body.dataset.unacked || 0) === 0")
+            page.wait_for_timeout(100)  # a few of the page's 30 ms flushes
+            assert samples() == []
+
+            for route in held:
+                route.continue_()
+            page.unroute("**/api/images/**")
+            page.wait_for_function("document.body.dataset.picture === 'shown'")
+            after = page.locator("#surface").bounding_box()
+            assert after == before
+
+            stroke(after)
+            page.wait_for_function("Number(document.body.dataset.unacked || 0) === 0")
+            got = samples()
+            assert got, "a stroke on the shown picture logs samples"
+            # Offsets from the picture's corner in mm: where the pen was, 20 to 110 CSS px in.
+            xs = [s[1] for s in got]
+            assert min(xs) == pytest.approx(20 * mm_per_px, abs=3 * mm_per_px)
+            assert max(xs) == pytest.approx(110 * mm_per_px, abs=3 * mm_per_px)
+            ys = [s[2] for s in got]
+            assert all(y == pytest.approx(after["height"] / 2 * mm_per_px, abs=mm_per_px) for y in ys)
+            assert errors == []
+        finally:
+            browser.close()

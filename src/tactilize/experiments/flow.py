@@ -82,6 +82,12 @@ class Flow:
         """The surface model of a protocol image as shown (:meth:`.Pictures.surface`)."""
         return self.pictures.surface(image_id)
 
+    def _image_doc(self, image_id: str) -> dict:
+        # The size goes with the URL: the page lays the picture's box out before it loads.
+        (w_px, h_px), (w_mm, h_mm) = self.pictures.size_px(image_id), self.pictures.display_mm(image_id)
+        return {"id": image_id, "label": self.design.image(image_id).label, "url": f"images/{image_id}.png",
+                "width_px": w_px, "height_px": h_px, "width_mm": w_mm, "height_mm": h_mm}
+
     def profile(self, condition_id: str):
         return self._profiles[condition_id]
 
@@ -331,8 +337,7 @@ class Flow:
         doc["trial"] = {
             "index": t.index,
             "number": t.index + 1,
-            "images": [{"id": iid, "label": self.design.image(iid).label,
-                        "url": f"images/{iid}.png"} for iid in t.image_ids],
+            "images": [self._image_doc(iid) for iid in t.image_ids],
             "questions": [q.to_dict() for q in self.design.questions],
             "min_stroke_s": self.design.min_stroke_s,
             "require_every_image": self.design.require_every_image,

@@ -16,7 +16,7 @@ from ..image import load_image
 from ..mapping import DriveFeatures, FeaturesForDrive
 from ..surface import SurfaceModel, surface_model
 from .design import Design, ImageSpec
-from .stimuli import PITCH_M, render_array, render_png
+from .stimuli import PITCH_M, SIZE_PX, render_array, render_png
 
 __all__ = ["Pictures"]
 
@@ -33,6 +33,7 @@ class Pictures:
         self.design = design
         self.features: dict[str, FeaturesForDrive] = {im.id: self._features(im) for im in design.images}
         self._surfaces: dict[str, SurfaceModel] = {}
+        self._sizes: dict[str, tuple[int, int]] = {}
         self._lock = threading.Lock()
 
     def resolve(self, im: ImageSpec) -> ImageSpec:
@@ -52,6 +53,32 @@ class Pictures:
     def png(self, image_id: str) -> bytes:
         """The picture shown, as PNG bytes; raises the design's error for an unknown id."""
         return render_png(self.resolve(self.design.image(image_id)))
+
+    def size_px(self, image_id: str) -> tuple[int, int]:
+        """The picture's (width, height) in pixels as served, known before it is sent.
+
+        The page reserves the picture's box from it, so the surface does not move
+        under a stroke begun before the picture loaded.  A file is read for its
+        header only; raises the design's error for an unknown id.
+        """
+        size = self._sizes.get(image_id)
+        if size is None:
+            im = self.resolve(self.design.image(image_id))
+            if im.path:
+                from PIL import Image
+
+                with Image.open(im.path) as pic:
+                    size = (int(pic.width), int(pic.height))
+            else:
+                size = (SIZE_PX[1], SIZE_PX[0])
+            self._sizes[image_id] = size
+        return size
+
+    def display_mm(self, image_id: str) -> tuple[float, float]:
+        """The picture's (width, height) on screen [mm]: every picture is shown at
+        :data:`.stimuli.PITCH_M` per pixel (its true size for a stand-in)."""
+        w, h = self.size_px(image_id)
+        return (w * PITCH_M * 1e3, h * PITCH_M * 1e3)
 
     def surface(self, image_id: str) -> SurfaceModel:
         """The surface model of a picture as shown (for a condition whose profile renders

@@ -16,7 +16,7 @@ import numpy as np
 
 from .design import ImageSpec
 
-__all__ = ["PITCH_M", "render_png", "render_array"]
+__all__ = ["PITCH_M", "SIZE_PX", "render_png", "render_array"]
 
 # Rendered at 0.1 mm per pixel: the finest paper image (4217 /m, 0.24 mm) still has
 # more than two pixels per period, and the page scales the picture to true size

@@ -5,7 +5,7 @@
 :func:`create_experiment_app`).  Participant routes (``/experiment/api/...``)::
 
     GET  api/protocol                         title, description, questions (no conditions: blind)
-    GET  api/constants                        the pen page's constants (web/constants.py) and the pictures' pitch
+    GET  api/constants                        the pen page's constants (web/constants.py)
     POST api/sessions        {participant_id, consent, demographics} -> state   (409: ID taken)
     POST api/resume          {participant_id, token?}          -> state   (404: unknown ID;
                              only with the experimenter token: an ID is guessable,
@@ -65,7 +65,6 @@ from .design_toml import load_design
 from .errors import FlowError
 from .flow import Flow
 from .pen_socket import in_store_thread, pump
-from .stimuli import PITCH_M
 from .store import Store
 from .visit import Visit
 
@@ -137,8 +136,8 @@ def experiment_router(flow: Flow | Visit) -> APIRouter:
 
     @router.get("/api/constants")
     def constants() -> dict:
-        # The pen page's, and the pitch the stand-in pictures are drawn at (the page shows them at true size).
-        return {**page_constants(), "picture_mm_per_px": PITCH_M * 1e3}
+        # The pen page's; each picture's size on screen comes with its trial.
+        return page_constants()
 
     # ------------------------------------------------------------ participant API
 

@@ -190,6 +190,7 @@ $("calibrate").addEventListener("click", () => guarded(async () => {
 
 let trial = null, image = null, strokeMs = 0, lastT = null, shownAt = 0;
 let points = [], stroked = new Set();
+let pictureShown = false;  // the picture on screen has loaded: pen input counts
 
 function renderTrial(t) {
   const fresh = !trial || trial.index !== t.index;
@@ -216,17 +217,26 @@ function renderTrial(t) {
 function selectImage(im) {
   image = im;
   document.querySelectorAll("#tabs button").forEach((b) => b.setAttribute("aria-selected", String(b.dataset.image === im.id)));
-  const img = $("texture");
+  const img = $("texture"), c = $("surface");
+  // The box is laid out now, from the size the server sent, not when the picture
+  // arrives: a box that grows on load moves the surface under a stroke begun before,
+  // and its samples would be logged at the wrong picture mm.  True size: the
+  // picture's mm over the calibrated mm per CSS px.
+  const w = im.width_mm / mmPerPx, h = im.height_mm / mmPerPx;
+  img.style.width = `${w}px`; img.style.height = `${h}px`;
+  c.width = Math.round(w); c.height = Math.round(h);
+  c.style.width = `${w}px`; c.style.height = `${h}px`;
+  points = [];
+  draw();
+  // Until this picture is on screen the pen strokes nothing: its input is ignored.
+  pictureShown = false;
+  document.body.dataset.picture = "loading";
   img.onload = () => {
-    // Show the picture at true size: the pitch it is drawn at over the calibrated mm per CSS px.
-    const pitch = constants.picture_mm_per_px;
-    const w = img.naturalWidth * pitch / mmPerPx, h = img.naturalHeight * pitch / mmPerPx;
-    img.style.width = `${w}px`; img.style.height = `${h}px`;
-    const c = $("surface");
-    c.width = Math.round(w); c.height = Math.round(h);
-    c.style.width = `${w}px`; c.style.height = `${h}px`;
-    points = [];
+    if (image !== im) return;  // a tab chosen since: its own load decides
+    pictureShown = true;
+    document.body.dataset.picture = "shown";
   };
+  img.onerror = () => { if (image === im) message("The picture could not be loaded: please reload the page."); };
   img.src = new URL(im.url, api);
 }
 
@@ -481,7 +491,7 @@ const up = () => {
 attachPen(surface, surface, {
   onDown: (ev) => { lastT = ev.timeStamp; points = []; },
   onBatch: (rows) => {
-    if (!pen || !trial || !image) return;
+    if (!pen || !trial || !image || !pictureShown) return;
     const mm = rowsInMm(rows, mmPerPx);
     rows.forEach((r, k) => {
       pen.queue.push({ trial: trial.index, image: image.id, s: mm[k] });
