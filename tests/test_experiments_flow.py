@@ -50,6 +50,14 @@ def test_scripted_participant_completes_the_assessment(tmp_path):
         assert sorted(im["id"] for im in trial["images"]) == [f"image{i}" for i in range(1, 7)]
         png = client.get(f"{API}/{trial['images'][0]['url']}")
         assert png.status_code == 200 and png.content[:8] == b"\x89PNG\r\n\x1a\n"
+        # The page reserves the picture's box from these before it loads: they are the PNG's own.
+        import io
+
+        from PIL import Image
+
+        im0 = trial["images"][0]
+        assert Image.open(io.BytesIO(png.content)).size == (im0["width_px"], im0["height_px"])
+        assert (im0["width_mm"], im0["height_mm"]) == pytest.approx((im0["width_px"] * 0.1, im0["height_px"] * 0.1))
 
         drives = {}
         with client.websocket_connect(f"ws://127.0.0.1/experiment/ws/{token}") as ws:

@@ -209,6 +209,13 @@ function renderTrial(t) {
     b.dataset.image = im.id;
     tabs.append(b);
   });
+  // Every picture of the trial is fetched now, while the server answers: a tab chosen
+  // later (the server may be restarting by then) shows its picture from the cache.
+  $("preload").replaceChildren(...t.images.map((im) => {
+    const pre = document.createElement("img");
+    pre.alt = ""; pre.src = new URL(im.url, api);
+    return pre;
+  }));
   selectImage(t.images[0]);
   openSocket();
   updateSubmit();
