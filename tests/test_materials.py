@@ -415,3 +415,127 @@ def test_a_manifest_material_needs_a_surface_profile(tmp_path):
     assert item.material == "cork" and item.problem is None
     row = analyse_item(item, AnalysisSettings(Profile.preset("paper")))
     assert row["status"] == "error" and "surface profile" in row["error"] and row["material"] == "cork"
+
+
+# ----------------------------------------------------------------- a manifest's relief_mm, batch --material/--relief-mm
+
+
+def _steady_drive_of(path, material_name, relief_rms_m, speed_m_s=0.060):
+    """What every command renders for the picture at ``path`` (50 mm wide), independently of the batch."""
+    from tactilize.image import load_image
+    from tactilize.mapping import Profile
+    from tactilize.maps.texturemap import texture_map
+    from tactilize.surface.rendering import rendering_for
+
+    img = load_image(path, width_mm=50)
+    rendering = rendering_for(Profile.resolve(None), image=img, material=material_name, relief_rms_m=relief_rms_m)
+    return rendering.steady_drive(texture_map(img, sample_px="auto").whole, speed_m_s)
+
+
+def _missing(v) -> bool:
+    return v is None or (isinstance(v, float) and math.isnan(v))
+
+
+def test_a_manifest_relief_mm_column_is_each_rows_relief(tmp_path):
+    pytest.importorskip("pyarrow")
+    from tactilize.catalog import read_catalog
+
+    path = _save(tmp_path, "grain.png", _grains())
+    (tmp_path / "m.csv").write_text(
+        "id,path,width_mm,material,relief_mm\n"
+        "shallow,grain.png,50,cork,0.004\n"
+        "deep,grain.png,50,cork,0.02\n"
+        "typical,grain.png,50,cork,\n"
+        "words,grain.png,50,cork,deep\n"
+        "negative,grain.png,50,cork,-0.01\n")
+    out = tmp_path / "cat"
+    r = CliRunner().invoke(main, ["batch", str(tmp_path / "m.csv"), "--out", str(out), "--workers", "1", "--json"])
+    assert r.exit_code == 0, r.output
+    assert (json.loads(r.output)["ok"], json.loads(r.output)["failed"]) == (3, 2)
+    rows = {row["id"]: row for row in read_catalog(out).to_dict("records")}
+    assert rows["shallow"]["relief_rms_m"] == pytest.approx(0.004e-3)
+    assert rows["deep"]["relief_rms_m"] == pytest.approx(0.02e-3)
+    assert _missing(rows["typical"]["relief_rms_m"]) and rows["typical"]["material"] == "cork"
+    p = "drive_60mm_s_"
+    for key, rms in (("shallow", 0.004e-3), ("deep", 0.02e-3), ("typical", None)):
+        drv = _steady_drive_of(path, "cork", rms)
+        assert rows[key][p + "pulse_frequency_hz"] == pytest.approx(drv.pulse_frequency_hz)
+        assert rows[key][p + "strength"] == pytest.approx(drv.strength)
+    # The relief is heard: five times deeper plays stronger.
+    assert rows["deep"][p + "strength"] > rows["shallow"][p + "strength"]
+    for key, shown in (("words", "'deep'"), ("negative", "-0.01")):
+        row = rows[key]
+        assert row["status"] == "error" and "relief_mm" in row["error"] and shown in row["error"], row
+        assert len(row["error"].splitlines()) == 1 and "mm" in row["error"]
+
+
+def test_batch_material_and_relief_mm_apply_to_rows_without_their_own(tmp_path):
+    pytest.importorskip("pyarrow")
+    from tactilize.catalog import Catalog, read_catalog
+
+    path = _save(tmp_path, "grain.png", _grains())
+    (tmp_path / "m.jsonl").write_text("\n".join(json.dumps(r) for r in (
+        {"id": "bare", "path": "grain.png", "width_mm": 50},
+        {"id": "own-relief", "path": "grain.png", "width_mm": 50, "relief_mm": 0.03},
+        {"id": "own-material", "path": "grain.png", "width_mm": 50, "material": "sandpaper-p80", "relief_mm": ""},
+        {"id": "picture", "path": "grain.png", "width_mm": 50, "material": "picture only"},
+    )) + "\n")
+    out = tmp_path / "cat"
+    r = CliRunner().invoke(main, ["batch", str(tmp_path / "m.jsonl"), "--out", str(out), "--workers", "1",
+                                  "--material", "cork", "--relief-mm", "0.005", "--json"])
+    assert r.exit_code == 0, r.output
+    rows = {row["id"]: row for row in read_catalog(out).to_dict("records")}
+    assert {k: v["material"] for k, v in rows.items()} == {
+        "bare": "cork", "own-relief": "cork", "own-material": "sandpaper-p80", "picture": ""}
+    assert {k: v["relief_rms_m"] for k, v in rows.items()} == pytest.approx({
+        "bare": 0.005e-3, "own-relief": 0.03e-3, "own-material": 0.005e-3, "picture": 0.005e-3})
+    cat = Catalog(out)
+    for key, row in rows.items():
+        drv = _steady_drive_of(path, row["material"] or None, row["relief_rms_m"])
+        assert row["status"] == "ok" and row["drive_60mm_s_strength"] == pytest.approx(drv.strength)
+        # What the API and the shop render for the row is what the batch stored.
+        assert cat.drive(cat.get(key), 0.060).strength == pytest.approx(drv.strength)
+
+
+def test_batch_without_relief_has_no_relief_column_and_resumes_an_older_catalog(tmp_path):
+    pytest.importorskip("pyarrow")
+    from tactilize.catalog import AnalysisSettings, read_catalog
+    from tactilize.catalog.stores import META_FILE
+    from tactilize.mapping import Profile
+
+    _save(tmp_path, "grain.png", _grains())
+    out = tmp_path / "cat"
+    args = ["batch", str(tmp_path / "grain.png"), "--out", str(out), "--workers", "1", "--json"]
+    assert CliRunner().invoke(main, args).exit_code == 0
+    assert "relief_rms_m" not in read_catalog(out).columns
+    # A catalogue's settings as written before relief was a column: a rerun resumes it.
+    settings = json.loads((out / META_FILE).read_text())["settings"]
+    assert settings == AnalysisSettings(Profile.resolve(None)).fingerprint()
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 0 and json.loads(r.output)["skipped"] == 1, r.output
+    # Given a relief now, its rows would have a column the catalogue has not: refused, one line.
+    r = CliRunner().invoke(main, [*args, "--relief-mm", "0.01"])
+    assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1 and "relief_rms_m" in r.output, r.output
+
+
+def test_batch_refuses_a_bad_relief_mm_or_material_in_one_line(tmp_path):
+    _save(tmp_path, "grain.png", _grains())
+    base = ["batch", str(tmp_path / "grain.png"), "--out", str(tmp_path / "cat"), "--workers", "1"]
+    for extra, named in ((["--relief-mm", "-1"], "--relief-mm"), (["--relief-mm", "deep"], "--relief-mm"),
+                         (["--relief-mm", "nan"], "--relief-mm"), (["--material", "graniet"], "stone-granite"),
+                         (["--relief-mm", "0.01", "--profile", "paper"], "surface profile")):
+        r = CliRunner().invoke(main, [*base, *extra])
+        assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1 and named in r.output, (extra, r.output)
+    assert not (tmp_path / "cat").exists()
+
+
+def test_a_manifest_relief_needs_a_surface_profile(tmp_path):
+    from tactilize.catalog import AnalysisSettings, analyse_item, discover
+    from tactilize.mapping import Profile
+
+    _save(tmp_path, "grain.png", _grains())
+    (tmp_path / "m.jsonl").write_text(json.dumps({"path": "grain.png", "relief_mm": "0.01"}) + "\n")
+    (item,) = discover(tmp_path / "m.jsonl")
+    assert item.relief_rms_m == pytest.approx(1e-5) and item.material is None and item.problem is None
+    row = analyse_item(item, AnalysisSettings(Profile.preset("paper"), relief_column=True))
+    assert row["status"] == "error" and "surface profile" in row["error"] and row["relief_rms_m"] == item.relief_rms_m

@@ -83,6 +83,10 @@ class AnalysisSettings:
         periods of the image's texture (``texture_map(sample_px="auto")``): a
         quarter of the tile FFT work, local frequencies within 1 % of the
         whole-tile values on gratings of 4.5 to 31 pixels (docs/batch.md).
+    relief_column : bool
+        Rows have a ``relief_rms_m`` column [m] (the relief given to the picture, None when
+        none was): set when a picture of the batch is given one.  Only then is it part of
+        the fingerprint, so that a catalog written before relief was a column resumes.
     """
 
     profile: Profile = field(default_factory=lambda: Profile.preset(DEFAULT_PRESET))
@@ -91,6 +95,7 @@ class AnalysisSettings:
     analysis_pitch_m: float | None = None
     max_pixels: int = DEFAULT_MAX_PIXELS
     full_map: bool = False
+    relief_column: bool = False
 
     def __post_init__(self) -> None:
         speeds = tuple(float(v) for v in self.speeds_m_s)
@@ -106,22 +111,22 @@ class AnalysisSettings:
 
     def fingerprint(self) -> dict[str, Any]:
         """What a catalog's rows depend on, versions included; a rerun must match it to resume."""
+        doc: dict[str, Any] = {
+            "format": FORMAT_VERSION,
+            "tactilize": __version__,
+            "analysis": ANALYSIS_VERSION,
+            "profile": self.profile.to_dict(),
+            "speeds_m_s": list(self.speeds_m_s),
+            "dpi": self.dpi,
+            "analysis_pitch_m": self.analysis_pitch_m,
+            "max_pixels": self.max_pixels,
+            "full_map": self.full_map,
+        }
+        if self.relief_column:
+            # A catalog's columns are fixed when it is made (an SQL table cannot take one more).
+            doc["relief_rms_m"] = True
         # Through JSON so that it compares equal to the copy read back from a store.
-        return json.loads(
-            json.dumps(
-                {
-                    "format": FORMAT_VERSION,
-                    "tactilize": __version__,
-                    "analysis": ANALYSIS_VERSION,
-                    "profile": self.profile.to_dict(),
-                    "speeds_m_s": list(self.speeds_m_s),
-                    "dpi": self.dpi,
-                    "analysis_pitch_m": self.analysis_pitch_m,
-                    "max_pixels": self.max_pixels,
-                    "full_map": self.full_map,
-                }
-            )
-        )
+        return json.loads(json.dumps(doc))
 
 
 def speed_label(speed_m_s: float) -> str:
@@ -131,7 +136,7 @@ def speed_label(speed_m_s: float) -> str:
 
 def base_row(item: CatalogItem, settings: AnalysisSettings) -> dict[str, Any]:
     """The columns every row has, ok or not, before its status is known."""
-    return {
+    row: dict[str, Any] = {
         "id": item.id,
         "path": item.path,
         "status": "ok",
@@ -141,6 +146,9 @@ def base_row(item: CatalogItem, settings: AnalysisSettings) -> dict[str, Any]:
         "tactilize_version": __version__,
         "analysis_version": ANALYSIS_VERSION,
     }
+    if settings.relief_column:
+        row["relief_rms_m"] = item.relief_rms_m
+    return row
 
 
 def _load(item: CatalogItem, settings: AnalysisSettings) -> TextureImage:
@@ -154,7 +162,8 @@ def _load(item: CatalogItem, settings: AnalysisSettings) -> TextureImage:
     )
 
 
-def _row_from_image(img: TextureImage, settings: AnalysisSettings, material: str | None = None) -> dict[str, Any]:
+def _row_from_image(img: TextureImage, settings: AnalysisSettings, material: str | None = None,
+                    relief_rms_m: float | None = None) -> dict[str, Any]:
     from ..maps.texturemap import texture_map
 
     tmap = texture_map(img, sample_px=None if settings.full_map else "auto")
@@ -173,11 +182,13 @@ def _row_from_image(img: TextureImage, settings: AnalysisSettings, material: str
             row[key] = value
     for key, value in tmap.summary().items():
         row[f"map_{key}"] = value
-    rendering = rendering_for(settings.profile, image=img, material=material)  # made once per picture
-    if material is not None and not rendering.reads_surface:
-        # A rendering that does not read the picture as a surface would ignore the material.
-        raise CatalogError(material, f"a material needs a surface profile (this one's rendering is "
-                                     f"{rendering.name!r})")
+    # Made once per picture.
+    rendering = rendering_for(settings.profile, image=img, material=material, relief_rms_m=relief_rms_m)
+    if (material is not None or relief_rms_m is not None) and not rendering.reads_surface:
+        # A rendering that does not read the picture as a surface would ignore the material and relief.
+        what = "a material" if material is not None else "a relief"
+        raise CatalogError(material or "relief_mm", f"{what} needs a surface profile (this one's rendering is "
+                                                    f"{rendering.name!r})")
     for speed in settings.speeds_m_s:
         # What every command renders for this picture stroked steadily at this speed.
         drv = rendering.steady_drive(feat, speed)
@@ -201,7 +212,8 @@ def analyse_item(item: CatalogItem, settings: AnalysisSettings) -> dict[str, Any
     dict
         ``id``, ``path``, ``status`` (``"ok"`` or ``"error"``), ``error`` (the
         reason, None when ok), ``profile``, ``material`` (the manifest's, empty for the
-        picture alone), ``tactilize_version``,
+        picture alone), ``relief_rms_m`` [m] (with ``settings.relief_column``: the relief
+        given, None when none was), ``tactilize_version``,
         ``analysis_version``, ``seconds`` (analysis time [s]) and, when ok, the
         image, feature, ``map_*`` and ``drive_<speed>mm_s_*`` columns.
     """
@@ -210,7 +222,7 @@ def analyse_item(item: CatalogItem, settings: AnalysisSettings) -> dict[str, Any
     try:
         if item.problem:
             raise ImageError(item.path or item.id, item.problem)
-        row.update(_row_from_image(_load(item, settings), settings, item.material))
+        row.update(_row_from_image(_load(item, settings), settings, item.material, item.relief_rms_m))
     except TactilizeError as exc:
         row.update(status="error", error=exc.fault)
     except MemoryError:
@@ -239,7 +251,8 @@ def catalog_columns(settings: AnalysisSettings) -> list[tuple[str, str]]:
     y, x = np.mgrid[0:64, 0:64]
     grating = (0.5 + 0.4 * np.cos(2 * np.pi * (x / 8.0 + y / 16.0))).astype(np.float32)
     probe = _row_from_image(load_image(grating, dpi=96.0), settings)
-    head = base_row(CatalogItem("", ""), settings)
+    # A relief given, so that its column's kind is a float's.
+    head = base_row(CatalogItem("", "", relief_rms_m=1e-5), settings)
     cols = [(key, _KIND_OF[type(value)] if value is not None else "str") for key, value in head.items()]
     cols.append(("seconds", "float"))
     for key, value in probe.items():

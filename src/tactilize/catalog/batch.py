@@ -22,9 +22,10 @@ from typing import Any
 
 from ..errors import CatalogError
 from ..mapping import Profile
+from ..materials import MaterialChoice
 from .analysis import DEFAULT_SPEEDS_M_S, AnalysisSettings, catalog_columns
 from .runners import Feeder, default_workers, run_dask, run_processes, run_serial
-from .sources import CatalogItem, discover
+from .sources import CatalogItem, discover, with_defaults
 from .stores import is_sql_url, open_store, safe_url
 
 __all__ = ["BatchSummary", "ProgressCallback", "TerminalProgress", "run_batch"]
@@ -84,6 +85,8 @@ def run_batch(
     dpi: float | None = None,
     analysis_pitch_m: float | None = None,
     full_map: bool = False,
+    material: str | None = None,
+    relief_rms_m: float | None = None,
     workers: int | None = None,
     scheduler: Any = None,
     scheduler_timeout_s: float = 10.0,
@@ -116,6 +119,12 @@ def run_batch(
     full_map : bool
         Measure every texture-map tile whole rather than on its centred
         half-size square (see :class:`AnalysisSettings`).
+    material : str, optional
+        Library name of what every picture without a manifest ``material`` of its own
+        is of (None: the picture alone).
+    relief_rms_m : float, optional
+        Relief RMS [m] of every picture without a manifest ``relief_mm`` of its own.
+        Rows have a ``relief_rms_m`` column when a picture is given one.
     workers : int, optional
         Local processes (default: the cores this process may use).  1 runs in
         this process.  Ignored with ``scheduler``.
@@ -149,13 +158,20 @@ def run_batch(
         (resuming it would mix rows computed two ways).
     CatalogError
         Unusable source, output, settings mismatch on resume, or scheduler.
+    MaterialError
+        ``material`` is not in the library, or ``relief_rms_m`` is not a positive number.
     ProfileError
         Unknown profile.
     """
     t0 = time.perf_counter()
     prof = profile if isinstance(profile, Profile) else Profile.resolve(None if profile is None else os.fspath(profile))
-    settings = AnalysisSettings(prof, tuple(speeds_m_s), dpi, analysis_pitch_m, full_map=full_map)
-    items = list(source) if not isinstance(source, (str, os.PathLike)) else discover(source)
+    choice = MaterialChoice.of(material, relief_rms_m)
+    if isinstance(source, (str, os.PathLike)):
+        items = discover(source, material=choice.name, relief_rms_m=choice.relief_rms_m)
+    else:
+        items = with_defaults(list(source), choice.name, choice.relief_rms_m)
+    settings = AnalysisSettings(prof, tuple(speeds_m_s), dpi, analysis_pitch_m, full_map=full_map,
+                                relief_column=any(it.relief_rms_m is not None for it in items))
     ids = [it.id for it in items]
     if len(set(ids)) != len(ids):
         raise CatalogError("<items>", "ids must be unique")

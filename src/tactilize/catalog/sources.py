@@ -12,14 +12,14 @@ import glob
 import json
 import math
 import os
-from collections.abc import Iterable, Iterator
-from dataclasses import dataclass
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from ..errors import CatalogError, MaterialError, path_fault, special_file_fault
+from ..errors import CatalogError, MaterialError, TactilizeError, check_finite, path_fault, special_file_fault
 
-__all__ = ["IMAGE_SUFFIXES", "CatalogItem", "discover"]
+__all__ = ["IMAGE_SUFFIXES", "MAX_RELIEF_MM", "CatalogItem", "check_relief_mm", "discover", "with_defaults"]
 
 #: File name endings taken as images when the source is a folder (case-insensitive).
 IMAGE_SUFFIXES = frozenset(
@@ -28,6 +28,22 @@ IMAGE_SUFFIXES = frozenset(
 
 # Manifest columns that may hold the image's path, in order of preference.
 _PATH_KEYS = ("path", "file", "image", "filename")
+
+#: Largest relief RMS [mm] a picture may be given (``--relief-mm``, a manifest's ``relief_mm``):
+#: a texture stroked by a pen tip, not a landscape.
+MAX_RELIEF_MM = 10.0
+
+
+def check_relief_mm(value: object, source: str, error: type[TactilizeError] = TactilizeError) -> float:
+    """A relief RMS in millimetres [mm], as ``--relief-mm`` and a manifest's ``relief_mm`` take it:
+    a positive finite number, at most :data:`MAX_RELIEF_MM`.
+
+    Raises
+    ------
+    TactilizeError
+        Of type ``error``, naming ``source``: anything else (a string, a bool, NaN...).
+    """
+    return check_finite(value, source, error=error, above=0.0, maximum=MAX_RELIEF_MM, unit="mm")
 
 
 @dataclass(frozen=True)
@@ -53,6 +69,10 @@ class CatalogItem:
         What the picture is of, from a manifest's ``material`` column: a library name
         (:mod:`tactilize.materials`), or the cell as written when it names none (then
         ``problem`` says so); None for the picture alone.
+    relief_rms_m : float, optional
+        RMS height of the picture's visible relief [m], from a manifest's ``relief_mm``
+        column (or the batch's ``--relief-mm``); None: the material's typical relief, or
+        the picture alone.
     """
 
     id: str
@@ -61,9 +81,19 @@ class CatalogItem:
     dpi: float | None = None
     problem: str | None = None
     material: str | None = None
+    relief_rms_m: float | None = None
 
 
-def discover(source: str | os.PathLike) -> list[CatalogItem]:
+def with_defaults(items: Sequence[CatalogItem], material: str | None = None,
+                  relief_rms_m: float | None = None) -> list[CatalogItem]:
+    """``items`` with ``material`` (a library name) and ``relief_rms_m`` [m] where an item has
+    none of its own (its own value wins)."""
+    return [replace(it, material=material if it.material is None else it.material,
+                    relief_rms_m=relief_rms_m if it.relief_rms_m is None else it.relief_rms_m) for it in items]
+
+
+def discover(source: str | os.PathLike, *, material: str | None = None,
+             relief_rms_m: float | None = None) -> list[CatalogItem]:
     """List the images of a source, sorted by id.
 
     Parameters
@@ -76,10 +106,15 @@ def discover(source: str | os.PathLike) -> list[CatalogItem]:
           to the part of the pattern before its first wildcard;
         * a manifest, ``.csv`` or ``.jsonl``: one image per row with ``path``
           (or ``file``/``image``), and optionally ``id`` (default: the path as
-          written), ``width_mm``, ``dpi`` and ``material`` (a library name; empty
-          or ``picture only``: the picture alone); relative paths are relative to
-          the manifest's folder;
+          written), ``width_mm``, ``dpi``, ``material`` (a library name; ``picture
+          only``: the picture alone) and ``relief_mm`` (the relief RMS [mm], as
+          ``--relief-mm``); relative paths are relative to the manifest's folder;
         * a single image file (its name is its id).
+    material : str, optional
+        Library name of the material of every picture whose manifest cell is absent or
+        empty (every picture of a folder, glob or file).
+    relief_rms_m : float, optional
+        Relief RMS [m] of every picture whose manifest cell is absent or empty.
 
     Returns
     -------
@@ -99,11 +134,11 @@ def discover(source: str | os.PathLike) -> list[CatalogItem]:
         if not items:
             raise CatalogError(text, "folder holds no image files (" + ", ".join(sorted(IMAGE_SUFFIXES)) + ")")
     elif path.is_file() and path.suffix.lower() == ".csv":
-        items = _from_manifest_rows(path, _csv_rows(path))
+        items = _from_manifest_rows(path, _csv_rows(path), material, relief_rms_m)
     elif path.is_file() and path.suffix.lower() in (".jsonl", ".ndjson"):
-        items = _from_manifest_rows(path, _jsonl_rows(path))
+        items = _from_manifest_rows(path, _jsonl_rows(path), material, relief_rms_m)
     elif path.is_file():
-        items = [CatalogItem(path.name, os.path.abspath(path))]
+        items = [CatalogItem(path.name, os.path.abspath(path), material=material, relief_rms_m=relief_rms_m)]
     elif glob.has_magic(text):
         items = _from_glob(text)
         if not items:
@@ -113,6 +148,8 @@ def discover(source: str | os.PathLike) -> list[CatalogItem]:
         if fault not in (None, "file not found"):  # a link loop is not a missing file
             raise CatalogError(text, fault)
         raise CatalogError(text, "not found: give a folder, a glob, or a manifest (.csv, .jsonl)")
+    if not path.is_file():
+        items = with_defaults(items, material, relief_rms_m)
     items.sort(key=lambda it: it.id)
     return items
 
@@ -200,19 +237,40 @@ def _number(value: Any) -> tuple[float | None, str | None]:
     return x, None
 
 
-def _material(value: Any) -> tuple[str | None, str | None]:
-    """Manifest cell -> (library name, the cell as written, or None; problem or None)."""
+def _blank(value: Any) -> bool:
+    return value is None or (isinstance(value, str) and not value.strip())
+
+
+def _relief(value: Any, default: float | None) -> tuple[float | None, str | None]:
+    """Manifest ``relief_mm`` cell -> (relief RMS [m], or ``default`` when blank; problem or None)."""
+    if _blank(value):
+        return default, None
+    if isinstance(value, str):
+        try:
+            value = float(value.strip())
+        except ValueError:
+            pass  # refused below, as written
+    try:
+        return check_relief_mm(value, "relief_mm") * 1e-3, None
+    except TactilizeError as exc:
+        return None, f"manifest relief_mm {exc.fault}"
+
+
+def _material(value: Any, default: str | None = None) -> tuple[str | None, str | None]:
+    """Manifest cell -> (library name, the cell as written, or None; problem or None); a blank
+    cell is ``default``, ``picture only`` is None."""
     from ..materials import MaterialChoice
 
-    if value is None:
-        return None, None
+    if _blank(value):
+        return default, None
     try:
         return MaterialChoice.of(str(value)).name, None
     except MaterialError as exc:
         return str(value).strip(), f"manifest {exc.source}: {exc.fault}"
 
 
-def _from_manifest_rows(manifest: Path, rows: Iterable[tuple[int, dict[str, Any]]]) -> list[CatalogItem]:
+def _from_manifest_rows(manifest: Path, rows: Iterable[tuple[int, dict[str, Any]]], material: str | None = None,
+                        relief_rms_m: float | None = None) -> list[CatalogItem]:
     base = manifest.parent
     items: dict[str, CatalogItem] = {}
     for line, row in rows:
@@ -241,10 +299,13 @@ def _from_manifest_rows(manifest: Path, rows: Iterable[tuple[int, dict[str, Any]
             problems.append(f"manifest dpi {bad_d}")
         if width_mm is not None and dpi is not None:
             problems.append("manifest gives both width_mm and dpi")
-        material, bad_m = _material(row.get("material"))
+        mat, bad_m = _material(row.get("material"), material)
         if bad_m:
             problems.append(bad_m)
-        items[ident] = CatalogItem(ident, full, width_mm, dpi, "; ".join(problems) or None, material)
+        relief, bad_r = _relief(row.get("relief_mm"), relief_rms_m)
+        if bad_r:
+            problems.append(bad_r)
+        items[ident] = CatalogItem(ident, full, width_mm, dpi, "; ".join(problems) or None, mat, relief)
     if not items:
         raise CatalogError(str(manifest), "manifest lists no images")
     if not any(it.path for it in items.values()):

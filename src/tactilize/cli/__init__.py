@@ -274,6 +274,7 @@ def controller_emulator(link: str | None) -> None:
 @click.option("--scheduler", default=None, help="Dask scheduler address (tcp://HOST:PORT): run on that cluster.")
 @click.option("--retry-failed", is_flag=True, help="Analyse again the images whose earlier row is an error.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON summary document at the end.")
+@material_option
 def batch(
     source: str,
     out: str,
@@ -285,22 +286,33 @@ def batch(
     scheduler: str | None,
     retry_failed: bool,
     as_json: bool,
+    material_name: str | None,
+    relief_mm: float | None,
 ) -> None:
-    """Analyse every image of SOURCE (folder, glob, or CSV/JSONL manifest) into a catalog; resumes."""
+    """Analyse every image of SOURCE (folder, glob, or CSV/JSONL manifest) into a catalog; resumes.
+
+    --material and --relief-mm: what every picture is rendered as where its manifest row
+    has no `material` or `relief_mm` of its own."""
     from ..catalog import TerminalProgress, run_batch
     from ..image import METRES_PER_INCH
+    from ..mapping import Profile
 
     if workers is not None and workers < 1:
         raise TactilizeError("--workers", f"must be at least 1, got {workers}")
+    choice = choice_of(material_name, relief_mm)
+    profile = Profile.resolve(profile_name)
+    surface_only(choice, profile)
     bar = TerminalProgress(sys.stderr)
     try:
         summary = run_batch(
             source,
             out,
-            profile=profile_name,
+            profile=profile,
             dpi=dpi,
             analysis_pitch_m=METRES_PER_INCH / analysis_dpi if analysis_dpi else None,
             full_map=full_map,
+            material=choice.name,
+            relief_rms_m=choice.relief_rms_m,
             workers=workers,
             scheduler=scheduler,
             retry_failed=retry_failed,

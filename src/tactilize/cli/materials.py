@@ -28,9 +28,9 @@ def check_relief_mm(ctx: Any, param: Any, value: float | None) -> float | None:
     """The ``--relief-mm`` callback: a positive finite number of millimetres."""
     if value is None:
         return None
-    from ..errors import check_finite
+    from ..catalog.sources import check_relief_mm as check  # the one rule, a manifest's relief_mm's too
 
-    return check_finite(value, "--relief-mm", above=0.0, maximum=10.0, unit="mm")
+    return check(value, "--relief-mm")
 
 
 def material_option(func: Any) -> Any:
