@@ -86,7 +86,7 @@ class AnalysisSettings:
     relief_column : bool
         Rows have a ``relief_rms_m`` column [m] (the relief given to the picture, None when
         none was): set when a picture of the batch is given one.  Only then is it part of
-        the fingerprint, so that a catalog written before relief was a column resumes.
+        the fingerprint, so that a catalog without the column keeps its fingerprint and resumes.
     """
 
     profile: Profile = field(default_factory=lambda: Profile.preset(DEFAULT_PRESET))
