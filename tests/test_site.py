@@ -88,6 +88,21 @@ def test_build_from_a_manifest_passes_material_through(tmp_path):
     assert json.loads((out / "products.json").read_text())[1]["material"] == "fabric-woven"
 
 
+def test_build_from_a_manifest_renders_each_rows_relief(tmp_path):
+    """A manifest's ``relief_mm`` (as ``--relief-mm``) sets the product's relief: the model's relief
+    scale grows with it, linearly, and a row without one keeps its material's typical relief."""
+    (tmp_path / "ph").mkdir()
+    _photo(tmp_path / "ph" / "a.jpg", size=(600, 400))
+    (tmp_path / "m.jsonl").write_text('{"id": "typical", "path": "ph/a.jpg", "material": "cork"}\n'
+                                      '{"id": "given", "path": "ph/a.jpg", "material": "cork", "relief_mm": 0.05}\n'
+                                      '{"id": "twice", "path": "ph/a.jpg", "material": "cork", "relief_mm": 0.1}\n')
+    s = build_site(str(tmp_path / "m.jsonl"), tmp_path / "out")
+    scale = {p["id"]: decode_model((tmp_path / "out" / "models" / f"{p['slug']}.tsf").read_bytes()).header["relief_scale_m"]
+             for p in s.products}
+    assert scale["given"] != scale["typical"]
+    assert scale["twice"] == pytest.approx(2 * scale["given"], rel=1e-9)
+
+
 def _events_along(model, speed_m_s=0.1):
     """A steady stroke across the middle of a model file's surface: the Python renderer's events."""
     from tactilize.pen.replay import replay_stroke

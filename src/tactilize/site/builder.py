@@ -230,8 +230,8 @@ def build_site(source: str, out: str | Path, *, title: str = "Products", model_p
         The source cannot be read, or the output is not a folder that can be written.
     """
     items = discover(source)
-    # discover() has checked each row's material: an unknown name is that product's problem.
-    choices = {it.id: MaterialChoice.of(it.material) for it in items if not it.problem}
+    # discover() has checked each row's material and relief: a bad one is that product's problem.
+    choices = {it.id: MaterialChoice.of(it.material, it.relief_rms_m) for it in items if not it.problem}
     return _build(items, choices, out, title=title, model_px=model_px, photo_px=photo_px,
                   max_model_bytes=max_model_bytes, progress=progress)
 
