@@ -178,7 +178,13 @@ def fired_events(played: Any, stroke: StrokePath, surface: SurfaceLike | None, *
 def _bump_frequencies(times_s: Sequence[float], stroke: StrokePath, surface: SurfaceLike) -> list[float]:
     """Each event's bump frequency [Hz]: 1 / (2 x the time the tip spends above half the bump's
     prominence), read on the profile along the stroke's path at the crest nearest the event's time
-    (an event handed late is a little after its crest)."""
+    (an event handed late is a little after its crest).
+
+    A bump whose crest the path does not cross (the pen stopped on its flank after the prediction
+    had fired it) has no such time: it takes the frequency of the nearest event that has one (0 when
+    none has), so a format does not play it as the lowest sharpness there is."""
+    import warnings
+
     from scipy.signal import peak_widths
 
     from ..surface.bumps import resample_path
@@ -196,10 +202,18 @@ def _bump_frequencies(times_s: Sequence[float], stroke: StrokePath, surface: Sur
         while 0 < i < h.size - 1 and max(h[i - 1], h[i + 1]) > h[i]:
             i = i - 1 if h[i - 1] > h[i + 1] else i + 1
         crest.append(min(max(i, 1), h.size - 2))
-    _, _, left, right = peak_widths(h, np.array(crest), rel_height=0.5)
+    with warnings.catch_warnings():  # (a crest not crossed has no prominence nor width: handled below)
+        warnings.filterwarnings("ignore", message="some peaks have a (width|prominence) of 0")
+        _, _, left, right = peak_widths(h, np.array(crest), rel_height=0.5)
     grid = np.arange(h.size)
     half_s = np.interp(right, grid, t) - np.interp(left, grid, t)
-    return [1.0 / (2.0 * d) if d > 0 else 0.0 for d in half_s.tolist()]
+    freq = np.array([1.0 / (2.0 * d) if d > 0 else 0.0 for d in half_s.tolist()])
+    read = np.flatnonzero(freq > 0)
+    if read.size and read.size < freq.size:
+        ts = np.asarray(times_s, dtype=float)
+        for k in np.flatnonzero(freq <= 0).tolist():
+            freq[k] = freq[read[np.argmin(np.abs(ts[read] - ts[k]))]]
+    return freq.tolist()
 
 
 def close_groups(items: Sequence[_Timed], min_interval_s: float) -> list[list[_Timed]]:
