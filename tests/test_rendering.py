@@ -189,33 +189,11 @@ def name_readers(monkeypatch):
     return readers
 
 
-_PROTOCOL = """
-name = "every-preset"
-version = "1"
-title = "Every preset"
-description = "Stroke the picture."
-base_profile = "{preset}"
-repetitions = 1
-trial_unit = "condition"
-min_stroke_s = 0.0
-require_every_image = false
+def _protocol(preset):
+    """test_experiments_feel's one-picture protocol on ``preset``."""
+    from test_experiments_feel import SURFACE_PROTOCOL
 
-[[images]]
-id = "grating"
-label = "Grating"
-texture = "grating"
-spatial_frequency_per_m = 400.0
-spectral_intensity = 0.9
-
-[[conditions]]
-id = "A"
-label = "the preset"
-
-[[questions]]
-id = "match"
-text = "How well did the touch match the picture?"
-anchors = {{ 1 = "not at all", 7 = "perfectly" }}
-"""
+    return SURFACE_PROTOCOL.replace('base_profile = "surface"', f'base_profile = "{preset}"')
 
 
 def _logged_stroke(tmp_path, preset):
@@ -226,7 +204,7 @@ def _logged_stroke(tmp_path, preset):
     from tactilize.experiments.store import Store
 
     path = tmp_path / f"{preset}.toml"
-    path.write_text(_PROTOCOL.format(preset=preset))
+    path.write_text(_protocol(preset))
     db = tmp_path / f"{preset}.sqlite3"
     flow = Flow(load_protocol(str(path)), Store(f"sqlite:///{db}"))
     token = flow.start("P1", True)["session"]
