@@ -254,18 +254,7 @@ class SteadyTrain:
                 self._last = (e.t_s, k)
 
 
-class _SteadyDriveOfStraight:
-    """:meth:`Rendering.steady_drive` for both renderings: the straight stroke's Drive."""
-
-    def straight(self, features: Any, speed_m_s: float, direction_rad: float | None = None,
-                 pressure: float | None = None) -> Straight:
-        raise NotImplementedError
-
-    def steady_drive(self, features: Any, speed_m_s: float, direction_rad: float | None = None) -> Drive:
-        return self.straight(features, speed_m_s, direction_rad).drive
-
-
-class SteadyRendering(_SteadyDriveOfStraight):
+class SteadyRendering:
     """The profile's laws: one Drive from the features under the pen and the stroke's speed."""
 
     name = "steady"
@@ -302,6 +291,10 @@ class SteadyRendering(_SteadyDriveOfStraight):
         rate = 0.0 if drive.is_off else drive.pulse_frequency_hz
         return Straight(drive, events, rate, interval_cv(drive), drive.strength, len(events), drive.clamped)
 
+    def steady_drive(self, features: Any, speed_m_s: float, direction_rad: float | None = None) -> Drive:
+        """:meth:`straight`'s Drive, the law's, without the train it would lay out."""
+        return self.profile.drive(features, speed_m_s, direction_rad)
+
     def sample_drives(self, features: Any, states: Sequence[SampleState], frame_drive: Drive | None) -> list[Drive]:
         """The law at each sample's state: a steady frame's drive is the law at the batch's last state,
         so the last sample takes ``frame_drive`` when there is one."""
@@ -320,7 +313,7 @@ SAME_CV = 0.005
 SAME_STRENGTH = 0.01
 
 
-class SurfaceRendering(_SteadyDriveOfStraight):
+class SurfaceRendering:
     """A pulse per bump the stylus tip crosses, predicted ahead (:class:`~.stroke.SurfaceStroke`);
     the operating point is the equivalent Drive of the last :data:`~.equivalent.WINDOW_S`."""
 
@@ -372,6 +365,10 @@ class SurfaceRendering(_SteadyDriveOfStraight):
         drive, events, stats = surface_stroke_drive(self.surface, self.profile, speed_m_s, direction_rad, pressure)
         return Straight(drive, tuple(events), stats.rate_hz, stats.interval_cv, stats.strength, stats.pulses,
                         stats.clamped)
+
+    def steady_drive(self, features: Any, speed_m_s: float, direction_rad: float | None = None) -> Drive:
+        """:meth:`straight`'s Drive."""
+        return self.straight(features, speed_m_s, direction_rad).drive
 
     def sample_drives(self, features: Any, states: Sequence[SampleState], frame_drive: Drive | None) -> list[Drive]:
         """The frame's drive at every sample: the operating point is the window's, one per batch
